@@ -10,6 +10,7 @@ root=$PWD
 apt_pkgs=(
   "clang-14:/usr/bin/clang++-14"
   "libfuzzer-14-dev:/usr/lib/llvm-14/lib/libFuzzer.a"
+  "libclang-rt-14-dev:/usr/lib/llvm-14/lib/clang/14.0.6/lib/linux/libclang_rt.fuzzer-x86_64.a"
   "g++-arm-linux-gnueabi:/usr/bin/arm-linux-gnueabi-g++"
   "qemu-user:/usr/bin/qemu-arm"
   "graphviz:/usr/bin/dot"

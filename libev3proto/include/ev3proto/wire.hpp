@@ -1,0 +1,572 @@
+/// @file wire.hpp
+/// @brief Wire format v1: decode and encode datagrams (docs/protocol.md is normative).
+///
+/// Header-only, C++17, no exceptions, no heap, no I/O, no mutable globals. decode() never reads
+/// outside the datagram it is given; encode() never writes more than the caller's capacity.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <cstring>
+#include <optional>
+#include <string_view>
+#include <type_traits>
+
+#include "messages.hpp"
+
+namespace ev3proto {
+
+/// Most bytes a datagram may have.
+inline constexpr std::size_t kMaxDatagram = 4096;
+
+/// Why a datagram (or a message to encode) is rejected; `ok` when it is not.
+/// The order of the enumerators has no meaning; docs/protocol.md fixes the order of the checks.
+enum class Reason : std::uint8_t {
+  ok = 0,             ///< Accepted.
+  empty,              ///< "empty": no bytes at all.
+  too_long,           ///< "too long": more than 4096 bytes (or more than the caller's buffer).
+  too_few_fields,     ///< "too few fields": a header field or a required param is missing.
+  bad_number,         ///< "bad number": not a canonical decimal number.
+  out_of_range,       ///< "out of range": a number above its maximum, type 0, or not a state.
+  unknown_type,       ///< "unknown type": a type in 1..255 the table does not define.
+  bad_escape,         ///< "bad escape": malformed or non-canonical %XX escape.
+  non_printable_byte, ///< "non-printable byte": a raw param byte outside 0x20..0x7E.
+  too_many_params,    ///< "too many params": more than 32 params or than the type's max.
+};
+
+/// The reason's name exactly as docs/protocol.md spells it ("bad escape"); "ok" for Reason::ok and
+/// "" for a value that is not an enumerator.
+constexpr std::string_view to_string(Reason r) noexcept {
+  switch (r) {
+    case Reason::ok: return "ok";
+    case Reason::empty: return "empty";
+    case Reason::too_long: return "too long";
+    case Reason::too_few_fields: return "too few fields";
+    case Reason::bad_number: return "bad number";
+    case Reason::out_of_range: return "out of range";
+    case Reason::unknown_type: return "unknown type";
+    case Reason::bad_escape: return "bad escape";
+    case Reason::non_printable_byte: return "non-printable byte";
+    case Reason::too_many_params: return "too many params";
+  }
+  return {};
+}
+
+/// Field index of the sender (rejections carry one of these, or kFieldParam0 + i for param i).
+inline constexpr std::uint8_t kFieldSender = 0;
+/// Field index of the receiver.
+inline constexpr std::uint8_t kFieldReceiver = 1;
+/// Field index of the msgid.
+inline constexpr std::uint8_t kFieldMsgid = 2;
+/// Field index of the type.
+inline constexpr std::uint8_t kFieldType = 3;
+/// Field index of the first param; param i is kFieldParam0 + i.
+inline constexpr std::uint8_t kFieldParam0 = 4;
+
+/// Outcome of decode(): Reason::ok, or the first problem and the field it is in.
+struct DecodeResult {
+  Reason reason = Reason::ok; ///< Reason::ok when the datagram was accepted.
+  std::uint8_t field = 0;     ///< Field index of the problem (0 when accepted).
+
+  /// True when the datagram was accepted.
+  constexpr bool ok() const noexcept { return reason == Reason::ok; }
+  /// True when the datagram was accepted.
+  constexpr explicit operator bool() const noexcept { return ok(); }
+  /// Field-by-field equality.
+  friend constexpr bool operator==(DecodeResult a, DecodeResult b) noexcept {
+    return a.reason == b.reason && a.field == b.field;
+  }
+  /// Field-by-field inequality.
+  friend constexpr bool operator!=(DecodeResult a, DecodeResult b) noexcept { return !(a == b); }
+};
+
+/// Outcome of encode(): the number of bytes written, or why nothing usable was written.
+struct EncodeResult {
+  std::size_t size = 0;       ///< Bytes written when ok(); 0 otherwise.
+  Reason reason = Reason::ok; ///< Reason::ok when the message was encoded.
+  std::uint8_t field = 0;     ///< Field index of the problem, as decode() would report it.
+
+  /// True when the message was encoded.
+  constexpr bool ok() const noexcept { return reason == Reason::ok; }
+  /// True when the message was encoded.
+  constexpr explicit operator bool() const noexcept { return ok(); }
+};
+
+class Message;
+inline DecodeResult decode(std::string_view datagram, Message& out) noexcept;
+
+/// A decoded (or to-be-encoded) message: header fields plus up to 32 params, stored unescaped in the
+/// message's own fixed buffer. Self-contained and trivially copyable (no pointers into the datagram).
+/// Construction does not clear the 4 KiB buffer; only the bytes of the params present are meaningful.
+class Message {
+ public:
+  /// Bytes available for the unescaped values of all params together.
+  static constexpr std::size_t kCapacity = kMaxDatagram;
+
+  std::uint16_t sender = 0;      ///< Sender id (0..65535).
+  std::uint16_t receiver = 0;    ///< Receiver id; 0 = broadcast, 1 = the master.
+  std::uint32_t msgid = 0;       ///< Per-sender message id.
+  MsgType type = MsgType::PING;  ///< Message type (may hold an undefined value; encode() refuses it).
+
+  /// An empty PING from 0 to 0 with msgid 0 and no params.
+  Message() noexcept {}  // NOLINT: deliberately leaves data_ and ends_ uninitialised (performance)
+  /// A message with the given header and no params.
+  Message(std::uint16_t from, std::uint16_t to, std::uint32_t id, MsgType t) noexcept
+      : sender(from), receiver(to), msgid(id), type(t) {}
+
+  /// Number of params.
+  std::size_t param_count() const noexcept { return count_; }
+
+  /// The unescaped value of param @p i; empty if @p i >= param_count().
+  std::string_view param(std::size_t i) const noexcept {
+    if (i >= count_) return {};
+    const std::size_t begin = i == 0 ? 0u : ends_[i - 1];
+    return std::string_view(data_ + begin, ends_[i] - begin);
+  }
+
+  /// Total bytes used by the unescaped param values.
+  std::size_t params_size() const noexcept { return count_ == 0 ? 0u : ends_[count_ - 1u]; }
+
+  /// Removes all params (the header is kept).
+  void clear_params() noexcept { count_ = 0; }
+
+  /// Appends a param (any bytes; escaping happens in encode()). Returns false, changing nothing, if
+  /// the message already has 32 params or the buffer has no room for @p value.
+  bool add_param(std::string_view value) noexcept {
+    const std::size_t used = params_size();
+    if (count_ >= kMaxParams || value.size() > kCapacity - used) return false;
+    if (!value.empty()) std::memcpy(data_ + used, value.data(), value.size());
+    ends_[count_++] = static_cast<std::uint16_t>(used + value.size());
+    return true;
+  }
+
+  /// Appends a number param in canonical decimal. Returns false as add_param(std::string_view).
+  bool add_param_u32(std::uint32_t value) noexcept {
+    char tmp[10];
+    std::size_t n = 0;
+    do {
+      tmp[n++] = static_cast<char>('0' + value % 10u);
+      value /= 10u;
+    } while (value != 0);
+    char digits[10];
+    for (std::size_t k = 0; k < n; ++k) digits[k] = tmp[n - 1u - k];
+    return add_param(std::string_view(digits, n));
+  }
+
+  /// Appends an agent state ("WORKING"). Returns false as add_param(std::string_view).
+  bool add_param_state(AgentState s) noexcept { return add_param(to_string(s)); }
+
+  /// Param @p i as a canonical number 0..4294967295, or nullopt if it is missing or not one.
+  std::optional<std::uint32_t> param_u32(std::size_t i) const noexcept;
+  /// Param @p i as a canonical number 0..65535, or nullopt if it is missing or not one.
+  std::optional<std::uint16_t> param_u16(std::size_t i) const noexcept;
+  /// Param @p i as an agent state, or nullopt if it is missing or not one.
+  std::optional<AgentState> param_state(std::size_t i) const noexcept;
+
+  /// Equal header fields and equal param values (the unused part of the buffer is ignored).
+  friend bool operator==(const Message& a, const Message& b) noexcept {
+    if (a.sender != b.sender || a.receiver != b.receiver || a.msgid != b.msgid || a.type != b.type ||
+        a.count_ != b.count_)
+      return false;
+    for (std::size_t i = 0; i < a.count_; ++i)
+      if (a.ends_[i] != b.ends_[i]) return false;
+    const std::size_t n = a.params_size();
+    return n == 0 || std::memcmp(a.data_, b.data_, n) == 0;
+  }
+  /// Negation of operator==.
+  friend bool operator!=(const Message& a, const Message& b) noexcept { return !(a == b); }
+
+ private:
+  friend DecodeResult decode(std::string_view datagram, Message& out) noexcept;
+
+  std::uint8_t count_ = 0;        // number of params
+  std::uint16_t ends_[kMaxParams]; // end offset of param i in data_
+  char data_[kCapacity];          // unescaped values, back to back
+};
+
+static_assert(std::is_trivially_copyable<Message>::value, "Message must stay trivially copyable");
+
+namespace detail {
+
+/// Value of an upper-case hex digit, or -1 (lower-case is not canonical and not accepted).
+constexpr int upper_hex_value(unsigned char c) noexcept {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  return -1;
+}
+
+/// True for a byte that a param must carry as a %XX escape: ':' '%' and bytes outside 0x20..0x7E.
+constexpr bool must_escape(unsigned char c) noexcept {
+  return c < 0x20 || c > 0x7E || c == ':' || c == '%';
+}
+
+/// Checks that [p, e) is a canonical decimal number no greater than @p max.
+/// Returns ok, bad_number or out_of_range; stores the value in @p value when ok.
+constexpr Reason parse_number(const char* p, const char* e, std::uint32_t max,
+                              std::uint32_t& value) noexcept {
+  const std::size_t n = static_cast<std::size_t>(e - p);
+  if (n == 0) return Reason::bad_number;
+  if (n > 1 && *p == '0') return Reason::bad_number;
+  std::uint64_t v = 0;
+  for (std::size_t k = 0; k < n; ++k) {
+    const unsigned d = static_cast<unsigned>(static_cast<unsigned char>(p[k])) - unsigned{'0'};
+    if (d > 9u) return Reason::bad_number;
+    if (k < 11) v = v * 10u + d;  // 11 digits without a leading zero already exceed any maximum
+  }
+  if (v > max) return Reason::out_of_range;
+  value = static_cast<std::uint32_t>(v);
+  return Reason::ok;
+}
+
+/// Checks a param's unescaped value against its kind (text always passes).
+constexpr Reason check_kind(ParamKind kind, std::string_view v) noexcept {
+  std::uint32_t n = 0;
+  AgentState s = AgentState::IDLE;
+  switch (kind) {
+    case ParamKind::text: return Reason::ok;
+    case ParamKind::u16: return parse_number(v.data(), v.data() + v.size(), 0xFFFFu, n);
+    case ParamKind::u32: return parse_number(v.data(), v.data() + v.size(), 0xFFFFFFFFu, n);
+    case ParamKind::state: return parse_state(v, s) ? Reason::ok : Reason::out_of_range;
+  }
+  return Reason::ok;
+}
+
+/// Number of decimal digits of @p v.
+constexpr std::size_t decimal_digits(std::uint32_t v) noexcept {
+  std::size_t n = 1;
+  while (v >= 10u) {
+    v /= 10u;
+    ++n;
+  }
+  return n;
+}
+
+/// Writes @p v in decimal at @p out (which has room for decimal_digits(v) bytes); returns the end.
+inline char* write_decimal(char* out, std::uint32_t v) noexcept {
+  const std::size_t n = decimal_digits(v);
+  char* p = out + n;
+  do {
+    *--p = static_cast<char>('0' + v % 10u);
+    v /= 10u;
+  } while (v != 0);
+  return out + n;
+}
+
+/// Machine word used by the SWAR scan: 8 bytes on 64-bit hosts, 4 on the EV3 (ARMv5TE).
+using Word = std::size_t;
+/// 0x0101...01 in a Word.
+inline constexpr Word kOnes = ~Word{0} / 0xFFu;
+/// 0x8080...80 in a Word.
+inline constexpr Word kHighs = kOnes * 0x80u;
+
+/// High bit set in (at least) the lowest byte of @p x that must not be copied as-is into a param:
+/// below 0x20, above 0x7E, ':' or '%'. Zero when all bytes are plain. Bytes above the lowest flagged
+/// one may be flagged falsely (borrows), never those below it.
+constexpr Word special_bytes(Word x) noexcept {
+  const Word below = (x - kOnes * 0x20u) & ~x;       // byte < 0x20 (or >= 0x80, masked below)
+  const Word above = (x + kOnes * 0x01u) | x;        // byte >= 0x7F
+  const Word c = x ^ (kOnes * 0x3Au);
+  const Word colon = (c - kOnes) & ~c;               // byte == ':'
+  const Word q = x ^ (kOnes * 0x25u);
+  const Word percent = (q - kOnes) & ~q;             // byte == '%'
+  return (below | above | colon | percent) & kHighs;
+}
+
+/// Index of the lowest flagged byte of a non-zero special_bytes() result (little-endian), or 0 on
+/// big-endian hosts (the caller then takes the byte-by-byte path).
+inline std::size_t first_flagged(Word m) noexcept {
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  if constexpr (sizeof(Word) == sizeof(unsigned long long)) {
+    return static_cast<std::size_t>(__builtin_ctzll(static_cast<unsigned long long>(m))) / 8u;
+  } else {
+    return static_cast<std::size_t>(__builtin_ctz(static_cast<unsigned>(m))) / 8u;
+  }
+#else
+  (void)m;
+  return 0;
+#endif
+}
+
+/// A DecodeResult for a problem in field @p field.
+constexpr DecodeResult fail(Reason r, std::size_t field) noexcept {
+  return DecodeResult{r, static_cast<std::uint8_t>(field)};
+}
+
+/// Number of bytes @p v takes on the wire once escaped (whole plain words are skipped at once).
+inline std::size_t escaped_size(std::string_view v) noexcept {
+  std::size_t n = v.size();
+  const char* p = v.data();
+  const char* const e = p + v.size();
+  while (static_cast<std::size_t>(e - p) >= sizeof(Word)) {
+    Word x;
+    std::memcpy(&x, p, sizeof x);
+    if (special_bytes(x) != 0) {
+      for (std::size_t k = 0; k < sizeof x; ++k) n += must_escape(static_cast<unsigned char>(p[k])) ? 2u : 0u;
+    }
+    p += sizeof x;
+  }
+  for (; p != e; ++p) n += must_escape(static_cast<unsigned char>(*p)) ? 2u : 0u;
+  return n;
+}
+
+/// Loads the bytes [q, e) (fewer than a Word, at least one) as the low bytes of a Word, reading the
+/// Word that ends at @p e (so nothing before @p begin or after @p e is read); the high bytes are 0.
+/// Little-endian only; requires e - begin >= sizeof(Word).
+inline Word load_tail(const char* q, const char* e) noexcept {
+  Word x;
+  std::memcpy(&x, e - sizeof x, sizeof x);
+  return x >> (8u * (sizeof x - static_cast<std::size_t>(e - q)));
+}
+
+/// Mask of the high bits of the low @p r bytes of a Word (0 < r < sizeof(Word)).
+constexpr Word low_bytes_highs(std::size_t r) noexcept { return kHighs & ((Word{1} << (8u * r)) - 1u); }
+
+} // namespace detail
+
+/// Number of bytes @p value takes as an escaped param on the wire (without its ':').
+inline std::size_t escaped_size(std::string_view value) noexcept { return detail::escaped_size(value); }
+
+/// Decodes one datagram into @p out, checking it from left to right as docs/protocol.md says.
+/// Returns Reason::ok, or the first problem and its field index. On a rejection the content of
+/// @p out is unspecified (but valid). Reads only [datagram.data(), datagram.data() + size()).
+inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
+  using detail::fail;
+  const std::size_t len = datagram.size();
+  if (len == 0) return fail(Reason::empty, kFieldSender);
+  if (len > kMaxDatagram) return fail(Reason::too_long, kFieldSender);
+
+  const char* p = datagram.data();
+  const char* const e = p + len;
+
+  // Header: four canonical numbers separated by ':'.
+  constexpr std::uint32_t kMax[4] = {0xFFFFu, 0xFFFFu, 0xFFFFFFFFu, 0xFFu};
+  std::uint32_t hdr[4] = {0, 0, 0, 0};
+  bool has_params = false;  // a ':' follows the type (then there is at least one, maybe empty, param)
+  for (std::size_t k = 0; k < 4; ++k) {
+    const char* q = p;
+    std::uint64_t v = 0;
+    while (q != e) {
+      const unsigned d = static_cast<unsigned>(static_cast<unsigned char>(*q)) - unsigned{'0'};
+      if (d > 9u) break;
+      if (q - p < 11) v = v * 10u + d;
+      ++q;
+    }
+    const std::size_t n = static_cast<std::size_t>(q - p);
+    if ((q != e && *q != ':') || n == 0 || (n > 1 && *p == '0')) return fail(Reason::bad_number, k);
+    if (v > kMax[k] || (k == kFieldType && v == 0)) return fail(Reason::out_of_range, k);
+    hdr[k] = static_cast<std::uint32_t>(v);
+    if (q == e) {
+      if (k < 3) return fail(Reason::too_few_fields, k + 1);
+      p = e;
+    } else {
+      p = q + 1;  // past the ':'
+      has_params = k == 3;
+    }
+  }
+  const MessageSpec* spec = find_spec(static_cast<std::uint8_t>(hdr[3]));
+  if (spec == nullptr) return fail(Reason::unknown_type, kFieldType);
+  out.sender = static_cast<std::uint16_t>(hdr[0]);
+  out.receiver = static_cast<std::uint16_t>(hdr[1]);
+  out.msgid = hdr[2];
+  out.type = static_cast<MsgType>(hdr[3]);
+
+  // Params. p is the first byte of param 0. A datagram that ends with ':' after the type carries one
+  // empty param, so "p == e" alone does not mean "no params".
+  std::size_t count = 0;
+  char* const base = out.data_;
+  char* w = base;
+  if (has_params) {
+    const std::size_t max_params = spec->max_params < kMaxParams ? spec->max_params : kMaxParams;
+    for (;;) {
+      if (count >= max_params) return fail(Reason::too_many_params, kFieldParam0 + count);
+      const char* q = p;
+      char* const value_begin = w;
+      for (;;) {
+        // Fast path: whole words of plain bytes are copied as they are. Writing a whole word is safe:
+        // the header took at least 8 bytes and unescaping only shrinks, so w + sizeof(Word) stays
+        // within data_ whenever q + sizeof(Word) is within the datagram.
+        while (static_cast<std::size_t>(e - q) >= sizeof(detail::Word)) {
+          detail::Word x;
+          std::memcpy(&x, q, sizeof x);
+          std::memcpy(w, q, sizeof x);
+          const detail::Word m = detail::special_bytes(x);
+          if (m == 0) {
+            q += sizeof x;
+            w += sizeof x;
+            continue;
+          }
+          const std::size_t plain = detail::first_flagged(m);
+          q += plain;
+          w += plain;
+          break;
+        }
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+        // The tail (fewer bytes than a word, datagram at least a word long): one word that ends at e.
+        if (static_cast<std::size_t>(e - q) < sizeof(detail::Word) && q != e && len >= sizeof(detail::Word)) {
+          const std::size_t r = static_cast<std::size_t>(e - q);
+          const detail::Word x = detail::load_tail(q, e);
+          std::memcpy(w, &x, sizeof x);  // in bounds: see above; the bytes past r are overwritten or unused
+          const detail::Word m = detail::special_bytes(x) & detail::low_bytes_highs(r);
+          const std::size_t plain = m == 0 ? r : detail::first_flagged(m);
+          q += plain;
+          w += plain;
+        }
+#endif
+        if (q == e) break;
+        const unsigned char c = static_cast<unsigned char>(*q);
+        if (c == ':') break;
+        if (c < 0x20 || c > 0x7E) return fail(Reason::non_printable_byte, kFieldParam0 + count);
+        if (c == '%') {
+          if (e - q < 3) return fail(Reason::bad_escape, kFieldParam0 + count);
+          const int hi = detail::upper_hex_value(static_cast<unsigned char>(q[1]));
+          const int lo = detail::upper_hex_value(static_cast<unsigned char>(q[2]));
+          if (hi < 0 || lo < 0) return fail(Reason::bad_escape, kFieldParam0 + count);
+          const unsigned char b = static_cast<unsigned char>(hi * 16 + lo);
+          if (!detail::must_escape(b)) return fail(Reason::bad_escape, kFieldParam0 + count);
+          *w++ = static_cast<char>(b);
+          q += 3;
+        } else {
+          *w++ = static_cast<char>(c);
+          ++q;
+        }
+      }
+      out.ends_[count] = static_cast<std::uint16_t>(w - base);
+      const ParamKind kind = spec->kind(count);
+      if (kind != ParamKind::text) {
+        const Reason r = detail::check_kind(
+            kind, std::string_view(value_begin, static_cast<std::size_t>(w - value_begin)));
+        if (r != Reason::ok) return fail(r, kFieldParam0 + count);
+      }
+      ++count;
+      if (q == e) break;
+      p = q + 1;
+    }
+  }
+  out.count_ = static_cast<std::uint8_t>(count);
+  if (count < spec->min_params) return fail(Reason::too_few_fields, kFieldParam0 + count);
+  return DecodeResult{};
+}
+
+namespace detail {
+/// encode_parts() and encode() share this: @p param(i) yields the value of param i.
+template <typename ParamAt>
+EncodeResult encode_impl(std::uint16_t sender, std::uint16_t receiver, std::uint32_t msgid,
+                         std::uint8_t type, std::size_t count, ParamAt param, char* buf,
+                         std::size_t cap) noexcept {
+  auto refuse = [](Reason r, std::size_t field) noexcept {
+    return EncodeResult{0, r, static_cast<std::uint8_t>(field)};
+  };
+  std::size_t size = decimal_digits(sender) + decimal_digits(receiver) +
+                     decimal_digits(msgid) + decimal_digits(type) + 3u;
+  for (std::size_t i = 0; i < count && size <= kMaxDatagram; ++i) size += 1u + escaped_size(param(i));
+  if (size > kMaxDatagram) return refuse(Reason::too_long, kFieldSender);
+  if (type == 0) return refuse(Reason::out_of_range, kFieldType);
+  const MessageSpec* spec = find_spec(type);
+  if (spec == nullptr) return refuse(Reason::unknown_type, kFieldType);
+  for (std::size_t i = 0; i < count; ++i) {
+    if (i >= kMaxParams || i >= spec->max_params) return refuse(Reason::too_many_params, kFieldParam0 + i);
+    const Reason r = check_kind(spec->kind(i), param(i));
+    if (r != Reason::ok) return refuse(r, kFieldParam0 + i);
+  }
+  if (count < spec->min_params) return refuse(Reason::too_few_fields, kFieldParam0 + count);
+  if (size > cap || buf == nullptr) return refuse(Reason::too_long, kFieldSender);
+
+  static constexpr char kHex[] = "0123456789ABCDEF";
+  char* w = buf;
+  w = write_decimal(w, sender);
+  *w++ = ':';
+  w = write_decimal(w, receiver);
+  *w++ = ':';
+  w = write_decimal(w, msgid);
+  *w++ = ':';
+  w = write_decimal(w, type);
+  for (std::size_t i = 0; i < count; ++i) {
+    *w++ = ':';
+    const std::string_view value = param(i);
+    const char* p = value.data();
+    const char* const pe = p + value.size();
+    // Whole words without a byte to escape are copied at once. Writing a whole word is in bounds:
+    // those input bytes take at least as many output bytes, all within the computed size.
+    while (static_cast<std::size_t>(pe - p) >= sizeof(Word)) {
+      Word x;
+      std::memcpy(&x, p, sizeof x);
+      std::memcpy(w, &x, sizeof x);
+      const Word m = special_bytes(x);
+      if (m == 0) {
+        p += sizeof x;
+        w += sizeof x;
+        continue;
+      }
+      const std::size_t plain = first_flagged(m);
+      p += plain;
+      w += plain;
+      const unsigned char c = static_cast<unsigned char>(*p++);
+      if (must_escape(c)) {
+        w[0] = '%';
+        w[1] = kHex[c >> 4];
+        w[2] = kHex[c & 0x0Fu];
+        w += 3;
+      } else {  // a false positive above a flagged byte cannot be first, but stay exact anyway
+        *w++ = static_cast<char>(c);
+      }
+    }
+    for (char ch : std::string_view(p, static_cast<std::size_t>(pe - p))) {
+      const unsigned char c = static_cast<unsigned char>(ch);
+      if (must_escape(c)) {
+        w[0] = '%';
+        w[1] = kHex[c >> 4];
+        w[2] = kHex[c & 0x0Fu];
+        w += 3;
+      } else {
+        *w++ = ch;
+      }
+    }
+  }
+  return EncodeResult{static_cast<std::size_t>(w - buf), Reason::ok, 0};
+}
+} // namespace detail
+
+/// Encodes a message given as parts (header and @p count param values) in canonical form into
+/// [buf, buf + cap). Refuses, with the reason and field decode() would report for the result, what
+/// decode() would reject: result over 4096 bytes (too long, field 0), type 0 (out of range), an
+/// undefined type (unknown type), more params than the type's max or than 32 (too many params), a
+/// typed param that is not a valid value, fewer params than the type's min (too few fields). A result
+/// that is valid but longer than @p cap is refused as too long (field 0). Writes nothing on refusal.
+inline EncodeResult encode_parts(std::uint16_t sender, std::uint16_t receiver, std::uint32_t msgid,
+                                 std::uint8_t type, const std::string_view* params, std::size_t count,
+                                 char* buf, std::size_t cap) noexcept {
+  return detail::encode_impl(sender, receiver, msgid, type, count,
+                             [params](std::size_t i) noexcept { return params[i]; }, buf, cap);
+}
+
+/// Encodes @p m in canonical form into [buf, buf + cap); see encode_parts() for what is refused.
+/// For every message encode() accepts, decode() of the result gives back @p m.
+inline EncodeResult encode(const Message& m, char* buf, std::size_t cap) noexcept {
+  return detail::encode_impl(m.sender, m.receiver, m.msgid, static_cast<std::uint8_t>(m.type), m.param_count(),
+                             [&m](std::size_t i) noexcept { return m.param(i); }, buf, cap);
+}
+
+inline std::optional<std::uint32_t> Message::param_u32(std::size_t i) const noexcept {
+  if (i >= count_) return std::nullopt;
+  const std::string_view v = param(i);
+  std::uint32_t n = 0;
+  if (detail::parse_number(v.data(), v.data() + v.size(), 0xFFFFFFFFu, n) != Reason::ok) return std::nullopt;
+  return n;
+}
+
+inline std::optional<std::uint16_t> Message::param_u16(std::size_t i) const noexcept {
+  if (i >= count_) return std::nullopt;
+  const std::string_view v = param(i);
+  std::uint32_t n = 0;
+  if (detail::parse_number(v.data(), v.data() + v.size(), 0xFFFFu, n) != Reason::ok) return std::nullopt;
+  return static_cast<std::uint16_t>(n);
+}
+
+inline std::optional<AgentState> Message::param_state(std::size_t i) const noexcept {
+  if (i >= count_) return std::nullopt;
+  AgentState s = AgentState::IDLE;
+  if (!parse_state(param(i), s)) return std::nullopt;
+  return s;
+}
+
+} // namespace ev3proto
