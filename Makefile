@@ -1,6 +1,7 @@
 # libev3proto: the front door. Every target installs what is missing first (`make deps`).
-#   make test      every test: C++ units, Python, TLA+ small models, fuzz smoke, armel under qemu-arm
-#   make build     native build; programs land in build/bin/
+#   make demo      a master and three agents on this machine: sync, a behaviour, master lost (~1 min)
+#   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel
+#   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS, default 1800)
 #   make bench     Google Benchmark figures (see docs/benchmarks.md)
 #   make arm       static armel (EV3) build in build/arm/
@@ -10,7 +11,8 @@
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
-.PHONY: help deps build test test-unit test-python test-fuzz test-arm fuzz fuzz-build bench arm \
+.PHONY: help deps build demo test test-unit test-python test-blackbox test-fuzz test-arm fuzz fuzz-build \
+        bench arm \
         spec spec-full diagrams clean
 
 PY := $(CURDIR)/.venv/bin/python
@@ -32,14 +34,23 @@ build: deps
 	@ninja -C build/native
 
 test: build
-	@$(MAKE) --no-print-directory test-unit test-python spec test-fuzz test-arm
+	@$(MAKE) --no-print-directory test-unit test-python test-blackbox spec test-fuzz test-arm
 	@echo "make test: all suites passed"
 
 test-unit: build
 	@cd build/native && ctest --output-on-failure -j $(JOBS)
 
 test-python: build
-	@EV3_BIN=$(BIN) $(PY) -m pytest -q tests/python
+	@EV3_BIN=$(BIN) $(PY) -m pytest -q tests/python --ignore=tests/python/blackbox
+
+# ev3-agent and ev3-master over real UDP on loopback (tests/python/blackbox), including the static
+# armel ev3-agent under qemu-arm against the native ev3-master.
+test-blackbox: build arm
+	@EV3_BIN=$(BIN) EV3_ARM_BIN=$(CURDIR)/build/arm/bin $(PY) -m pytest -q tests/python/blackbox
+
+# A master and three agents on loopback, narrated (tools/demo.py); ends by itself within a minute.
+demo: build
+	@$(PY) tools/demo.py --bin $(BIN)
 
 fuzz-build: deps
 	@cmake -S . -B build/fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
@@ -81,3 +92,21 @@ diagrams: deps
 
 clean:
 	rm -rf build
+
+# Line coverage of the library headers (libev3proto/include) by the native tests; fails below 95%.
+.PHONY: coverage
+COVERAGE_MIN ?= 95
+coverage: deps
+	@cmake -S . -B build/coverage -G Ninja -DCMAKE_BUILD_TYPE=Debug -DEV3_COVERAGE=ON -DEV3_TOOLS=OFF >/dev/null
+	@ninja -C build/coverage
+	@find build/coverage -name '*.gcda' -delete
+	@cd build/coverage && ctest --output-on-failure -j $(JOBS) >/dev/null
+	@lcov --quiet --capture --directory build/coverage --output-file build/coverage/all.info \
+	   --ignore-errors mismatch >/dev/null 2>&1 || lcov --quiet --capture --directory build/coverage \
+	   --output-file build/coverage/all.info >/dev/null
+	@lcov --quiet --extract build/coverage/all.info '$(CURDIR)/libev3proto/include/*' \
+	   --output-file build/coverage/lib.info >/dev/null
+	@lcov --list build/coverage/lib.info
+	@pct=$$(lcov --summary build/coverage/lib.info 2>&1 | sed -n 's/.*lines\.*: *\([0-9.]*\)%.*/\1/p'); \
+	  echo "line coverage of libev3proto/include: $$pct% (minimum $(COVERAGE_MIN)%)"; \
+	  awk -v p="$$pct" -v m="$(COVERAGE_MIN)" 'BEGIN { exit !(p >= m) }'

@@ -100,6 +100,17 @@ class DedupeWindow {
     return true;
   }
 
+  /// Calls @p f(sender, msgid, payload) for every key held, oldest first (read-only; for traces).
+  template <typename F>
+  void for_each(F&& f) const {
+    for (std::size_t k = 0; k < size_; ++k) {
+      std::size_t slot = head_ + k;
+      if (slot >= Capacity) slot -= Capacity;
+      f(static_cast<std::uint16_t>(keys_[slot] >> 32), static_cast<std::uint32_t>(keys_[slot]),
+        values_[slot]);
+    }
+  }
+
   /// Records (sender, msgid) with a default payload if it is new. Returns true if it was new (act on
   /// the message), false if it is a repeat (do not act again).
   bool first_time(std::uint16_t sender, std::uint32_t msgid) noexcept(

@@ -1,0 +1,264 @@
+/// @file core.hpp
+/// @brief Types shared by the agent and master cores: states, LEDs, spec action names, the allowed
+///        transition table, refusal reasons, peers and destinations, behaviour controls.
+///
+/// Everything here mirrors spec/tla/AgentLogic.tla (names and values are the spec's, so trace records
+/// can be compared with TLC's states). No heap, no exceptions, no RTTI.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include "messages.hpp"
+#include "timers.hpp"
+
+namespace ev3proto {
+
+/// An agent's lifecycle state (AgentLogic `States`). OFF: shut down after BatteryLow.
+enum class State : std::uint8_t { IDLE, ACTIVE, WORKING, PAUSED, PANIC, OFF };
+
+/// Number of agent states.
+inline constexpr std::size_t kStateCount = 6;
+
+/// LED pattern (AgentLogic `LedOf`).
+enum class Led : std::uint8_t { YELLOW_BLINK, GREEN_BLINK, GREEN, ORANGE, RED_BLINK, DARK };
+
+/// What a WORKING agent waits for (AgentLogic `Waits`): nothing, CONTINUE, or RESTART.
+enum class Wait : std::uint8_t { NONE, CONTINUE, RESTART };
+
+/// The spec's name of a state ("WORKING").
+constexpr std::string_view to_string(State s) noexcept {
+  switch (s) {
+    case State::IDLE: return "IDLE";
+    case State::ACTIVE: return "ACTIVE";
+    case State::WORKING: return "WORKING";
+    case State::PAUSED: return "PAUSED";
+    case State::PANIC: return "PANIC";
+    case State::OFF: return "OFF";
+  }
+  return {};
+}
+
+/// The spec's name of a LED pattern ("GREEN_BLINK").
+constexpr std::string_view to_string(Led l) noexcept {
+  switch (l) {
+    case Led::YELLOW_BLINK: return "YELLOW_BLINK";
+    case Led::GREEN_BLINK: return "GREEN_BLINK";
+    case Led::GREEN: return "GREEN";
+    case Led::ORANGE: return "ORANGE";
+    case Led::RED_BLINK: return "RED_BLINK";
+    case Led::DARK: return "DARK";
+  }
+  return {};
+}
+
+/// The spec's name of a wait ("CONTINUE").
+constexpr std::string_view to_string(Wait w) noexcept {
+  switch (w) {
+    case Wait::NONE: return "NONE";
+    case Wait::CONTINUE: return "CONTINUE";
+    case Wait::RESTART: return "RESTART";
+  }
+  return {};
+}
+
+/// The LED pattern of each state (AgentLogic `LedOf`).
+constexpr Led led_of(State s) noexcept {
+  switch (s) {
+    case State::IDLE: return Led::YELLOW_BLINK;
+    case State::ACTIVE: return Led::GREEN_BLINK;
+    case State::WORKING: return Led::GREEN;
+    case State::PAUSED: return Led::ORANGE;
+    case State::PANIC: return Led::RED_BLINK;
+    case State::OFF: return Led::DARK;
+  }
+  return Led::DARK;
+}
+
+/// States that have a master (AgentLogic `Synced`).
+constexpr bool is_synced(State s) noexcept {
+  return s == State::ACTIVE || s == State::WORKING || s == State::PAUSED;
+}
+/// States without a master (AgentLogic `Masterless`).
+constexpr bool is_masterless(State s) noexcept { return s == State::IDLE || s == State::PANIC; }
+
+/// The wire spelling of a state reported in PING (OFF never sends a PING).
+constexpr AgentState wire_state(State s) noexcept {
+  switch (s) {
+    case State::IDLE: return AgentState::IDLE;
+    case State::ACTIVE: return AgentState::ACTIVE;
+    case State::WORKING: return AgentState::WORKING;
+    case State::PAUSED: return AgentState::PAUSED;
+    default: return AgentState::PANIC;
+  }
+}
+
+/// Agent ids a master assigns (docs/protocol.md "Ids", AgentLogic `AssignedIds`).
+inline constexpr std::uint16_t kFirstAssignedId = 2;
+/// Last assignable agent id.
+inline constexpr std::uint16_t kLastAssignedId = 49999;
+/// First temporary id an unsynced agent may draw (50000..65535).
+inline constexpr std::uint16_t kFirstTempId = 50000;
+/// The master's id.
+inline constexpr std::uint16_t kMasterId = 1;
+/// The broadcast receiver id.
+inline constexpr std::uint16_t kBroadcastId = 0;
+
+/// True for an id a master may assign (2..49999).
+constexpr bool is_assigned_id(std::uint32_t id) noexcept {
+  return id >= kFirstAssignedId && id <= kLastAssignedId;
+}
+
+/// The spec's actions (handler names). Agent actions first (AgentLogic `ActionNames`), then the
+/// master's (Fleet.tla). Each has exactly one handler of the same name in the C++ cores.
+enum class Action : std::uint8_t {
+  // Agent, receive handlers (AgentLogic RecvNames).
+  RecvMaster, RecvPong, RecvBehaviour, RecvStart, RecvStop, RecvPause, RecvResume, RecvStandby,
+  RecvContinue, RecvRestart, RecvDuplicate, Ignore,
+  // Agent, internal (AgentLogic InternalNames).
+  Tick, SyncTimeout, HeartbeatLost, ActionOk, ActionInterrupted, ActionFailed, SensorReport,
+  DeviceUnplugged, DevicePlugged, BatteryLow,
+  // Master (Fleet.tla). MasterTick is the master's part of Fleet's Tick; MasterCommand and
+  // MasterReport are operator-side extensions the spec abstracts (docs/core.md).
+  MasterSync, MasterAnswer, MasterPing, MasterTick, MasterCommand, MasterReport,
+};
+
+/// Number of actions.
+inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::MasterReport) + 1;
+
+/// The spec's name of an action ("RecvStart").
+constexpr std::string_view to_string(Action a) noexcept {
+  constexpr std::string_view kNames[kActionCount] = {
+      "RecvMaster", "RecvPong", "RecvBehaviour", "RecvStart", "RecvStop", "RecvPause",
+      "RecvResume", "RecvStandby", "RecvContinue", "RecvRestart", "RecvDuplicate", "Ignore",
+      "Tick", "SyncTimeout", "HeartbeatLost", "ActionOk", "ActionInterrupted", "ActionFailed",
+      "SensorReport", "DeviceUnplugged", "DevicePlugged", "BatteryLow",
+      "MasterSync", "MasterAnswer", "MasterPing", "Tick", "MasterCommand", "MasterReport"};
+  const auto i = static_cast<std::size_t>(a);
+  return i < kActionCount ? kNames[i] : std::string_view{};
+}
+
+/// One allowed state change: from, to, and the action that causes it.
+struct Transition {
+  State from; ///< State before.
+  State to;   ///< State after.
+  Action by;  ///< The action taking it.
+};
+
+/// The allowed state changes (AgentLogic `AllowedTransitions`, brief sec. 2). The agent core takes
+/// every state change from this table (next_state()); a unit test checks it equals the spec's set.
+inline constexpr Transition kTransitions[] = {
+    {State::IDLE, State::ACTIVE, Action::RecvMaster},
+    {State::IDLE, State::PANIC, Action::SyncTimeout},
+    {State::ACTIVE, State::WORKING, Action::RecvStart},
+    {State::ACTIVE, State::PANIC, Action::HeartbeatLost},
+    {State::WORKING, State::ACTIVE, Action::RecvStop},
+    {State::WORKING, State::ACTIVE, Action::RecvStandby},
+    {State::WORKING, State::PAUSED, Action::RecvPause},
+    {State::WORKING, State::PAUSED, Action::HeartbeatLost},
+    {State::PAUSED, State::WORKING, Action::RecvResume},
+    {State::PAUSED, State::WORKING, Action::RecvStart},
+    {State::PAUSED, State::ACTIVE, Action::RecvStop},
+    {State::PAUSED, State::PANIC, Action::HeartbeatLost},
+    {State::PANIC, State::ACTIVE, Action::RecvMaster},
+    {State::WORKING, State::ACTIVE, Action::DeviceUnplugged},
+    {State::PAUSED, State::ACTIVE, Action::DeviceUnplugged},
+    {State::IDLE, State::OFF, Action::BatteryLow},
+    {State::ACTIVE, State::OFF, Action::BatteryLow},
+    {State::WORKING, State::OFF, Action::BatteryLow},
+    {State::PAUSED, State::OFF, Action::BatteryLow},
+    {State::PANIC, State::OFF, Action::BatteryLow},
+};
+
+/// The state action @p by leads to from @p from when it succeeds: the table's row, or @p from itself
+/// when the table has none (the action keeps the state).
+constexpr State next_state(State from, Action by) noexcept {
+  for (const Transition& t : kTransitions)
+    if (t.from == from && t.by == by) return t.to;
+  return from;
+}
+
+namespace detail {
+/// Each (from, action) pair has at most one row, so next_state() is a function.
+constexpr bool transitions_are_a_function() noexcept {
+  constexpr std::size_t n = sizeof(kTransitions) / sizeof(kTransitions[0]);
+  for (std::size_t i = 0; i < n; ++i)
+    for (std::size_t j = i + 1; j < n; ++j)
+      if (kTransitions[i].from == kTransitions[j].from && kTransitions[i].by == kTransitions[j].by)
+        return false;
+  return true;
+}
+static_assert(transitions_are_a_function(), "kTransitions has two rows for one (state, action)");
+}  // namespace detail
+
+/// Why an agent refuses a command (AgentLogic `Reasons`), carried in NOT.
+enum class Refusal : std::uint8_t { unknown_behaviour, missing_device, no_behaviour, wrong_state };
+
+/// The spec's (and the wire's) spelling of a refusal ("wrong state").
+constexpr std::string_view to_string(Refusal r) noexcept {
+  switch (r) {
+    case Refusal::unknown_behaviour: return "unknown behaviour";
+    case Refusal::missing_device: return "missing device";
+    case Refusal::no_behaviour: return "no behaviour";
+    case Refusal::wrong_state: return "wrong state";
+  }
+  return {};
+}
+
+/// Warning events that may interrupt a running action (AgentLogic `Warnings`).
+enum class Warning : std::uint8_t { OBSTACLE_DETECTED, PROXIMITY_ALERT };
+
+/// The spec's spelling of a warning.
+constexpr std::string_view to_string(Warning w) noexcept {
+  return w == Warning::OBSTACLE_DETECTED ? "OBSTACLE_DETECTED" : "PROXIMITY_ALERT";
+}
+
+/// An opaque network peer handle: the program maps it to a socket address. 0 means "none".
+using Peer = std::uint32_t;
+
+/// Where a datagram goes.
+enum class Dest : std::uint8_t {
+  master,    ///< To the master (the peer the agent synced with).
+  broadcast, ///< To everyone (UDP broadcast).
+  peer,      ///< To one peer handle (the master's unicast to an agent).
+};
+
+/// Spelling of a destination in transcripts ("master").
+constexpr std::string_view to_string(Dest d) noexcept {
+  switch (d) {
+    case Dest::master: return "master";
+    case Dest::broadcast: return "broadcast";
+    case Dest::peer: return "peer";
+  }
+  return {};
+}
+
+/// What the robot's behaviour runner must do (agent core output).
+enum class ControlKind : std::uint8_t {
+  start,   ///< Run the loaded behaviour (name, args) from its first action.
+  pause,   ///< Stop the motors, keep the progress (resume continues).
+  resume,  ///< Continue where it was paused.
+  stop,    ///< Stop the motors and discard the progress.
+  restart, ///< Run the same behaviour again from its first action (after ACTION_ERR).
+};
+
+/// Spelling of a control in transcripts ("start").
+constexpr std::string_view to_string(ControlKind k) noexcept {
+  switch (k) {
+    case ControlKind::start: return "start";
+    case ControlKind::pause: return "pause";
+    case ControlKind::resume: return "resume";
+    case ControlKind::stop: return "stop";
+    case ControlKind::restart: return "restart";
+  }
+  return {};
+}
+
+/// A trace sink that records nothing: the default; every trace call compiles away.
+struct NoTrace {
+  /// False: the cores skip building trace records.
+  static constexpr bool enabled = false;
+};
+
+}  // namespace ev3proto

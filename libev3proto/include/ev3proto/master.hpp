@@ -1,0 +1,523 @@
+/// @file master.hpp
+/// @brief The master's protocol state machine of spec/tla/Fleet.tla (MasterSync, MasterAnswer,
+///        MasterPing, the master's part of Tick), with no I/O.
+///
+/// Sans-I/O like the agent: datagrams, time and operator commands in; datagrams (to peer handles),
+/// operator events and the next deadline out. The master runs on a PC (or a robot acting as one),
+/// so it may allocate. Ids 2..49999 are handed out in order and never reused within a run; pass the
+/// last run's next_id / next_msgid back in (stable storage) after a restart, as Fleet.tla's crash
+/// keeps nextId and msgid.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <deque>
+#include <map>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "core.hpp"
+#include "dedupe.hpp"
+#include "messages.hpp"
+#include "timers.hpp"
+#include "wire.hpp"
+
+namespace ev3proto {
+
+/// Construction parameters of a Master.
+struct MasterConfig {
+  Timers timers;                 ///< Deadlines (timers.hpp); resend and drop are used.
+  std::uint16_t next_id = kFirstAssignedId; ///< First id to assign (stable storage across restarts).
+  std::uint32_t next_msgid = 1;  ///< msgid of the first datagram (stable storage across restarts).
+  std::uint32_t max_resends = 10; ///< An operator command unanswered after this many resends fails.
+};
+
+/// An operator command for one agent: a master command type and, for BEHAVIOUR, name and args.
+struct Command {
+  MsgType type = MsgType::START;  ///< BEHAVIOUR, START, STOP, PAUSE, RESUME, STANDBY, CONTINUE, RESTART.
+  std::string name;               ///< BEHAVIOUR: behaviour name.
+  std::vector<std::string> args;  ///< BEHAVIOUR: key=value arguments.
+
+  /// BEHAVIOUR(name, args...).
+  static Command assign(std::string behaviour, std::vector<std::string> arguments = {}) {
+    return Command{MsgType::BEHAVIOUR, std::move(behaviour), std::move(arguments)};
+  }
+  /// A command without params (START, STOP, ...).
+  static Command simple(MsgType t) { return Command{t, {}, {}}; }
+};
+
+/// True for the message types an operator may send as a command.
+constexpr bool is_command(MsgType t) noexcept {
+  return t >= MsgType::BEHAVIOUR && t <= MsgType::RESTART;
+}
+
+/// Something the operator (UI, log, mission logic) should know.
+struct OperatorEvent {
+  /// What happened.
+  enum class Kind : std::uint8_t {
+    registered,    ///< An agent acknowledged MASTER: synced with id @c agent.
+    acked,         ///< @c command was acknowledged by @c agent.
+    refused,       ///< @c command was refused by @c agent with @c text (the reason).
+    timed_out,     ///< @c command got no answer after max_resends resends (or the agent dropped).
+    unknown_agent, ///< A command named an id that is not registered.
+    dropped,       ///< @c agent was not heard for the drop timeout and left the registry.
+    state,         ///< @c agent reported a new state in PING (@c text).
+    report,        ///< A report (ACTION_OK, ACTION_INTERR, ACTION_ERR, SENSOR_VALUE, EVENT): @c text.
+  } kind = Kind::state;
+  std::uint16_t agent = 0;             ///< The agent's id.
+  MsgType command = MsgType::START;    ///< The command (acked, refused, timed_out, unknown_agent) or
+                                       ///< the report's type.
+  std::string text;                    ///< Reason, state, or the report's params joined by ':'.
+};
+
+/// Spelling of an operator event kind ("refused").
+constexpr std::string_view to_string(OperatorEvent::Kind k) noexcept {
+  switch (k) {
+    case OperatorEvent::Kind::registered: return "registered";
+    case OperatorEvent::Kind::acked: return "acked";
+    case OperatorEvent::Kind::refused: return "refused";
+    case OperatorEvent::Kind::timed_out: return "timed_out";
+    case OperatorEvent::Kind::unknown_agent: return "unknown_agent";
+    case OperatorEvent::Kind::dropped: return "dropped";
+    case OperatorEvent::Kind::state: return "state";
+    case OperatorEvent::Kind::report: return "report";
+  }
+  return {};
+}
+
+/// A datagram the master wants sent (unicast to a peer).
+struct MasterTransmit {
+  Peer peer = 0;      ///< Destination.
+  std::string bytes;  ///< The encoded datagram (send it 3 times, as the transport does).
+};
+
+/// One registry entry (Fleet.tla RegEntry, plus what the operator needs).
+struct RegistryEntry {
+  std::uint16_t ann = 0;        ///< Announced id (temporary, or the old id of a PANIC agent).
+  std::uint16_t id = 0;         ///< Assigned id.
+  Peer peer = 0;                ///< Where the agent is (spec ep).
+  bool synced = false;          ///< The agent acknowledged MASTER.
+  bool has_state = false;       ///< A PING reported @c state.
+  AgentState state = AgentState::IDLE; ///< State from the last PING.
+  Millis heard = 0;             ///< Last heard (spec quiet = now - heard).
+  std::string behaviour;        ///< Behaviour the agent acknowledged last.
+  bool pending = false;         ///< A command (or MASTER while !synced) waits for its answer.
+  std::uint32_t mid = 0;        ///< msgid of the pending command.
+  Millis sent_at = 0;           ///< When it was last sent.
+  std::uint32_t resends = 0;    ///< Resends so far.
+  std::deque<Command> queue;    ///< Operator commands; the front one is pending once synced.
+  std::uint32_t last_msgid = 0; ///< Highest msgid heard from the agent (orders its PANICs).
+
+  /// Spec job: "MASTER", the pending command's name, or "DONE".
+  std::string_view job() const noexcept {
+    if (!synced) return "MASTER";
+    if (pending && !queue.empty()) return to_string(queue.front().type);
+    return "DONE";
+  }
+};
+
+/// One trace record of the master: a spec action, its message, and the master's variables.
+struct MasterTraceRecord {
+  Action action = Action::MasterTick; ///< MasterSync, MasterAnswer, MasterPing, MasterTick (Tick),
+                                      ///< MasterCommand, MasterReport.
+  std::string_view msg;       ///< The datagram received (receive actions).
+  Millis now = 0;             ///< Time.
+  std::string reg_before;     ///< Registry (spec master.reg) as JSON, before.
+  std::string reg_after;      ///< Registry as JSON, after.
+  std::uint16_t next_id_before = 0, next_id_after = 0;   ///< master.nextId
+  std::uint32_t msgid_before = 0, msgid_after = 0;       ///< master.msgid
+};
+
+/// The master core.
+/// @tparam Trace NoTrace (default) or a sink with `void record(const MasterTraceRecord&)`.
+template <typename Trace = NoTrace>
+class Master {
+ public:
+  /// "No deadline".
+  static constexpr Millis kNever = ~Millis{0};
+
+  /// A master with an empty registry at time @p now.
+  Master(const MasterConfig& config, Millis now, Trace* trace = nullptr)
+      : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now) {}
+
+  // ---------------------------------------------------------------- inputs
+
+  /// Time moves to @p now: resends and drops due up to then happen at their own times.
+  void advance(Millis now) {
+    for (Millis t = next_deadline(); t <= now && t != kNever; t = next_deadline()) {
+      if (t > now_) now_ = t;
+      Snapshot s = snap();
+      MasterTick();
+      record(Action::MasterTick, s, {});
+    }
+    if (now > now_) now_ = now;
+  }
+
+  /// Same as advance().
+  void handle_timeout(Millis now) { advance(now); }
+
+  /// A datagram arrived from @p from at @p now (spec MasterRecv). Returns the action taken
+  /// (Ignore when it does not decode or is not for the master).
+  Action handle_datagram(std::string_view bytes, Peer from, Millis now) {
+    advance(now);
+    if (!decode(bytes, rx_).ok()) {
+      ++rejected_;
+      return Action::Ignore;
+    }
+    const Message& m = rx_;
+    if (m.receiver != kMasterId && m.receiver != kBroadcastId) return Action::Ignore;
+    Snapshot s = snap();
+    Action a = Action::Ignore;
+    switch (m.type) {
+      case MsgType::AGENT:
+      case MsgType::PANIC: a = Action::MasterSync; MasterSync(m, from); break;
+      case MsgType::ACK:
+      case MsgType::NOT: a = Action::MasterAnswer; MasterAnswer(m); break;
+      case MsgType::PING: a = Action::MasterPing; MasterPing(m, from); break;
+      case MsgType::ACTION_OK:
+      case MsgType::ACTION_INTERR:
+      case MsgType::ACTION_ERR:
+      case MsgType::SENSOR_VALUE:
+      case MsgType::EVENT: a = Action::MasterReport; MasterReport(m); break;
+      default: return Action::Ignore;
+    }
+    record(a, s, bytes);
+    return a;
+  }
+
+  /// An operator command for agent @p agent (0 = every registered agent) at @p now. Queued behind
+  /// the agent's pending command; sent at once when none is pending. Unknown ids are reported.
+  void command(std::uint16_t agent, const Command& c, Millis now) {
+    advance(now);
+    Snapshot s = snap();
+    MasterCommand(agent, c);
+    record(Action::MasterCommand, s, {});
+  }
+
+  // ---------------------------------------------------------------- outputs
+
+  /// Takes the oldest datagram to send; false when there is none.
+  bool poll_transmit(MasterTransmit& out) {
+    if (tx_.empty()) return false;
+    out = std::move(tx_.front());
+    tx_.pop_front();
+    return true;
+  }
+
+  /// Takes the oldest operator event; false when there is none.
+  bool poll_event(OperatorEvent& out) {
+    if (ev_.empty()) return false;
+    out = std::move(ev_.front());
+    ev_.pop_front();
+    return true;
+  }
+
+  /// When advance() must be called next at the latest (kNever when nothing is scheduled).
+  Millis next_deadline() const noexcept {
+    Millis t = kNever;
+    for (const auto& kv : reg_) {
+      const RegistryEntry& e = kv.second;
+      const Millis drop = e.heard + cfg_.timers[Timer::drop];
+      if (drop < t) t = drop;
+      if (e.pending) {
+        const Millis r = e.sent_at + cfg_.timers[Timer::resend];
+        if (r < t) t = r;
+      }
+    }
+    return t;
+  }
+
+  // ---------------------------------------------------------------- observers
+
+  /// The registry, by assigned id.
+  const std::map<std::uint16_t, RegistryEntry>& registry() const noexcept { return reg_; }
+  /// The next id to assign (persist it).
+  std::uint16_t next_id() const noexcept { return next_id_; }
+  /// The next msgid (persist it).
+  std::uint32_t next_msgid() const noexcept { return msgid_; }
+  /// The master's time.
+  Millis now() const noexcept { return now_; }
+  /// Datagrams that did not decode.
+  std::uint32_t rejected() const noexcept { return rejected_; }
+
+ private:
+  /// Spec Known(reg, s): entries whose announced or assigned id is s.
+  std::vector<std::uint16_t> Known(std::uint16_t s) const {
+    std::vector<std::uint16_t> k;
+    for (const auto& kv : reg_)
+      if (kv.second.ann == s || kv.second.id == s) k.push_back(kv.first);
+    return k;
+  }
+
+  /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent gets its pending
+  /// datagram again; a new one gets an id (its own if s is an assignable id, else the next free)
+  /// and MASTER. An entry with the same peer is replaced.
+  void MasterSync(const Message& m, Peer from) {
+    const std::uint16_t s = m.sender;
+    const std::vector<std::uint16_t> k = Known(s);
+    if (!k.empty()) {
+      for (std::uint16_t id : k) {
+        RegistryEntry& e = reg_[id];
+        e.heard = now_;
+        if (m.type == MsgType::PANIC && e.synced && s == e.id && m.msgid > e.last_msgid) {
+          // Deviation from Fleet.tla (docs/core.md): the agent lost us while we still hold it
+          // (its PONGs were lost); the spec's Pending(DONE) = {} would leave it in PANIC forever.
+          // Sync it again: a new MASTER, its queued commands follow once it ACKs.
+          e.synced = false;
+          e.ann = s;  // MASTER names the id the agent holds now
+          e.pending = true;
+          e.mid = msgid_++;
+          e.sent_at = now_;
+          e.resends = 0;
+        }
+        if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
+        send_pending(e);
+      }
+      return;
+    }
+    std::uint16_t nid = s;
+    if (!is_assigned_id(s)) {
+      if (next_id_ > kLastAssignedId) return;  // ids exhausted: nobody else can join this run
+      nid = next_id_++;
+    }
+    for (auto it = reg_.begin(); it != reg_.end();) {
+      if (it->second.peer == from) {
+        fail_queue(it->second);
+        it = reg_.erase(it);
+      } else {
+        ++it;
+      }
+    }
+    RegistryEntry e;
+    e.ann = s;
+    e.id = nid;
+    e.peer = from;
+    e.heard = now_;
+    e.last_msgid = m.msgid;
+    e.pending = true;
+    e.mid = msgid_++;
+    e.sent_at = now_;
+    RegistryEntry& r = reg_[nid] = std::move(e);
+    send_pending(r);
+  }
+
+  /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command.
+  void MasterAnswer(const Message& m) {
+    auto it = reg_.find(m.sender);
+    if (it == reg_.end()) return;
+    RegistryEntry& e = it->second;
+    if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
+    const auto ref = m.param_u32(0);
+    if (!e.pending || !ref || *ref != e.mid) return;
+    e.heard = now_;
+    const bool ack = m.type == MsgType::ACK;
+    if (!e.synced && !ack) return;  // an agent never refuses MASTER; a NOT is no answer to it
+    e.pending = false;
+    if (!e.synced) {
+      e.synced = true;
+      push(OperatorEvent::Kind::registered, e.id, MsgType::MASTER, std::to_string(e.ann));
+    } else if (!e.queue.empty()) {
+      Command c = std::move(e.queue.front());
+      e.queue.pop_front();
+      if (ack) {
+        if (c.type == MsgType::BEHAVIOUR) e.behaviour = c.name;
+        push(OperatorEvent::Kind::acked, e.id, c.type, {});
+      } else {
+        push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)));
+      }
+    }
+    start_next(e);
+  }
+
+  /// Spec MasterPing: PONG at once to a registered agent (which is heard); others get nothing.
+  void MasterPing(const Message& m, Peer from) {
+    auto it = reg_.find(m.sender);
+    if (it == reg_.end()) return;
+    RegistryEntry& e = it->second;
+    e.heard = now_;
+    if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
+    const auto st = m.param_state(0);
+    if (st && (!e.has_state || *st != e.state)) {
+      e.state = *st;
+      e.has_state = true;
+      push(OperatorEvent::Kind::state, e.id, MsgType::PING, std::string(to_string(*st)));
+    }
+    char num[10];
+    const std::string_view p[1] = {number(m.msgid, num)};
+    send(from, e.id, MsgType::PONG, p, 1);
+  }
+
+  /// Reports are consumed (Fleet.tla); the operator sees each once (copies are deduplicated).
+  void MasterReport(const Message& m) {
+    if (!reports_.first_time(m.sender, m.msgid)) return;
+    std::string text;
+    for (std::size_t i = 0; i < m.param_count(); ++i) {
+      if (i) text += ':';
+      text += std::string(m.param(i));
+    }
+    push(OperatorEvent::Kind::report, m.sender, m.type, std::move(text));
+  }
+
+  /// Operator command (not a spec action: Fleet.tla's master issues BEHAVIOUR then START itself).
+  void MasterCommand(std::uint16_t agent, const Command& c) {
+    if (agent == kBroadcastId) {
+      for (auto& kv : reg_) enqueue(kv.second, c);
+      return;
+    }
+    auto it = reg_.find(agent);
+    if (it == reg_.end()) {
+      push(OperatorEvent::Kind::unknown_agent, agent, c.type, {});
+      return;
+    }
+    enqueue(it->second, c);
+  }
+
+  /// The master's part of Fleet's Tick at now_: drop agents quiet for the drop timeout, resend due
+  /// pending commands (an operator command fails after max_resends resends).
+  void MasterTick() {
+    for (auto it = reg_.begin(); it != reg_.end();) {
+      RegistryEntry& e = it->second;
+      if (now_ - e.heard >= cfg_.timers[Timer::drop]) {
+        fail_queue(e);
+        push(OperatorEvent::Kind::dropped, e.id, MsgType::PING, {});
+        it = reg_.erase(it);
+        continue;
+      }
+      if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
+        if (e.synced && e.resends >= cfg_.max_resends) {
+          push(OperatorEvent::Kind::timed_out, e.id, e.queue.front().type, {});
+          e.queue.pop_front();
+          e.pending = false;
+          start_next(e);
+        } else {
+          ++e.resends;
+          e.sent_at = now_;
+          send_pending(e);
+        }
+      }
+      ++it;
+    }
+  }
+
+  void enqueue(RegistryEntry& e, const Command& c) {
+    e.queue.push_back(c);
+    if (e.synced && !e.pending) start_next(e);
+  }
+
+  /// Sends the next queued command, if any, with a new msgid.
+  void start_next(RegistryEntry& e) {
+    if (e.queue.empty()) return;
+    e.pending = true;
+    e.mid = msgid_++;
+    e.sent_at = now_;
+    e.resends = 0;
+    send_pending(e);
+  }
+
+  /// Spec Pending(r): the datagram of the pending command (same msgid every time).
+  void send_pending(const RegistryEntry& e) {
+    if (!e.pending) return;
+    if (!e.synced) {
+      char num[10];
+      const std::string_view p[1] = {number(e.ann, num)};
+      send_with(e.peer, e.id, e.mid, MsgType::MASTER, p, 1);
+      return;
+    }
+    const Command& c = e.queue.front();
+    std::vector<std::string_view> p;
+    if (c.type == MsgType::BEHAVIOUR) {
+      p.push_back(c.name);
+      for (const auto& a : c.args) p.push_back(a);
+    }
+    send_with(e.peer, e.id, e.mid, c.type, p.data(), p.size());
+  }
+
+  void fail_queue(RegistryEntry& e) {
+    if (!e.synced) return;
+    for (const Command& c : e.queue) push(OperatorEvent::Kind::timed_out, e.id, c.type, {});
+    e.queue.clear();
+    e.pending = false;
+  }
+
+  void send(Peer to, std::uint16_t id, MsgType t, const std::string_view* p, std::size_t n) {
+    send_with(to, id, msgid_++, t, p, n);
+  }
+  void send_with(Peer to, std::uint16_t id, std::uint32_t mid, MsgType t, const std::string_view* p,
+                 std::size_t n) {
+    char buf[kMaxDatagram];
+    const EncodeResult r = encode_parts(kMasterId, id, mid, static_cast<std::uint8_t>(t), p, n, buf,
+                                        sizeof buf);
+    if (r.ok()) tx_.push_back(MasterTransmit{to, std::string(buf, r.size)});
+  }
+
+  void push(OperatorEvent::Kind k, std::uint16_t agent, MsgType t, std::string text) {
+    ev_.push_back(OperatorEvent{k, agent, t, std::move(text)});
+  }
+
+  static std::string_view number(std::uint32_t v, char (&buf)[10]) noexcept {
+    char* e = detail::write_decimal(buf, v);
+    return std::string_view(buf, static_cast<std::size_t>(e - buf));
+  }
+
+  // ------------------------------------------------------------------ trace
+
+  struct Snapshot {
+    std::string reg;
+    std::uint16_t next_id = 0;
+    std::uint32_t msgid = 0;
+  };
+
+  /// The registry as the spec's master.reg (JSON array), for trace records.
+  std::string reg_json() const {
+    std::string s = "[";
+    for (const auto& kv : reg_) {
+      const RegistryEntry& e = kv.second;
+      if (s.size() > 1) s += ',';
+      s += "{\"ann\":" + std::to_string(e.ann) + ",\"id\":" + std::to_string(e.id) +
+           ",\"ep\":" + std::to_string(e.peer) + ",\"job\":\"" + std::string(e.job()) +
+           "\",\"mid\":" + std::to_string(e.mid) + ",\"quiet\":" + std::to_string(now_ - e.heard) + "}";
+    }
+    return s + "]";
+  }
+
+  Snapshot snap() const {
+    if constexpr (Trace::enabled) {
+      if (trace_ != nullptr) return Snapshot{reg_json(), next_id_, msgid_};
+    }
+    return Snapshot{};
+  }
+
+  void record(Action a, Snapshot& before, std::string_view msg) {
+    if constexpr (Trace::enabled) {
+      if (trace_ == nullptr) return;
+      MasterTraceRecord r;
+      r.action = a;
+      r.msg = msg;
+      r.now = now_;
+      r.reg_before = std::move(before.reg);
+      r.reg_after = reg_json();
+      r.next_id_before = before.next_id;
+      r.next_id_after = next_id_;
+      r.msgid_before = before.msgid;
+      r.msgid_after = msgid_;
+      trace_->record(r);
+    } else {
+      (void)a, (void)before, (void)msg;
+    }
+  }
+
+  MasterConfig cfg_;
+  Trace* trace_ = nullptr;
+  std::uint16_t next_id_;
+  std::uint32_t msgid_;
+  Millis now_;
+  std::map<std::uint16_t, RegistryEntry> reg_;
+  DedupeWindow<256> reports_;
+  std::deque<MasterTransmit> tx_;
+  std::deque<OperatorEvent> ev_;
+  std::uint32_t rejected_ = 0;
+  Message rx_;
+};
+
+}  // namespace ev3proto

@@ -1,0 +1,91 @@
+/// @file timers.hpp
+/// @brief The one table of named protocol deadlines (agent and master), with their defaults.
+///
+/// The spec (spec/tla/AgentLogic.tla, Fleet.tla) counts time in ticks: TSync, TPing, TLoss, TPaused,
+/// TDrop, and the master resends a pending command every tick. The cores count monotonic
+/// milliseconds. A core configured with every timer equal to the model's constant (and resend = 1)
+/// behaves as the spec with 1 tick = 1 ms: `advance(now + 1)` is one spec Tick. docs/core.md has
+/// the full mapping.
+#pragma once
+
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+namespace ev3proto {
+
+/// Monotonic time in milliseconds, as the caller's clock gives it (any origin).
+using Millis = std::uint64_t;
+
+/// The named deadlines of the protocol. The numeric values index Timers::ms and kTimerTable.
+enum class Timer : std::uint8_t {
+  sync,      ///< Agent: IDLE this long without a MASTER -> PANIC (spec TSync).
+  heartbeat, ///< Agent: period of AGENT (IDLE), PING (synced) and PANIC broadcasts (spec TPing).
+  loss,      ///< Agent: master not heard this long: ACTIVE -> PANIC, WORKING -> PAUSED (spec TLoss).
+  paused,    ///< Agent: master not heard this long in PAUSED -> PANIC (spec TPaused, > loss).
+  resend,    ///< Master: a pending command is resent at this interval (spec: every tick).
+  drop,      ///< Master: an agent not heard this long leaves the registry (spec TDrop).
+};
+
+/// Number of named timers.
+inline constexpr std::size_t kTimerCount = 6;
+
+/// One row of the timer table: the timer, its name, the spec constant it stands for, its default.
+struct TimerSpec {
+  Timer timer;                ///< Which timer.
+  std::string_view name;      ///< Name used in configuration and docs ("loss").
+  std::string_view spec_name; ///< The TLA+ constant it corresponds to ("TLoss").
+  Millis default_ms;          ///< Default in milliseconds.
+  std::string_view meaning;   ///< One line of documentation.
+};
+
+/// The timer table: the single place where protocol timeouts are defined (docs/core.md prints it).
+inline constexpr std::array<TimerSpec, kTimerCount> kTimerTable{{
+    {Timer::sync, "sync", "TSync", 10000, "IDLE without MASTER -> PANIC (thesis: 10 s)"},
+    {Timer::heartbeat, "heartbeat", "TPing", 1000, "period of AGENT / PING / PANIC broadcasts"},
+    {Timer::loss, "loss", "TLoss", 3000, "master silent: ACTIVE -> PANIC, WORKING -> PAUSED"},
+    {Timer::paused, "paused", "TPaused", 6000, "master silent in PAUSED -> PANIC (> loss)"},
+    {Timer::resend, "resend", "1 tick", 500, "master resends a pending command"},
+    {Timer::drop, "drop", "TDrop", 10000, "master forgets an agent not heard for this long"},
+}};
+
+/// Values of all timers, in milliseconds; default-constructed with kTimerTable's defaults.
+struct Timers {
+  std::array<Millis, kTimerCount> ms{}; ///< ms[static_cast<size_t>(Timer::x)] is timer x.
+
+  /// All timers at their defaults.
+  constexpr Timers() noexcept {
+    for (std::size_t i = 0; i < kTimerCount; ++i) ms[i] = kTimerTable[i].default_ms;
+  }
+  /// The value of timer @p t.
+  constexpr Millis operator[](Timer t) const noexcept { return ms[static_cast<std::size_t>(t)]; }
+  /// Sets timer @p t to @p value (0 is replaced by 1: every timer is at least one tick).
+  constexpr Timers& set(Timer t, Millis value) noexcept {
+    ms[static_cast<std::size_t>(t)] = value == 0 ? 1 : value;
+    return *this;
+  }
+  /// True when the values satisfy the spec's assumptions (all > 0, paused > loss).
+  constexpr bool valid() const noexcept {
+    for (Millis v : ms)
+      if (v == 0) return false;
+    return (*this)[Timer::paused] > (*this)[Timer::loss];
+  }
+  /// Timers equal to a model's constants with 1 tick = 1 ms (resend every tick, as Fleet.tla).
+  static constexpr Timers from_ticks(Millis t_sync, Millis t_ping, Millis t_loss, Millis t_paused,
+                                     Millis t_drop) noexcept {
+    Timers t;
+    t.set(Timer::sync, t_sync).set(Timer::heartbeat, t_ping).set(Timer::loss, t_loss);
+    t.set(Timer::paused, t_paused).set(Timer::resend, 1).set(Timer::drop, t_drop);
+    return t;
+  }
+};
+
+/// Name of a timer as in kTimerTable ("loss").
+constexpr std::string_view to_string(Timer t) noexcept {
+  return kTimerTable[static_cast<std::size_t>(t)].name;
+}
+
+static_assert(Timers{}.valid(), "the default timers must satisfy the spec's assumptions");
+
+}  // namespace ev3proto

@@ -1,0 +1,218 @@
+/// @file trace.hpp
+/// @brief Trace sinks for the cores: one NDJSON line per spec action (docs/core.md, "Trace").
+///
+/// Host-side (tests, the conformance runner, a debugging build of the firmware): this header uses
+/// std::string and may allocate. The agent core itself never includes it; an Agent<NoTrace> carries
+/// no trace code at all.
+///
+/// A line: {"node":"agent","action":"RecvStart","args":{"msg":"1:7:5:8"},"now":1234,
+///          "changed":{"state":"WORKING","led":"GREEN","motors":"ON"}}
+/// Variable names and values are the spec's (AgentLogic AgentType; Fleet master fields).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include "agent.hpp"
+#include "core.hpp"
+#include "master.hpp"
+
+namespace ev3proto {
+
+namespace trace_detail {
+
+/// Appends @p s as a JSON string literal.
+inline void json_string(std::string& out, std::string_view s) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  out += '"';
+  for (char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20 || c > 0x7E) {
+      out += "\\u00";
+      out += kHex[c >> 4];
+      out += kHex[c & 0xF];
+    } else {
+      out += ch;
+    }
+  }
+  out += '"';
+}
+
+/// Appends `"key":` (with a leading comma unless @p first).
+inline void json_key(std::string& out, std::string_view key, bool& first) {
+  if (!first) out += ',';
+  first = false;
+  json_string(out, key);
+  out += ':';
+}
+
+/// The window as the spec's win: [{"src":..,"msgid":..,"ans":{"type":"ACK","src":..,"ref":..}}].
+template <typename W>
+std::string window_json(const W& win) {
+  std::string s = "[";
+  bool first = true;
+  win.for_each([&](std::uint16_t src, std::uint32_t msgid, const StoredAnswer& a) {
+    if (!first) s += ',';
+    first = false;
+    s += "{\"src\":" + std::to_string(src) + ",\"msgid\":" + std::to_string(msgid) +
+         ",\"ans\":{\"type\":\"" + (a.ack ? "ACK" : "NOT") + "\",\"src\":" + std::to_string(a.src) +
+         ",\"ref\":" + std::to_string(a.ref);
+    if (!a.ack) {
+      s += ",\"reason\":";
+      json_string(s, to_string(a.reason));
+    }
+    s += "}}";
+  });
+  return s + "]";
+}
+
+}  // namespace trace_detail
+
+/// Formats an agent trace record as one NDJSON line (no newline). Only the variables that changed
+/// appear under "changed"; @p node names the agent ("agent", "agent3").
+template <typename A>
+std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_view node = "agent") {
+  using trace_detail::json_key;
+  using trace_detail::json_string;
+  std::string s = "{";
+  bool first = true;
+  json_key(s, "node", first);
+  json_string(s, node);
+  json_key(s, "action", first);
+  json_string(s, to_string(r.action));
+  json_key(s, "args", first);
+  s += '{';
+  bool afirst = true;
+  if (!r.msg.empty()) {
+    json_key(s, "msg", afirst);
+    json_string(s, r.msg);
+  }
+  if (!r.event.empty()) {
+    json_key(s, "e", afirst);
+    json_string(s, r.event);
+  }
+  if (r.action == Action::Tick) {
+    json_key(s, "ticks", afirst);
+    s += std::to_string(r.ticks);
+  }
+  s += '}';
+  json_key(s, "now", first);
+  s += std::to_string(r.now);
+  json_key(s, "changed", first);
+  s += '{';
+  bool c = true;
+  const AgentVars& b = r.before;
+  const AgentVars& a = r.after;
+  auto str = [&](std::string_view k, std::string_view v) {
+    json_key(s, k, c);
+    json_string(s, v);
+  };
+  auto num = [&](std::string_view k, std::uint64_t v) {
+    json_key(s, k, c);
+    s += std::to_string(v);
+  };
+  if (a.state != b.state) str("state", to_string(a.state));
+  if (a.led != b.led) str("led", to_string(a.led));
+  if (a.id != b.id) num("id", a.id);
+  if (a.beh_name() != b.beh_name()) str("beh", a.beh_len == 0 ? "NONE" : a.beh_name());
+  if (a.step != b.step) num("step", a.step);
+  if (a.wait != b.wait) str("wait", to_string(a.wait));
+  if (a.motors != b.motors) str("motors", a.motors ? "ON" : "OFF");
+  if (a.dev_ok != b.dev_ok) {
+    json_key(s, "devOk", c);
+    s += a.dev_ok ? "true" : "false";
+  }
+  if (a.silence != b.silence) num("silence", a.silence);
+  if (a.clk != b.clk) num("clk", a.clk);
+  if (a.win_rev != b.win_rev) {
+    json_key(s, "win", c);
+    s += trace_detail::window_json(agent.window());
+  }
+  s += "}}";
+  return s;
+}
+
+/// Formats a master trace record as one NDJSON line (no newline); "changed" holds the master's
+/// variables that changed: reg (master.reg), nextId, msgid.
+inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node = "master") {
+  using trace_detail::json_key;
+  using trace_detail::json_string;
+  std::string s = "{";
+  bool first = true;
+  json_key(s, "node", first);
+  json_string(s, node);
+  json_key(s, "action", first);
+  json_string(s, to_string(r.action));
+  json_key(s, "args", first);
+  s += '{';
+  if (!r.msg.empty()) {
+    bool a = true;
+    json_key(s, "msg", a);
+    json_string(s, r.msg);
+  }
+  s += '}';
+  json_key(s, "now", first);
+  s += std::to_string(r.now);
+  json_key(s, "changed", first);
+  s += '{';
+  bool c = true;
+  if (r.reg_after != r.reg_before) {
+    json_key(s, "reg", c);
+    s += r.reg_after;
+  }
+  if (r.next_id_after != r.next_id_before) {
+    json_key(s, "nextId", c);
+    s += std::to_string(r.next_id_after);
+  }
+  if (r.msgid_after != r.msgid_before) {
+    json_key(s, "msgid", c);
+    s += std::to_string(r.msgid_after);
+  }
+  s += "}}";
+  return s;
+}
+
+/// A trace sink that turns every record into an NDJSON line and hands it to a callback (or keeps
+/// it in @c lines when no callback is set).
+class NdjsonTrace {
+ public:
+  /// Tracing on.
+  static constexpr bool enabled = true;
+
+  /// A sink labelling its records with @p node.
+  explicit NdjsonTrace(std::string node = "agent") : node_(std::move(node)) {}
+
+  /// Sends each line to @p out instead of keeping it.
+  void set_output(std::function<void(const std::string&)> out) { out_ = std::move(out); }
+
+  /// Agent record (called by Agent).
+  template <typename A>
+  void record(const AgentTraceRecord& r, const A& agent) {
+    emit(to_ndjson(r, agent, node_));
+  }
+
+  /// Master record (called by Master).
+  void record(const MasterTraceRecord& r) { emit(to_ndjson(r, node_)); }
+
+  /// The lines kept so far (when no output callback is set).
+  std::vector<std::string> lines;
+
+ private:
+  void emit(std::string line) {
+    if (out_)
+      out_(line);
+    else
+      lines.push_back(std::move(line));
+  }
+  std::string node_;
+  std::function<void(const std::string&)> out_;
+};
+
+}  // namespace ev3proto

@@ -1,0 +1,191 @@
+// Drives one Agent from transcript commands (tests/cpp/testdata/agent_*.txt) and prints what it
+// did, one line per output. Shared by the transcript test and the trace test.
+//
+// Inputs:
+//   agent [temp=N] [model=M] [behaviours=name:devbits,...] [devices=bits] [sync=ms] [heartbeat=ms]
+//         [loss=ms] [paused=ms] [at=ms]          (re)create the agent at time `at` (default 0)
+//   advance MS                                   time moves MS milliseconds
+//   recv DATAGRAM [from=PEER]                    a datagram arrives
+//   event obstacle|proximity|action_ok|action_failed|battery_low|unplug BITS|plug BITS
+//   event sensor PORT MODE VALUE...
+//   trace                                        print the NDJSON trace lines of this case
+// Outputs (in this order): `action X` per spec action other than Tick; `send master|broadcast D`;
+// `state S`, `led L`, `control K [name args...]` in order; `deadline T` (or `deadline none`).
+#pragma once
+
+#include <memory>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include "ev3proto/agent.hpp"
+#include "ev3proto/trace.hpp"
+
+namespace ev3test {
+
+using namespace ev3proto;
+
+/// Trace sink keeping action names and NDJSON lines.
+struct LogTrace {
+  static constexpr bool enabled = true;
+  std::vector<std::string> actions;
+  std::vector<std::string> json;
+  template <typename A>
+  void record(const AgentTraceRecord& r, const A& a) {
+    if (r.action != Action::Tick) actions.push_back("action " + std::string(to_string(r.action)));
+    json.push_back(to_ndjson(r, a));
+  }
+};
+
+using TracedAgent = Agent<LogTrace>;
+
+inline std::vector<std::string> words(const std::string& line) {
+  std::istringstream in(line);
+  std::vector<std::string> w;
+  for (std::string s; in >> s;) w.push_back(s);
+  return w;
+}
+
+/// One agent and its surroundings (capabilities storage, time).
+class AgentDriver {
+ public:
+  /// Runs one case's input lines; returns the output lines.
+  std::vector<std::string> run(const std::vector<std::string>& input) {
+    out_.clear();
+    trace_.actions.clear();
+    trace_.json.clear();
+    bool show_trace = false;
+    std::vector<std::string> lines;
+    for (const std::string& line : input) {
+      step(line, show_trace);
+      flush(lines);  // per input line, so a control names the behaviour it was emitted for
+    }
+    if (show_trace)
+      for (const auto& j : trace_.json) lines.push_back("trace " + j);
+    const Millis d = agent_ ? agent_->next_deadline() : TracedAgent::kNever;
+    lines.push_back(d == TracedAgent::kNever ? "deadline none" : "deadline " + std::to_string(d));
+    return lines;
+  }
+
+  TracedAgent* agent() { return agent_.get(); }
+
+ private:
+  void flush(std::vector<std::string>& lines) {
+    for (auto& a : trace_.actions) lines.push_back(a);
+    trace_.actions.clear();
+    drain(lines);
+    for (auto& e : out_) lines.push_back(e);
+    out_.clear();
+  }
+
+  void step(const std::string& line, bool& show_trace) {
+    {
+      const auto w = words(line);
+      if (w.empty()) return;
+      if (w[0] == "agent") {
+        create(w);
+      } else if (!agent_) {
+        out_.push_back("error: no agent (start the file with `agent`)");
+      } else if (w[0] == "advance" && w.size() == 2) {
+        now_ += std::stoull(w[1]);
+        agent_->advance(now_);
+      } else if (w[0] == "recv" && w.size() >= 2) {
+        Peer from = 1;
+        if (w.size() == 3 && w[2].rfind("from=", 0) == 0) from = static_cast<Peer>(std::stoul(w[2].substr(5)));
+        agent_->handle_datagram(w[1], from, now_);
+      } else if (w[0] == "event" && w.size() >= 2) {
+        event(w);
+      } else if (w[0] == "trace") {
+        show_trace = true;
+      } else {
+        out_.push_back("error: bad input: " + line);
+      }
+    }
+  }
+
+  void create(const std::vector<std::string>& w) {
+    AgentConfig c;
+    c.temp_id = 50001;
+    names_.clear();
+    behs_.clear();
+    std::string model = "A";
+    std::string behaviours = "explore:1,wander:0";
+    std::uint32_t devices = 1;
+    Millis at = 0;
+    for (std::size_t i = 1; i < w.size(); ++i) {
+      const auto eq = w[i].find('=');
+      const std::string k = w[i].substr(0, eq), v = eq == std::string::npos ? "" : w[i].substr(eq + 1);
+      if (k == "temp") c.temp_id = static_cast<std::uint16_t>(std::stoul(v));
+      else if (k == "model") model = v;
+      else if (k == "behaviours") behaviours = v;
+      else if (k == "devices") devices = static_cast<std::uint32_t>(std::stoul(v));
+      else if (k == "at") at = std::stoull(v);
+      else if (k == "sync") c.timers.set(Timer::sync, std::stoull(v));
+      else if (k == "heartbeat") c.timers.set(Timer::heartbeat, std::stoull(v));
+      else if (k == "loss") c.timers.set(Timer::loss, std::stoull(v));
+      else if (k == "paused") c.timers.set(Timer::paused, std::stoull(v));
+      else out_.push_back("error: bad agent option " + w[i]);
+    }
+    model_ = model;
+    std::istringstream in(behaviours);
+    for (std::string item; std::getline(in, item, ',');) {
+      const auto colon = item.find(':');
+      names_.push_back(item.substr(0, colon));
+      behs_.push_back(BehaviourSpec{{}, colon == std::string::npos ? 0u : static_cast<std::uint32_t>(std::stoul(item.substr(colon + 1)))});
+    }
+    for (std::size_t i = 0; i < behs_.size(); ++i) behs_[i].name = names_[i];
+    c.caps = Capabilities{model_, behs_.data(), behs_.size(), devices};
+    now_ = at;
+    agent_ = std::make_unique<TracedAgent>(c, now_, &trace_);
+  }
+
+  void event(const std::vector<std::string>& w) {
+    const std::string& e = w[1];
+    if (e == "obstacle") agent_->action_interrupted(Warning::OBSTACLE_DETECTED, now_);
+    else if (e == "proximity") agent_->action_interrupted(Warning::PROXIMITY_ALERT, now_);
+    else if (e == "action_ok") agent_->action_ok(now_);
+    else if (e == "action_failed") agent_->action_failed(now_);
+    else if (e == "battery_low") agent_->battery_low(now_);
+    else if (e == "unplug" && w.size() == 3) agent_->device_unplugged(static_cast<std::uint32_t>(std::stoul(w[2])), now_);
+    else if (e == "plug" && w.size() == 3) agent_->device_plugged(static_cast<std::uint32_t>(std::stoul(w[2])), now_);
+    else if (e == "sensor" && w.size() >= 5) {
+      std::vector<std::string_view> v(w.begin() + 4, w.end());
+      if (!agent_->sensor_report(w[2], w[3], v.data(), v.size(), now_)) out_.push_back("sensor refused");
+    } else {
+      out_.push_back("error: bad event " + e);
+    }
+  }
+
+  void drain(std::vector<std::string>& lines) {
+    Transmit t;
+    while (agent_ && agent_->poll_transmit(t))
+      lines.push_back("send " + std::string(to_string(t.dest)) + " " + std::string(t.bytes));
+    AgentEvent e;
+    while (agent_ && agent_->poll_event(e)) {
+      switch (e.kind) {
+        case AgentEvent::Kind::state: lines.push_back("state " + std::string(to_string(e.state))); break;
+        case AgentEvent::Kind::led: lines.push_back("led " + std::string(to_string(e.led))); break;
+        case AgentEvent::Kind::control: {
+          std::string l = "control " + std::string(to_string(e.control));
+          if (e.control == ControlKind::start || e.control == ControlKind::restart) {
+            const BehaviourView b = agent_->behaviour();
+            l += " " + std::string(b.name);
+            for (std::size_t i = 0; i < b.arg_count; ++i) l += " " + std::string(b.arg(i));
+          }
+          lines.push_back(l);
+          break;
+        }
+      }
+    }
+  }
+
+  LogTrace trace_;
+  std::unique_ptr<TracedAgent> agent_;
+  Millis now_ = 0;
+  std::string model_;
+  std::vector<std::string> names_;
+  std::vector<BehaviourSpec> behs_;
+  std::vector<std::string> out_;
+};
+
+}  // namespace ev3test

@@ -1,0 +1,85 @@
+// The agent core as firmware builds it: -fno-exceptions -fno-rtti, no gtest. Drives one agent
+// through sync, BEHAVIOUR, START, a duplicate, losing the master (PAUSED, then PANIC) and resync,
+// and exits non-zero on the first failed check.
+#include <cstdio>
+#include <cstring>
+#include <string_view>
+
+#include "ev3proto/agent.hpp"
+
+#if defined(__cpp_exceptions) || defined(__EXCEPTIONS)
+#error "this file must be compiled with -fno-exceptions"
+#endif
+#if defined(__cpp_rtti) || defined(__GXX_RTTI)
+#error "this file must be compiled with -fno-rtti"
+#endif
+
+#define CHECK(cond)                                                                  \
+  do {                                                                               \
+    if (!(cond)) {                                                                   \
+      std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
+      return 1;                                                                      \
+    }                                                                                \
+  } while (0)
+
+namespace {
+using namespace ev3proto;
+
+// Static storage only: the agent is a global-free local of main, the table is constexpr.
+constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}};
+
+template <typename A>
+std::size_t drain(A& a, char (&last)[64]) {
+  Transmit t;
+  std::size_t n = 0;
+  while (a.poll_transmit(t)) {
+    const std::size_t k = t.bytes.size() < 63 ? t.bytes.size() : 63;
+    std::memcpy(last, t.bytes.data(), k);
+    last[k] = '\0';
+    ++n;
+  }
+  AgentEvent e;
+  while (a.poll_event(e)) {
+  }
+  return n;
+}
+}  // namespace
+
+int main() {
+  AgentConfig cfg;
+  cfg.caps = Capabilities{"A", kBehaviours, 1, 1u};
+  cfg.temp_id = 50007;
+  Agent<> agent(cfg, 0);
+  char last[64] = {};
+
+  CHECK(agent.state() == State::IDLE && agent.led() == Led::YELLOW_BLINK);
+  agent.advance(1000);
+  CHECK(drain(agent, last) == 1 && std::strcmp(last, "50007:0:1:1:A") == 0);  // AGENT broadcast
+
+  CHECK(agent.handle_datagram("1:7:10:2:50007", 1, 1100) == Action::RecvMaster);
+  CHECK(agent.state() == State::ACTIVE && agent.id() == 7);
+  CHECK(drain(agent, last) == 1 && std::strcmp(last, "7:1:2:3:10") == 0);  // ACK from the new id
+
+  CHECK(agent.handle_datagram("1:7:11:7:explore:speed=3", 1, 1200) == Action::RecvBehaviour);
+  CHECK(drain(agent, last) == 1 && std::strcmp(last, "7:1:3:3:11") == 0);
+  CHECK(agent.handle_datagram("1:7:12:8", 1, 1300) == Action::RecvStart);
+  CHECK(agent.state() == State::WORKING && agent.motors());
+  CHECK(agent.behaviour().name == "explore" && agent.behaviour().arg(0) == "speed=3");
+  drain(agent, last);
+  CHECK(agent.handle_datagram("1:7:12:8", 1, 1301) == Action::RecvDuplicate);  // copy: answered again
+  CHECK(drain(agent, last) == 1 && std::strcmp(last, "7:1:5:3:12") == 0);
+
+  // The master goes silent: WORKING -> PAUSED at loss, PANIC at paused.
+  agent.advance(1300 + cfg.timers[Timer::loss]);
+  CHECK(agent.state() == State::PAUSED && !agent.motors());
+  agent.advance(1300 + cfg.timers[Timer::paused]);
+  CHECK(agent.state() == State::PANIC && agent.led() == Led::RED_BLINK);
+  drain(agent, last);
+  CHECK(std::strncmp(last, "7:0:", 4) == 0);  // PANIC broadcast from the old id
+
+  // The master returns and gives the id back.
+  CHECK(agent.handle_datagram("1:7:40:2:7", 2, 9000) == Action::RecvMaster);
+  CHECK(agent.state() == State::ACTIVE && agent.behaviour().name.empty());
+  std::printf("agent core, -fno-exceptions -fno-rtti: ok (sizeof(Agent<>) = %zu bytes)\n", sizeof agent);
+  return 0;
+}

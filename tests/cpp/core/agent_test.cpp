@@ -1,0 +1,216 @@
+// Agent core unit tests: the transition table equals the spec's, no heap use, window eviction.
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <cstdlib>
+#include <fstream>
+#include <new>
+#include <regex>
+#include <set>
+#include <sstream>
+#include <string>
+#include <tuple>
+
+#include "ev3proto/agent.hpp"
+
+// Replacing the global allocation functions with malloc/free is exactly what this test wants.
+#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
+
+namespace {
+std::atomic<long> g_news{0};
+}  // namespace
+
+// Counts every allocation of the test binary (the agent must make none).
+void* operator new(std::size_t n) {
+  g_news.fetch_add(1, std::memory_order_relaxed);
+  if (void* p = std::malloc(n ? n : 1)) return p;
+  throw std::bad_alloc();
+}
+void operator delete(void* p) noexcept { std::free(p); }
+void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+
+namespace {
+using namespace ev3proto;
+
+// AllowedTransitions as written in spec/tla/AgentLogic.tla.
+std::set<std::tuple<std::string, std::string, std::string>> spec_transitions() {
+  std::ifstream in(EV3_AGENT_LOGIC_TLA);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  const std::string text = ss.str();
+  const auto start = text.find("AllowedTransitions ==");
+  EXPECT_NE(start, std::string::npos) << "AllowedTransitions not found in " << EV3_AGENT_LOGIC_TLA;
+  const auto end = text.find('}', start);
+  const std::string body = text.substr(start, end - start);
+  std::set<std::tuple<std::string, std::string, std::string>> out;
+  const std::regex tuple(R"re(<<\s*"(\w+)"\s*,\s*"(\w+)"\s*,\s*"(\w+)"\s*>>)re");
+  for (std::sregex_iterator it(body.begin(), body.end(), tuple), e; it != e; ++it)
+    out.emplace((*it)[1], (*it)[2], (*it)[3]);
+  return out;
+}
+
+TEST(TransitionTable, EqualsSpecAllowedTransitions) {
+  std::set<std::tuple<std::string, std::string, std::string>> cpp;
+  for (const Transition& t : kTransitions)
+    cpp.emplace(std::string(to_string(t.from)), std::string(to_string(t.to)), std::string(to_string(t.by)));
+  const auto spec = spec_transitions();
+  EXPECT_GE(spec.size(), 13u);
+  EXPECT_EQ(cpp, spec);
+}
+
+TEST(TransitionTable, NextStateUsesTheTable) {
+  EXPECT_EQ(next_state(State::WORKING, Action::HeartbeatLost), State::PAUSED);
+  EXPECT_EQ(next_state(State::ACTIVE, Action::HeartbeatLost), State::PANIC);
+  EXPECT_EQ(next_state(State::WORKING, Action::RecvStart), State::WORKING);  // no row: unchanged
+  for (std::size_t s = 0; s < kStateCount; ++s) EXPECT_EQ(led_of(static_cast<State>(s)), led_of(static_cast<State>(s)));
+  EXPECT_EQ(to_string(led_of(State::PAUSED)), "ORANGE");
+}
+
+constexpr BehaviourSpec kBehs[] = {{"explore", 1u}, {"wander", 0u}};
+
+AgentConfig config() {
+  AgentConfig c;
+  c.caps = Capabilities{"A", kBehs, 2, 1u};
+  c.temp_id = 50001;
+  return c;
+}
+
+template <typename A>
+void drain(A& a) {
+  Transmit t;
+  while (a.poll_transmit(t)) {
+  }
+  AgentEvent e;
+  while (a.poll_event(e)) {
+  }
+}
+
+TEST(AgentNoHeap, WholeLifecycleAllocatesNothing) {
+  alignas(Agent<>) static unsigned char storage[sizeof(Agent<>)];
+  const long before = g_news.load();
+  Agent<>* a = new (storage) Agent<>(config(), 0);  // placement: no allocation
+  for (int round = 0; round < 3; ++round) {
+    const Millis t0 = static_cast<Millis>(round) * 100000u;
+    a->advance(t0 + 1000);
+    const char* master = round == 0 ? "1:5:1:2:50001" : "1:5:100:2:5";
+    a->handle_datagram(round == 0 ? master : master, 1, t0 + 1001);
+    char buf[64];
+    std::snprintf(buf, sizeof buf, "1:5:%d:7:explore:speed=3", 2 + round * 10);
+    a->handle_datagram(buf, 1, t0 + 1002);
+    std::snprintf(buf, sizeof buf, "1:5:%d:8", 3 + round * 10);
+    a->handle_datagram(buf, 1, t0 + 1003);
+    a->handle_datagram(buf, 1, t0 + 1004);  // duplicate
+    a->action_ok(t0 + 1005);
+    const std::string_view v[1] = {"42"};
+    a->sensor_report("in1", "US-DIST-CM", v, 1, t0 + 1006);
+    a->action_interrupted(Warning::OBSTACLE_DETECTED, t0 + 1007);
+    a->handle_datagram("garbage", 1, t0 + 1008);
+    a->device_unplugged(1, t0 + 1009);
+    a->device_plugged(1, t0 + 1010);
+    a->advance(t0 + 20000);  // master lost: PANIC
+    drain(*a);
+  }
+  a->battery_low(400000);
+  drain(*a);
+  EXPECT_EQ(g_news.load(), before) << "the agent core allocated";
+  EXPECT_EQ(a->state(), State::OFF);
+  a->~Agent<>();
+}
+
+TEST(AgentNoHeap, CounterSeesAllocations) {  // the counter itself works
+  const long before = g_news.load();
+  void* p = ::operator new(16);  // a direct call: cannot be elided like a new-expression
+  ::operator delete(p);
+  EXPECT_EQ(g_news.load(), before + 1);
+}
+
+TEST(AgentWindow, EvictedCommandIsActedOnAgain) {
+  Agent<NoTrace, 2> a(config(), 0);
+  a.handle_datagram("1:5:1:2:50001", 1, 1);
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 2), Action::RecvBehaviour);
+  EXPECT_EQ(a.handle_datagram("1:5:3:8", 1, 3), Action::RecvStart);  // window now {2, 3}: MASTER evicted
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 4), Action::RecvDuplicate);
+  EXPECT_EQ(a.handle_datagram("1:5:1:2:50001", 1, 5), Action::Ignore);  // evicted, not masterless
+  EXPECT_EQ(a.window().size(), 2u);
+}
+
+TEST(AgentQueues, OverflowDropsOldestAndCounts) {
+  Agent<NoTrace, 50, 2, 64, 2> a(config(), 0);
+  a.advance(1000);
+  a.advance(2000);
+  a.advance(3000);  // three AGENT broadcasts into two slots
+  EXPECT_EQ(a.overflowed(), 1u);
+  Transmit t;
+  ASSERT_TRUE(a.poll_transmit(t));
+  EXPECT_EQ(t.bytes, "50001:0:2:1:A");
+  ASSERT_TRUE(a.poll_transmit(t));
+  EXPECT_FALSE(a.poll_transmit(t));
+  // A sensor report that cannot fit the slot is refused and drops nothing.
+  a.handle_datagram("1:5:1:2:50001", 1, 3001);
+  a.handle_datagram("1:5:2:7:wander", 1, 3002);
+  a.handle_datagram("1:5:3:8", 1, 3003);
+  drain(a);
+  const std::string big(100, 'x');
+  const std::string_view v[1] = {big};
+  EXPECT_FALSE(a.sensor_report("in1", "m", v, 1, 3004));
+  EXPECT_FALSE(a.poll_transmit(t));
+}
+
+TEST(AgentBehaviour, ArgumentsBeyondCapacityAreRefused) {
+  Agent<NoTrace, 50, 8, 512, 16, 4> a(config(), 0);
+  a.handle_datagram("1:5:1:2:50001", 1, 1);
+  drain(a);
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander:speed=3", 1, 2), Action::RecvBehaviour);
+  Transmit t;
+  ASSERT_TRUE(a.poll_transmit(t));
+  EXPECT_EQ(t.bytes, "5:1:2:4:2:unknown behaviour");
+  EXPECT_TRUE(a.behaviour().name.empty());
+}
+
+TEST(AgentTime, PastTimeChangesNothingAndDeadlineIsExact) {
+  Agent<> a(config(), 500);
+  EXPECT_EQ(a.next_deadline(), 1500u);
+  a.advance(100);
+  EXPECT_EQ(a.now(), 500u);
+  a.advance(10500);  // sync 10000 after start: PANIC at 10500
+  EXPECT_EQ(a.state(), State::PANIC);
+  EXPECT_EQ(a.next_deadline(), 11500u);
+  a.battery_low(10600);
+  EXPECT_EQ(a.next_deadline(), Agent<>::kNever);
+  a.advance(20000);
+  EXPECT_EQ(a.now(), 20000u);
+  EXPECT_EQ(a.handle_datagram("1:50001:1:2:50001", 1, 20001), Action::Ignore);  // OFF: no step
+}
+
+TEST(Timers, DefaultsAndSpecMapping) {
+  const Timers t;
+  EXPECT_EQ(t[Timer::sync], 10000u);
+  EXPECT_EQ(t[Timer::heartbeat], 1000u);
+  EXPECT_EQ(t[Timer::loss], 3000u);
+  EXPECT_EQ(t[Timer::paused], 6000u);
+  EXPECT_TRUE(t.valid());
+  const Timers m = Timers::from_ticks(2, 1, 2, 3, 3);
+  EXPECT_EQ(m[Timer::resend], 1u);
+  EXPECT_EQ(m[Timer::drop], 3u);
+  EXPECT_TRUE(m.valid());
+  Timers bad;
+  bad.set(Timer::paused, 0);
+  EXPECT_EQ(bad[Timer::paused], 1u);
+  EXPECT_FALSE(bad.valid());
+  EXPECT_EQ(to_string(Timer::resend), "resend");
+}
+
+TEST(Names, ActionAndEnumSpellings) {
+  EXPECT_EQ(to_string(Action::RecvDuplicate), "RecvDuplicate");
+  EXPECT_EQ(to_string(Action::MasterTick), "Tick");
+  EXPECT_EQ(to_string(static_cast<Action>(200)), "");
+  EXPECT_EQ(to_string(Refusal::missing_device), "missing device");
+  EXPECT_EQ(to_string(Wait::RESTART), "RESTART");
+  EXPECT_EQ(to_string(Dest::peer), "peer");
+  EXPECT_EQ(to_string(ControlKind::resume), "resume");
+  EXPECT_EQ(to_string(Warning::PROXIMITY_ALERT), "PROXIMITY_ALERT");
+  EXPECT_EQ(wire_state(State::OFF), AgentState::PANIC);
+  EXPECT_FALSE(is_assigned_id(50000));
+}
+
+}  // namespace

@@ -1,0 +1,260 @@
+// Unit tests of the programs' non-I/O logic: ev3-agent / ev3-master options (both command-line
+// forms), the fault injection schedule, the wait behaviour runner, the console parser and view.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "console.hpp"
+#include "ev3io/cli.hpp"
+#include "ev3io/fault.hpp"
+#include "ev3io/udp.hpp"
+#include "leds.hpp"
+#include "agent_options.hpp"
+#include "master_options.hpp"
+#include "wait_runner.hpp"
+
+namespace {
+
+using ev3proto::ControlKind;
+using ev3proto::Millis;
+using ev3proto::Timer;
+
+ev3agent::ParseOutcome agent_args(std::vector<const char*> v, ev3agent::AgentOptions& o, std::string& msg) {
+  v.insert(v.begin(), "ev3-agent");
+  return ev3agent::parse_agent_options(static_cast<int>(v.size()), v.data(), o, msg);
+}
+
+TEST(AgentOptions, Defaults) {
+  ev3agent::AgentOptions o;
+  std::string m;
+  ASSERT_EQ(agent_args({}, o, m), ev3agent::ParseOutcome::run) << m;
+  EXPECT_EQ(o.common.port, 12345);
+  EXPECT_EQ(o.model, "A");
+  EXPECT_EQ(o.sysfs_root, "/sys");
+  EXPECT_EQ(o.timers[Timer::sync], 10000u);
+  ASSERT_EQ(o.common.broadcast.size(), 1u);
+  EXPECT_EQ(o.common.broadcast[0].str(), "255.255.255.255:12345");
+  EXPECT_EQ(o.common.log_level, 2);
+}
+
+TEST(AgentOptions, ThesisForm) {
+  ev3agent::AgentOptions o;
+  std::string m;
+  ASSERT_EQ(agent_args({"agent", "port=12233", "model=B", "loglevel=4"}, o, m), ev3agent::ParseOutcome::run) << m;
+  EXPECT_EQ(o.common.port, 12233);
+  EXPECT_EQ(o.model, "B");
+  EXPECT_EQ(o.common.log_level, 4);
+}
+
+TEST(AgentOptions, FlagsBothSpellingsAndRepeatedBroadcast) {
+  ev3agent::AgentOptions o;
+  std::string m;
+  ASSERT_EQ(agent_args({"--port=0", "--broadcast", "127.0.0.1:5000", "--broadcast=127.0.0.1:5001",
+                        "--heartbeat-ms", "200", "--master-timeout-ms", "1000", "--fault-loss", "12.5",
+                        "--fault-seed", "7"},
+                       o, m),
+            ev3agent::ParseOutcome::run)
+      << m;
+  EXPECT_EQ(o.common.port, 0);
+  ASSERT_EQ(o.common.broadcast.size(), 2u);
+  EXPECT_EQ(o.common.broadcast[1].port, 5001);
+  EXPECT_EQ(o.timers[Timer::heartbeat], 200u);
+  EXPECT_EQ(o.timers[Timer::loss], 1000u);
+  EXPECT_EQ(o.timers[Timer::paused], 2000u);  // 2 x master timeout unless given
+  EXPECT_DOUBLE_EQ(o.common.faults.loss, 12.5);
+  EXPECT_EQ(o.common.faults.seed, 7u);
+}
+
+TEST(AgentOptions, ErrorsNameTheFlag) {
+  const std::vector<std::pair<std::vector<const char*>, std::string>> bad = {
+      {{"--port", "70000"}, "--port"},
+      {{"--port", "x"}, "--port"},
+      {{"--log-level", "5"}, "--log-level"},
+      {{"--broadcast", "nohost"}, "--broadcast"},
+      {{"--bind", "1.2.3"}, "--bind"},
+      {{"--frobnicate"}, "frobnicate"},
+      {{"colour=red"}, "colour"},
+      {{"--heartbeat-ms"}, "--heartbeat-ms"},
+      {{"--fault-loss", "101"}, "--fault-loss"},
+      {{"--master-timeout-ms", "500", "--paused-timeout-ms", "400"}, "--paused-timeout-ms"},
+      {{"--model", "a:b"}, "--model"},
+      {{"stray"}, "stray"},
+  };
+  for (const auto& b : bad) {
+    ev3agent::AgentOptions o;
+    std::string m;
+    EXPECT_EQ(agent_args(b.first, o, m), ev3agent::ParseOutcome::error) << b.second;
+    EXPECT_NE(m.find(b.second), std::string::npos) << m;
+  }
+  ev3agent::AgentOptions o;
+  std::string m;
+  EXPECT_EQ(agent_args({"--help"}, o, m), ev3agent::ParseOutcome::help);
+  EXPECT_NE(m.find("--sysfs-root"), std::string::npos);
+}
+
+TEST(MasterOptions, ParsesItsFlags) {
+  ev3master::MasterOptions o;
+  std::string m;
+  std::vector<const char*> v = {"ev3-master", "--agent-timeout-ms", "1500", "--status-json", "/tmp/s.json",
+                                "--script", "/tmp/x", "--max-resends", "2"};
+  ASSERT_EQ(ev3master::parse_master_options(static_cast<int>(v.size()), v.data(), o, m),
+            ev3master::ParseOutcome::run)
+      << m;
+  EXPECT_EQ(o.timers[Timer::drop], 1500u);
+  EXPECT_EQ(o.status_json, "/tmp/s.json");
+  EXPECT_EQ(o.max_resends, 2u);
+  std::vector<const char*> bad = {"ev3-master", "--agent-timeout-ms", "0"};
+  EXPECT_EQ(ev3master::parse_master_options(3, bad.data(), o, m), ev3master::ParseOutcome::error);
+  EXPECT_NE(m.find("--agent-timeout-ms"), std::string::npos);
+}
+
+TEST(Fault, NoFaultsIsIdentity) {
+  ev3io::FaultInjector f;
+  std::vector<Millis> out;
+  for (Millis t = 0; t < 100; ++t) f.schedule(t, out);
+  ASSERT_EQ(out.size(), 100u);
+  for (std::size_t i = 0; i < out.size(); ++i) EXPECT_EQ(out[i], static_cast<Millis>(i));
+}
+
+TEST(Fault, DeterministicGivenTheSeedAndRoughlyTheRates) {
+  ev3io::FaultConfig c;
+  c.loss = 20;
+  c.dup = 10;
+  c.reorder = 5;
+  c.delay_ms = 7;
+  c.seed = 42;
+  ev3io::FaultInjector a(c), b(c);
+  std::vector<Millis> oa, ob;
+  for (Millis t = 0; t < 10000; ++t) {
+    a.schedule(t, oa);
+    b.schedule(t, ob);
+  }
+  EXPECT_EQ(oa, ob);
+  EXPECT_NEAR(static_cast<double>(a.stats().lost), 2000, 200);
+  EXPECT_NEAR(static_cast<double>(a.stats().duplicated), 800, 150);
+  EXPECT_GT(a.stats().reordered, 0u);
+  for (Millis t : oa) EXPECT_GE(t, 7u);
+  c.seed = 43;
+  ev3io::FaultInjector d(c);
+  std::vector<Millis> od;
+  for (Millis t = 0; t < 10000; ++t) d.schedule(t, od);
+  EXPECT_NE(oa, od);
+}
+
+TEST(Endpoint, Parse) {
+  ev3io::Endpoint e;
+  EXPECT_TRUE(ev3io::parse_endpoint("127.0.0.1:12345", e));
+  EXPECT_EQ(e.str(), "127.0.0.1:12345");
+  EXPECT_TRUE(ev3io::parse_endpoint("localhost:1", e));
+  for (const char* s : {"127.0.0.1", "127.0.0.1:0", "127.0.0.1:65536", "x:1", "127.0.0.1:01", ":5"})
+    EXPECT_FALSE(ev3io::parse_endpoint(s, e)) << s;
+}
+
+TEST(WaitArgs, Parse) {
+  Millis ms = 0;
+  EXPECT_EQ(ev3agent::parse_wait_args({"seconds=2"}, ms), "");
+  EXPECT_EQ(ms, 2000u);
+  EXPECT_EQ(ev3agent::parse_wait_args({"seconds=0.25"}, ms), "");
+  EXPECT_EQ(ms, 250u);
+  EXPECT_EQ(ev3agent::parse_wait_args({"seconds=0.0001"}, ms), "");
+  EXPECT_EQ(ms, 1u);
+  for (std::vector<std::string_view> bad : std::vector<std::vector<std::string_view>>{
+           {}, {"seconds=0"}, {"seconds=-1"}, {"seconds=abc"}, {"seconds="}, {"secs=1"}, {"seconds=nan"},
+           {"seconds=1e9"}, {"seconds"}})
+    EXPECT_NE(ev3agent::parse_wait_args(bad, ms), "") << (bad.empty() ? "" : bad[0]);
+}
+
+TEST(WaitRunner, RunsToTheEndAndReportsOnce) {
+  ev3agent::WaitRunner r;
+  r.control(ControlKind::start, "wait", {"seconds=1"}, 100);
+  EXPECT_EQ(r.deadline(), 1100u);
+  EXPECT_EQ(r.poll(1099), ev3agent::WaitRunner::Outcome::none);
+  EXPECT_EQ(r.poll(1100), ev3agent::WaitRunner::Outcome::ok);
+  EXPECT_EQ(r.poll(1200), ev3agent::WaitRunner::Outcome::none);
+  EXPECT_EQ(r.deadline(), ev3agent::WaitRunner::kNever);
+}
+
+TEST(WaitRunner, PauseKeepsTimeLeftResumeContinuesRestartStartsOverStopDiscards) {
+  ev3agent::WaitRunner r;
+  r.control(ControlKind::start, "wait", {"seconds=1"}, 0);
+  r.control(ControlKind::pause, "wait", {"seconds=1"}, 400);
+  EXPECT_EQ(r.left(5000), 600u);
+  EXPECT_EQ(r.deadline(), ev3agent::WaitRunner::kNever);
+  EXPECT_EQ(r.poll(5000), ev3agent::WaitRunner::Outcome::none);
+  r.control(ControlKind::resume, "wait", {"seconds=1"}, 5000);
+  EXPECT_EQ(r.deadline(), 5600u);
+  r.control(ControlKind::restart, "wait", {"seconds=1"}, 5100);
+  EXPECT_EQ(r.deadline(), 6100u);
+  r.control(ControlKind::start, "wait", {"seconds=1"}, 5200);
+  EXPECT_EQ(r.deadline(), 6200u);
+  r.control(ControlKind::stop, "wait", {"seconds=1"}, 5300);
+  EXPECT_EQ(r.deadline(), ev3agent::WaitRunner::kNever);
+  r.control(ControlKind::resume, "wait", {"seconds=1"}, 5400);  // nothing to resume
+  EXPECT_EQ(r.poll(99999), ev3agent::WaitRunner::Outcome::none);
+}
+
+TEST(WaitRunner, BadArgumentsFailOnce) {
+  ev3agent::WaitRunner r;
+  r.control(ControlKind::start, "wait", {"seconds=x"}, 0);
+  EXPECT_EQ(r.deadline(), 0u);
+  EXPECT_EQ(r.poll(1), ev3agent::WaitRunner::Outcome::failed);
+  EXPECT_EQ(r.poll(2), ev3agent::WaitRunner::Outcome::none);
+  EXPECT_NE(r.error().find("seconds"), std::string::npos);
+}
+
+TEST(Leds, Colours) {
+  EXPECT_TRUE(ev3agent::colour_of(ev3proto::Led::RED_BLINK).blink);
+  EXPECT_FALSE(ev3agent::colour_of(ev3proto::Led::GREEN).blink);
+  EXPECT_DOUBLE_EQ(ev3agent::colour_of(ev3proto::Led::ORANGE).green, 0.5);
+  EXPECT_DOUBLE_EQ(ev3agent::colour_of(ev3proto::Led::DARK).red, 0);
+}
+
+TEST(Console, Commands) {
+  ev3master::ConsoleCommand c;
+  EXPECT_EQ(ev3master::parse_console_line("behaviour 2 wait seconds=3", c), "");
+  EXPECT_EQ(c.kind, ev3master::ConsoleCommand::Kind::send);
+  EXPECT_EQ(c.agent, 2);
+  EXPECT_EQ(c.command.type, ev3proto::MsgType::BEHAVIOUR);
+  EXPECT_EQ(c.command.name, "wait");
+  ASSERT_EQ(c.command.args.size(), 1u);
+  EXPECT_EQ(c.command.args[0], "seconds=3");
+  EXPECT_EQ(ev3master::parse_console_line("  pause   all ", c), "");
+  EXPECT_EQ(c.agent, 0);
+  EXPECT_EQ(c.command.type, ev3proto::MsgType::PAUSE);
+  EXPECT_EQ(ev3master::parse_console_line("wait 1.5", c), "");
+  EXPECT_DOUBLE_EQ(c.seconds, 1.5);
+  EXPECT_EQ(ev3master::parse_console_line("# comment", c), "");
+  EXPECT_EQ(c.kind, ev3master::ConsoleCommand::Kind::none);
+  EXPECT_NE(ev3master::parse_console_line("fly 2", c).find("unknown command 'fly'"), std::string::npos);
+  EXPECT_NE(ev3master::parse_console_line("start two", c).find("bad agent id 'two'"), std::string::npos);
+  EXPECT_NE(ev3master::parse_console_line("start", c).find("bad argument"), std::string::npos);
+  EXPECT_NE(ev3master::parse_console_line("behaviour 2 wait 3", c).find("'3'"), std::string::npos);
+  EXPECT_NE(ev3master::parse_console_line("list x", c), "");
+}
+
+TEST(Console, ViewAndStatusJson) {
+  ev3master::FleetView v;
+  ev3proto::OperatorEvent e{ev3proto::OperatorEvent::Kind::registered, 2, ev3proto::MsgType::MASTER, "50001"};
+  EXPECT_NE(v.on_event(e, "127.0.0.1:4000", 10).find("agent 2 registered"), std::string::npos);
+  e = {ev3proto::OperatorEvent::Kind::refused, 2, ev3proto::MsgType::START, "no behaviour"};
+  EXPECT_EQ(v.on_event(e, "", 11), "agent 2: START refused (NOT): no behaviour");
+  e = {ev3proto::OperatorEvent::Kind::report, 2, ev3proto::MsgType::EVENT, "BATTERY:7.4"};
+  v.on_event(e, "", 12);
+  EXPECT_EQ(v.info()[2].battery, "7.4");
+  e = {ev3proto::OperatorEvent::Kind::unknown_agent, 9, ev3proto::MsgType::START, ""};
+  EXPECT_EQ(v.on_event(e, "", 13), "error: unknown agent id 9");
+  std::map<std::uint16_t, ev3proto::RegistryEntry> reg;
+  reg[2].id = 2;
+  reg[2].synced = true;
+  const std::string j = v.status_json(reg, {{"misaddressed", 3}}, "127.0.0.1:1", 3, 100, 0);
+  EXPECT_NE(j.find("\"battery\":\"7.4\""), std::string::npos) << j;
+  EXPECT_NE(j.find("\"misaddressed\":3"), std::string::npos) << j;
+  e = {ev3proto::OperatorEvent::Kind::dropped, 2, ev3proto::MsgType::PING, ""};
+  v.on_event(e, "", 50);
+  EXPECT_EQ(v.lost().size(), 1u);
+  const auto t = v.table({}, {}, 100);
+  EXPECT_NE(t.back().find("lost: 2"), std::string::npos);
+}
+
+}  // namespace
