@@ -1,0 +1,27 @@
+/// @file options.hpp
+/// @brief ev3-agent's command line (docs/programs.md), in both forms: `--port 12233 --model A` and
+///        the thesis' `port=12233 model=A loglevel=2`.
+#pragma once
+
+#include <string>
+
+#include <ev3proto/timers.hpp>
+
+#include "ev3io/cli.hpp"
+
+namespace ev3agent {
+
+struct AgentOptions {
+  ev3io::CommonOptions common;
+  std::string model = "A";
+  std::string sysfs_root = "/sys";
+  ev3proto::Timers timers;  ///< sync, heartbeat, loss (--master-timeout-ms), paused
+};
+
+/// Result of parse_agent_options().
+enum class ParseOutcome { run, help, error };
+
+/// Parses the command line; @p message gets the usage (help) or the error naming the bad flag.
+ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions& out, std::string& message);
+
+}  // namespace ev3agent

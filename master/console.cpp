@@ -1,0 +1,243 @@
+#include "console.hpp"
+
+#include <cstdio>
+
+#include "ev3io/cli.hpp"
+
+namespace ev3master {
+
+using ev3proto::MsgType;
+using Kind = ev3proto::OperatorEvent::Kind;
+
+namespace {
+std::vector<std::string_view> words(std::string_view s) {
+  std::vector<std::string_view> w;
+  std::size_t i = 0;
+  while (i < s.size()) {
+    while (i < s.size() && (s[i] == ' ' || s[i] == '\t' || s[i] == '\r')) ++i;
+    const std::size_t b = i;
+    while (i < s.size() && s[i] != ' ' && s[i] != '\t' && s[i] != '\r') ++i;
+    if (i > b) w.push_back(s.substr(b, i - b));
+  }
+  return w;
+}
+
+bool parse_id(std::string_view w, std::uint16_t& id) {
+  if (w == "all") {
+    id = 0;
+    return true;
+  }
+  std::uint64_t v = 0;
+  if (!ev3io::to_uint(w, 1, 65535, v)) return false;
+  id = static_cast<std::uint16_t>(v);
+  return true;
+}
+
+std::string fmt_age(Millis ms) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1fs ago", static_cast<double>(ms) / 1000.0);
+  return b;
+}
+
+std::string pad(std::string s, std::size_t n) {
+  if (s.size() > n) s = s.substr(0, n - 1) + "~";
+  s.append(n - s.size(), ' ');
+  return s;
+}
+}  // namespace
+
+std::string json_str(std::string_view s) {
+  std::string o = "\"";
+  for (char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      o += '\\';
+      o += ch;
+    } else if (c < 0x20 || c > 0x7E) {
+      char b[8];
+      std::snprintf(b, sizeof b, "\\u%04x", c);
+      o += b;
+    } else {
+      o += ch;
+    }
+  }
+  return o + "\"";
+}
+
+std::string console_help() {
+  return "commands: list | behaviour ID|all NAME [key=value ...] | start|stop|pause|resume|standby|"
+         "continue|restart ID|all | wait SECONDS (scripts) | help | quit";
+}
+
+std::string parse_console_line(std::string_view line, ConsoleCommand& out) {
+  out = ConsoleCommand{};
+  const std::vector<std::string_view> w = words(line);
+  if (w.empty() || w[0][0] == '#') return {};
+  const std::string_view cmd = w[0];
+  if (cmd == "list" || cmd == "help" || cmd == "quit" || cmd == "exit") {
+    if (w.size() != 1) return "'" + std::string(cmd) + "' takes no argument";
+    out.kind = cmd == "list" ? ConsoleCommand::Kind::list
+               : cmd == "help" ? ConsoleCommand::Kind::help
+                               : ConsoleCommand::Kind::quit;
+    return {};
+  }
+  if (cmd == "wait") {
+    if (w.size() != 2 || !ev3io::to_double(w[1], 0, 86400, out.seconds))
+      return "bad argument: wait takes SECONDS (a number >= 0)";
+    out.kind = ConsoleCommand::Kind::wait;
+    return {};
+  }
+  static const std::pair<std::string_view, MsgType> kSimple[] = {
+      {"start", MsgType::START},     {"stop", MsgType::STOP},         {"pause", MsgType::PAUSE},
+      {"resume", MsgType::RESUME},   {"standby", MsgType::STANDBY},   {"continue", MsgType::CONTINUE},
+      {"restart", MsgType::RESTART}};
+  for (const auto& s : kSimple) {
+    if (cmd != s.first) continue;
+    if (w.size() != 2) return "bad argument: " + std::string(cmd) + " takes ID|all";
+    if (!parse_id(w[1], out.agent))
+      return "bad agent id '" + std::string(w[1]) + "' (expected a number or all)";
+    out.kind = ConsoleCommand::Kind::send;
+    out.command = ev3proto::Command::simple(s.second);
+    return {};
+  }
+  if (cmd == "behaviour" || cmd == "behavior") {
+    if (w.size() < 3) return "bad argument: behaviour takes ID|all NAME [key=value ...]";
+    if (!parse_id(w[1], out.agent))
+      return "bad agent id '" + std::string(w[1]) + "' (expected a number or all)";
+    if (w[2].size() > 32) return "bad argument: behaviour name longer than 32 bytes";
+    std::vector<std::string> args;
+    for (std::size_t i = 3; i < w.size(); ++i) {
+      const std::size_t eq = w[i].find('=');
+      if (eq == std::string_view::npos || eq == 0)
+        return "bad argument '" + std::string(w[i]) + "' (expected key=value)";
+      args.emplace_back(w[i]);
+    }
+    if (args.size() > ev3proto::kMaxParams - 1) return "bad argument: at most 31 key=value arguments";
+    out.kind = ConsoleCommand::Kind::send;
+    out.command = ev3proto::Command::assign(std::string(w[2]), std::move(args));
+    return {};
+  }
+  return "unknown command '" + std::string(cmd) + "' (" + console_help() + ")";
+}
+
+std::string state_text(const ev3proto::RegistryEntry& e) {
+  if (!e.synced) return "SYNCING";
+  if (!e.has_state) return "SYNCED";
+  return std::string(ev3proto::to_string(e.state));
+}
+
+std::string FleetView::on_event(const ev3proto::OperatorEvent& e, const std::string& address, Millis now) {
+  const std::string who = "agent " + std::to_string(e.agent);
+  const std::string cmd(ev3proto::to_string(e.command));
+  AgentInfo* info = nullptr;
+  if (e.kind != Kind::unknown_agent) {
+    info = &info_[e.agent];
+    if (!address.empty()) info->address = address;
+  }
+  switch (e.kind) {
+    case Kind::registered:
+      info->action = "-";
+      return who + " registered (announced " + e.text + ") at " + address;
+    case Kind::acked:
+      info->action = cmd + " acked";
+      return who + ": " + cmd + " acknowledged (ACK)";
+    case Kind::refused:
+      info->action = cmd + " refused";
+      return who + ": " + cmd + " refused (NOT): " + e.text;
+    case Kind::timed_out:
+      info->action = cmd + " timed out";
+      return who + ": " + cmd + " timed out (no answer)";
+    case Kind::unknown_agent: return "error: unknown agent id " + std::to_string(e.agent);
+    case Kind::dropped:
+      lost_.push_back(LostAgent{e.agent, info->address, now});
+      info_.erase(e.agent);
+      return who + " lost (not heard for the agent timeout)";
+    case Kind::state: return who + ": state " + e.text;
+    case Kind::report: {
+      std::string t = e.text;
+      for (char& c : t)
+        if (c == ':') c = ' ';
+      if (e.command == MsgType::EVENT && e.text.rfind("BATTERY", 0) == 0) {
+        const std::size_t colon = e.text.find(':');
+        info->battery = colon == std::string::npos ? e.text : e.text.substr(colon + 1);
+      }
+      if (e.command == MsgType::EVENT && e.text == "LEAVING") {
+        info->action = "LEAVING";
+        return who + " is leaving (EVENT LEAVING)";
+      }
+      info->action = cmd + (t.empty() ? "" : " " + t);
+      return who + ": " + cmd + (t.empty() ? "" : " " + t);
+    }
+  }
+  return who;
+}
+
+std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg,
+                                          const Counters& drops, Millis now) const {
+  std::vector<std::string> t;
+  t.push_back(pad("ID", 6) + pad("ADDRESS", 22) + pad("STATE", 9) + pad("HEARD", 10) + pad("BEHAVIOUR", 11) +
+              pad("ACTION", 22) + "BATTERY");
+  for (const auto& kv : reg) {
+    const ev3proto::RegistryEntry& e = kv.second;
+    auto it = info_.find(kv.first);
+    const AgentInfo empty;
+    const AgentInfo& i = it == info_.end() ? empty : it->second;
+    t.push_back(pad(std::to_string(kv.first), 6) + pad(i.address, 22) + pad(state_text(e), 9) +
+                pad(fmt_age(now > e.heard ? now - e.heard : 0), 10) +
+                pad(e.behaviour.empty() ? "-" : e.behaviour, 11) + pad(i.action.empty() ? "-" : i.action, 22) +
+                i.battery);
+  }
+  if (reg.empty()) t.push_back("(no agents yet)");
+  std::string d = "drops:";
+  if (drops.empty()) d += " none";
+  for (const auto& kv : drops) d += " " + kv.first + "=" + std::to_string(kv.second);
+  t.push_back(d);
+  if (!lost_.empty()) {
+    std::string l = "lost:";
+    for (const LostAgent& a : lost_) l += " " + std::to_string(a.id) + " (" + fmt_age(now - a.at) + ")";
+    t.push_back(l);
+  }
+  return t;
+}
+
+std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg,
+                                   const Counters& drops, const std::string& listening, std::uint16_t next_id,
+                                   Millis now, Millis start) const {
+  std::string s = "{\"uptime_ms\":" + std::to_string(now - start) + ",\"listening\":" + json_str(listening) +
+                  ",\"next_id\":" + std::to_string(next_id) + ",\"agents\":[";
+  bool first = true;
+  for (const auto& kv : reg) {
+    const ev3proto::RegistryEntry& e = kv.second;
+    auto it = info_.find(kv.first);
+    const AgentInfo empty;
+    const AgentInfo& i = it == info_.end() ? empty : it->second;
+    if (!first) s += ',';
+    first = false;
+    s += "{\"id\":" + std::to_string(kv.first) + ",\"announced\":" + std::to_string(e.ann) +
+         ",\"address\":" + json_str(i.address) + ",\"synced\":" + (e.synced ? "true" : "false") +
+         ",\"state\":" + json_str(state_text(e)) +
+         ",\"last_heard_ms_ago\":" + std::to_string(now > e.heard ? now - e.heard : 0) +
+         ",\"behaviour\":" + (e.behaviour.empty() ? std::string("null") : json_str(e.behaviour)) +
+         ",\"action\":" + json_str(i.action.empty() ? "-" : i.action) +
+         ",\"battery\":" + (i.battery == "-" ? std::string("null") : json_str(i.battery)) +
+         ",\"pending\":" + json_str(e.job()) + ",\"queued\":" + std::to_string(e.queue.size()) + "}";
+  }
+  s += "],\"lost\":[";
+  first = true;
+  for (const LostAgent& a : lost_) {
+    if (!first) s += ',';
+    first = false;
+    s += "{\"id\":" + std::to_string(a.id) + ",\"address\":" + json_str(a.address) +
+         ",\"lost_ms_ago\":" + std::to_string(now - a.at) + "}";
+  }
+  s += "],\"drops\":{";
+  first = true;
+  for (const auto& kv : drops) {
+    if (!first) s += ',';
+    first = false;
+    s += json_str(kv.first) + ":" + std::to_string(kv.second);
+  }
+  return s + "}}";
+}
+
+}  // namespace ev3master

@@ -1,0 +1,376 @@
+// ev3-master: the fleet's master. The I/O around the master core (libev3proto master.hpp): a UDP
+// socket, one event loop (ppoll) over the socket and the console's stdin that sleeps until the next
+// datagram, command line or deadline (core resends and drops, copy sends, script waits, status JSON,
+// table refresh). On a terminal: a live table refreshed in place and a prompt; otherwise answers
+// and events are log lines on stdout. docs/programs.md describes it.
+#include <sys/ioctl.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <ev3proto/dedupe.hpp>
+#include <ev3proto/master.hpp>
+#include <ev3proto/trace.hpp>
+#include <ev3proto/wire.hpp>
+
+#include "console.hpp"
+#include "ev3io/log.hpp"
+#include "ev3io/loop.hpp"
+#include "ev3io/udp.hpp"
+#include "master_options.hpp"
+
+namespace {
+
+using ev3io::kDebug;
+using ev3io::kError;
+using ev3io::kInfo;
+using ev3io::kVerbose;
+using ev3proto::Millis;
+using ev3proto::MsgType;
+
+using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;
+
+constexpr Millis kStatusEveryMs = 500;
+constexpr Millis kRedrawEveryMs = 500;
+constexpr int kTableRows = 14;  // rows reserved for the live table at the top of the terminal
+
+std::string reason_key(ev3proto::Reason r) {
+  std::string k = "decode:" + std::string(ev3proto::to_string(r));
+  for (char& c : k)
+    if (c == ' ') c = '_';
+  return k;
+}
+
+class Program {
+ public:
+  explicit Program(const ev3master::MasterOptions& o) : opt_(o), net_(o.common.faults) {}
+
+  int run() {
+    log_.set_name("master");
+    log_.set_level(opt_.common.log_level);
+    tty_ = isatty(0) && isatty(1);
+    if (!opt_.common.log_file.empty() && !log_.open(opt_.common.log_file)) {
+      std::fprintf(stderr, "ev3-master: bad value for --log-file: cannot open '%s': %s\n",
+                   opt_.common.log_file.c_str(), std::strerror(errno));
+      return 2;
+    }
+    if (tty_ && opt_.common.log_file.empty() && opt_.common.log_level > kError)
+      log_.set_level(kError);  // the terminal shows the table; only errors go to stderr there
+    if (!opt_.common.trace_file.empty()) {
+      trace_file_ = std::fopen(opt_.common.trace_file.c_str(), "w");
+      if (trace_file_ == nullptr) {
+        std::fprintf(stderr, "ev3-master: bad value for --trace: cannot open '%s': %s\n",
+                     opt_.common.trace_file.c_str(), std::strerror(errno));
+        return 2;
+      }
+      trace_.set_output([this](const std::string& line) {
+        std::fwrite(line.data(), 1, line.size(), trace_file_);
+        std::fputc('\n', trace_file_);
+      });
+    }
+    if (!opt_.script.empty()) {
+      std::ifstream in(opt_.script);
+      if (!in) {
+        std::fprintf(stderr, "ev3-master: bad value for --script: cannot open '%s'\n", opt_.script.c_str());
+        return 2;
+      }
+      for (std::string l; std::getline(in, l);) script_.push_back(l);
+    }
+    std::string err;
+    if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
+      std::fprintf(stderr, "ev3-master: %s\n", err.c_str());
+      return 1;
+    }
+    start_ = ev3io::monotonic_ms();
+    ev3proto::MasterConfig cfg;
+    cfg.timers = opt_.timers;
+    cfg.max_resends = opt_.max_resends;
+    master_.emplace(cfg, start_, trace_file_ != nullptr ? &trace_ : nullptr);
+    listening_ = net_.local().str();
+    log_.log(kInfo, "listening on %s", listening_.c_str());
+    log_.flush();
+    if (tty_) setup_screen();
+    else say("listening on " + listening_);
+    loop();
+    shutdown();
+    return 0;
+  }
+
+ private:
+  void loop() {
+    std::string dgram;
+    ev3io::Endpoint from;
+    while (signals_.stop_signal() == 0 && !quit_) {
+      Millis now = ev3io::monotonic_ms();
+      while (net_.receive(dgram, from)) on_datagram(dgram, from, ev3io::monotonic_ms());
+      now = ev3io::monotonic_ms();
+      master_->advance(now);
+      pump(now);
+      run_script(now);
+      net_.flush(now);
+      if (!opt_.status_json.empty() && now >= next_status_) {
+        write_status(now);
+        next_status_ = now + kStatusEveryMs;
+      }
+      if (tty_ && now >= next_redraw_) {
+        redraw(now);
+        next_redraw_ = now + kRedrawEveryMs;
+      }
+      if (quit_) break;
+      Millis deadline = std::min(master_->next_deadline(), net_.next_send());
+      deadline = std::min(deadline, log_.tick(now));
+      if (script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
+      if (!opt_.status_json.empty()) deadline = std::min(deadline, next_status_);
+      if (tty_) deadline = std::min(deadline, next_redraw_);
+      if (trace_file_ != nullptr) {
+        if (now >= trace_flush_) {
+          std::fflush(trace_file_);
+          trace_flush_ = now + 200;
+        }
+        deadline = std::min(deadline, trace_flush_);
+      }
+      pollfd p[2] = {{net_.fd(), POLLIN, 0}, {0, POLLIN, 0}};
+      const std::size_t n = stdin_open_ ? 2 : 1;
+      if (signals_.wait(p, n, deadline) > 0 && n == 2 && (p[1].revents & (POLLIN | POLLHUP | POLLERR)) != 0)
+        read_stdin(ev3io::monotonic_ms());
+    }
+  }
+
+  void drop(const std::string& why) { ++drops_[why]; }
+
+  void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
+    const ev3proto::DecodeResult dr = ev3proto::decode(d, rx_);
+    if (!dr.ok()) {
+      drop(reason_key(dr.reason));
+      log_.log(kVerbose, "drop (%s) from %s", reason_key(dr.reason).c_str(), from.str().c_str());
+      return;
+    }
+    if (rx_.receiver != ev3proto::kMasterId && rx_.receiver != ev3proto::kBroadcastId) {
+      drop("misaddressed");
+      return;
+    }
+    if (!copies_.first_time(rx_.sender, rx_.msgid)) {
+      drop("duplicate");  // one of the 3 copies (or a replay) of a datagram already taken
+      return;
+    }
+    switch (rx_.type) {
+      case MsgType::AGENT:
+      case MsgType::PANIC: break;
+      case MsgType::PING:
+      case MsgType::ACK:
+      case MsgType::NOT:
+      case MsgType::ACTION_OK:
+      case MsgType::ACTION_INTERR:
+      case MsgType::ACTION_ERR:
+      case MsgType::SENSOR_VALUE:
+      case MsgType::EVENT:
+        if (master_->registry().count(rx_.sender) == 0) drop("unknown_sender");
+        break;
+      default: drop("unexpected_type"); return;
+    }
+    log_.log(kDebug, "recv %s from %s", d.c_str(), from.str().c_str());
+    master_->handle_datagram(d, net_.peer_of(from), now);
+    pump(now);
+  }
+
+  void pump(Millis now) {
+    ev3proto::MasterTransmit t;
+    while (master_->poll_transmit(t)) {
+      const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
+      if (ep == nullptr) continue;
+      log_.log(kDebug, "send %s to %s", t.bytes.c_str(), ep->str().c_str());
+      net_.send(*ep, t.bytes, now);
+    }
+    ev3proto::OperatorEvent e;
+    while (master_->poll_event(e)) {
+      std::string addr;
+      auto it = master_->registry().find(e.agent);
+      if (it != master_->registry().end())
+        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
+      say(view_.on_event(e, addr, now));
+      dirty_ = true;
+    }
+    if (dirty_ && tty_) {
+      redraw(now);
+      dirty_ = false;
+    }
+  }
+
+  void read_stdin(Millis now) {
+    char buf[4096];
+    const ssize_t n = read(0, buf, sizeof buf);
+    if (n <= 0) {
+      stdin_open_ = false;  // EOF: keep running (quit or a signal stops the master)
+      if (tty_) quit_ = true;  // Ctrl-D on the terminal
+      return;
+    }
+    inbuf_.append(buf, static_cast<std::size_t>(n));
+    for (std::size_t nl; (nl = inbuf_.find('\n')) != std::string::npos;) {
+      const std::string line = inbuf_.substr(0, nl);
+      inbuf_.erase(0, nl + 1);
+      handle_line(line, false, now);
+      if (quit_) return;
+    }
+    if (tty_) prompt();
+  }
+
+  void run_script(Millis now) {
+    while (!quit_ && script_pos_ < script_.size() && now >= script_at_) {
+      const std::string line = script_[script_pos_++];
+      ev3master::ConsoleCommand c;
+      if (ev3master::parse_console_line(line, c).empty() && c.kind == ev3master::ConsoleCommand::Kind::wait) {
+        script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
+        continue;
+      }
+      handle_line(line, true, now);
+    }
+  }
+
+  void handle_line(const std::string& line, bool script, Millis now) {
+    ev3master::ConsoleCommand c;
+    const std::string err = ev3master::parse_console_line(line, c);
+    if (!err.empty()) {
+      say("error: " + err);
+      return;
+    }
+    using K = ev3master::ConsoleCommand::Kind;
+    switch (c.kind) {
+      case K::none: return;
+      case K::help: say(ev3master::console_help()); return;
+      case K::list:
+        for (const std::string& l : view_.table(master_->registry(), drops_, now)) say(l);
+        return;
+      case K::quit: say("quit"); quit_ = true; return;
+      case K::wait:
+        if (!script) say("error: wait is for scripts (--script)");
+        return;
+      case K::send:
+        say("> " + line);
+        master_->command(c.agent, c.command, now);
+        pump(now);
+        return;
+    }
+  }
+
+  /// One line for the operator.
+  void say(const std::string& text) {
+    log_.log(kDebug, "console: %s", text.c_str());
+    if (tty_) {
+      std::string s = "\r\033[K" + text + "\n";
+      std::fwrite(s.data(), 1, s.size(), stdout);
+      prompt();
+      return;
+    }
+    const Millis t = ev3io::monotonic_ms() - start_;
+    std::printf("[%6llu.%03llu] %s\n", static_cast<unsigned long long>(t / 1000),
+                static_cast<unsigned long long>(t % 1000), text.c_str());
+    std::fflush(stdout);
+  }
+
+  void prompt() {
+    std::fputs("\r\033[Kev3> ", stdout);
+    std::fflush(stdout);
+  }
+
+  void setup_screen() {
+    winsize ws{};
+    rows_ = ioctl(1, TIOCGWINSZ, &ws) == 0 && ws.ws_row > kTableRows + 4 ? ws.ws_row : 24;
+    std::printf("\033[2J\033[%d;%dr\033[%d;1H", kTableRows + 1, rows_, rows_);
+    say("ev3-master listening on " + listening_ + "; " + ev3master::console_help());
+    redraw(ev3io::monotonic_ms());
+  }
+
+  void redraw(Millis now) {
+    std::vector<std::string> t = view_.table(master_->registry(), drops_, now);
+    std::string s = "\0337";
+    char head[96];
+    std::snprintf(head, sizeof head, "ev3-master %s  up %.0fs  agents %zu", listening_.c_str(),
+                  static_cast<double>(now - start_) / 1000.0, master_->registry().size());
+    t.insert(t.begin(), head);
+    for (int i = 0; i < kTableRows; ++i) {
+      s += "\033[" + std::to_string(i + 1) + ";1H";
+      if (static_cast<std::size_t>(i) < t.size()) s += (i == 0 ? "\033[7m" + t[0] + "\033[0m" : t[static_cast<std::size_t>(i)]);
+      else if (i == kTableRows - 1) s += std::string(72, '-');
+      s += "\033[K";
+    }
+    s += "\0338";
+    std::fwrite(s.data(), 1, s.size(), stdout);
+    std::fflush(stdout);
+  }
+
+  void write_status(Millis now) {
+    const std::string doc = view_.status_json(master_->registry(), drops_, listening_, master_->next_id(), now, start_);
+    const std::string tmp = opt_.status_json + ".tmp";
+    std::FILE* f = std::fopen(tmp.c_str(), "w");
+    if (f == nullptr) {
+      if (!status_warned_) log_.log(kError, "cannot write %s: %s", tmp.c_str(), std::strerror(errno));
+      status_warned_ = true;
+      return;
+    }
+    std::fwrite(doc.data(), 1, doc.size(), f);
+    std::fputc('\n', f);
+    std::fclose(f);
+    std::rename(tmp.c_str(), opt_.status_json.c_str());
+  }
+
+  void shutdown() {
+    const Millis now = ev3io::monotonic_ms();
+    net_.flush_all();
+    if (!opt_.status_json.empty()) write_status(now);
+    if (tty_) {
+      std::printf("\033[r\033[%d;1H\n", rows_);
+      std::fflush(stdout);
+    } else {
+      say("stopped");
+    }
+    std::string d;
+    for (const auto& kv : drops_) d += " " + kv.first + "=" + std::to_string(kv.second);
+    log_.log(kInfo, "stopping (signal %d); drops:%s", signals_.stop_signal(), d.empty() ? " none" : d.c_str());
+    log_.flush();
+    if (trace_file_ != nullptr) std::fclose(trace_file_);
+    trace_file_ = nullptr;
+  }
+
+  ev3master::MasterOptions opt_;
+  ev3io::Logger log_;
+  ev3io::Signals signals_;
+  ev3io::UdpTransport net_;
+  ev3proto::NdjsonTrace trace_{"master"};
+  std::FILE* trace_file_ = nullptr;
+  Millis trace_flush_ = 0;
+  std::optional<MasterCore> master_;
+  ev3master::FleetView view_;
+  ev3master::Counters drops_;
+  ev3proto::DedupeWindow<4096> copies_;
+  ev3proto::Message rx_;
+  std::vector<std::string> script_;
+  std::size_t script_pos_ = 0;
+  Millis script_at_ = 0;
+  std::string inbuf_;
+  std::string listening_;
+  Millis start_ = 0, next_status_ = 0, next_redraw_ = 0;
+  bool tty_ = false, stdin_open_ = true, quit_ = false, dirty_ = false, status_warned_ = false;
+  int rows_ = 24;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  ev3master::MasterOptions o;
+  std::string msg;
+  switch (ev3master::parse_master_options(argc, argv, o, msg)) {
+    case ev3master::ParseOutcome::help: std::printf("%s", msg.c_str()); return 0;
+    case ev3master::ParseOutcome::error:
+      std::fprintf(stderr, "ev3-master: %s (try --help)\n", msg.c_str());
+      return 2;
+    case ev3master::ParseOutcome::run: break;
+  }
+  static Program p(o);
+  return p.run();
+}

@@ -1,0 +1,55 @@
+#include "master_options.hpp"
+
+namespace ev3master {
+
+using ev3proto::Timer;
+
+ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptions& out, std::string& message) {
+  std::vector<ev3io::OptionSpec> sp = ev3io::common_specs();
+  sp.insert(sp.begin() + 3, {
+      {"agent-timeout-ms", "N", "an agent not heard this long is lost and leaves the registry (default 10000)", false},
+      {"resend-ms", "N", "resend an unanswered command after N ms (default 500)", false},
+      {"max-resends", "N", "a command unanswered after N resends times out (default 10)", false},
+      {"status-json", "FILE", "write the fleet's state to FILE (atomically, twice a second)", false},
+      {"script", "FILE", "console commands to run (with 'wait SECONDS' between them)", false},
+  });
+  ev3io::ParsedArgs a;
+  message = ev3io::parse_args(argc, argv, sp, "master", a);
+  if (!message.empty()) return ParseOutcome::error;
+  if (a.help) {
+    message = ev3io::usage(
+        "usage: ev3-master [--port N] [--broadcast HOST:PORT ...] [--status-json FILE] [--script FILE] [options]\n\n"
+        "The fleet's master: registers agents over UDP, answers their PINGs, sends the operator's\n"
+        "commands. On a terminal: a live table and a prompt (commands: list, behaviour ID NAME\n"
+        "[key=value ...], start|stop|pause|resume|standby|continue|restart ID|all, quit).",
+        sp);
+    return ParseOutcome::help;
+  }
+  message = ev3io::read_common(a, out.common);
+  if (!message.empty()) return ParseOutcome::error;
+  std::uint64_t v = out.timers[Timer::drop];
+  message = ev3io::read_uint(a, "agent-timeout-ms", 1, 86400000, v);
+  if (!message.empty()) return ParseOutcome::error;
+  out.timers.set(Timer::drop, v);
+  v = out.timers[Timer::resend];
+  message = ev3io::read_uint(a, "resend-ms", 1, 600000, v);
+  if (!message.empty()) return ParseOutcome::error;
+  out.timers.set(Timer::resend, v);
+  v = out.max_resends;
+  message = ev3io::read_uint(a, "max-resends", 0, 1000000, v);
+  if (!message.empty()) return ParseOutcome::error;
+  out.max_resends = static_cast<std::uint32_t>(v);
+  out.status_json = a.get("status-json");
+  if (a.has("status-json") && out.status_json.empty()) {
+    message = "bad value for --status-json: empty path";
+    return ParseOutcome::error;
+  }
+  out.script = a.get("script");
+  if (a.has("script") && out.script.empty()) {
+    message = "bad value for --script: empty path";
+    return ParseOutcome::error;
+  }
+  return ParseOutcome::run;
+}
+
+}  // namespace ev3master

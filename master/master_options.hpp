@@ -1,0 +1,26 @@
+/// @file options.hpp
+/// @brief ev3-master's command line (docs/programs.md).
+#pragma once
+
+#include <string>
+
+#include <ev3proto/master.hpp>
+
+#include "ev3io/cli.hpp"
+
+namespace ev3master {
+
+struct MasterOptions {
+  ev3io::CommonOptions common;
+  ev3proto::Timers timers;       ///< drop (--agent-timeout-ms), resend (--resend-ms)
+  std::uint32_t max_resends = 10;
+  std::string status_json;       ///< --status-json FILE
+  std::string script;            ///< --script FILE
+};
+
+enum class ParseOutcome { run, help, error };
+
+/// Parses the command line; @p message gets the usage (help) or the error naming the bad flag.
+ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptions& out, std::string& message);
+
+}  // namespace ev3master

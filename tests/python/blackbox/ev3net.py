@@ -1,0 +1,297 @@
+"""Helpers of the black-box tests: real UDP on loopback, the reference codec (ev3conformance.wire),
+the programs under test as subprocesses.
+
+- `Node`: a UDP socket on 127.0.0.1 with a receive thread that decodes and records every datagram.
+- `TestMaster`: a Python master (id 1) that drives `ev3-agent`: sync, commands, auto-PONG.
+- `FakeAgent`: a Python agent that drives `ev3-master`: AGENT, ACK, PING, answers to commands.
+- `Program`: `ev3-agent` / `ev3-master` started with a log file, stopped with SIGTERM.
+- `wait_until`: a bounded wait for a condition (no sleeps as assertions).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import threading
+import time
+from pathlib import Path
+
+from ev3conformance.wire import DecodeError, Message, decode, encode
+
+T = dict(AGENT=1, MASTER=2, ACK=3, NOT=4, PING=5, PONG=6, BEHAVIOUR=7, START=8, STOP=9, PAUSE=10,
+         RESUME=11, STANDBY=12, CONTINUE=13, RESTART=14, ACTION_OK=15, ACTION_INTERR=16,
+         ACTION_ERR=17, SENSOR_VALUE=18, PANIC=19, EVENT=20)
+NAME = {v: k for k, v in T.items()}
+
+# Short timers for the tests (ms).
+HB, LOSS, PAUSED, SYNC = 50, 400, 800, 700
+
+
+def free_ports(n: int) -> list[int]:
+    """n distinct free UDP ports on 127.0.0.1 (held open together while picking)."""
+    socks = []
+    try:
+        for _ in range(n):
+            s = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+            s.bind(("127.0.0.1", 0))
+            socks.append(s)
+        return [s.getsockname()[1] for s in socks]
+    finally:
+        for s in socks:
+            s.close()
+
+
+def wait_until(pred, timeout: float, what: str, interval: float = 0.01):
+    """Polls pred() until it returns something truthy (returned) or fails after timeout seconds."""
+    end = time.monotonic() + timeout
+    while True:
+        v = pred()
+        if v:
+            return v
+        if time.monotonic() > end:
+            raise AssertionError(f"timed out after {timeout:g} s waiting for {what}")
+        time.sleep(interval)
+
+
+def show(m: Message) -> str:
+    return ":".join([str(m.sender), str(m.receiver), str(m.msgid), NAME.get(m.type, str(m.type))]
+                    + [p.decode("latin-1") for p in m.params])
+
+
+class Node:
+    """A UDP endpoint on loopback that records what it receives: (time, Message, from_port)."""
+
+    def __init__(self, port: int = 0) -> None:
+        self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
+        self.sock.bind(("127.0.0.1", port))
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)
+        self.port = self.sock.getsockname()[1]
+        self.got: list[tuple[float, Message, int]] = []
+        self.undecodable = 0
+        self.lock = threading.Lock()
+        self._stop = False
+        self.sock.settimeout(0.05)
+        self.thread = threading.Thread(target=self._run, daemon=True)
+        self.thread.start()
+
+    def _run(self) -> None:
+        while not self._stop:
+            try:
+                data, addr = self.sock.recvfrom(65536)
+            except socket.timeout:
+                continue
+            except OSError:
+                return
+            try:
+                m = decode(data)
+            except DecodeError:
+                self.undecodable += 1
+                continue
+            with self.lock:
+                self.got.append((time.monotonic(), m, addr[1]))
+            self.on_message(m, addr[1])
+
+    def on_message(self, m: Message, port: int) -> None:  # hook
+        pass
+
+    def send(self, m: Message, port: int, copies: int = 3) -> None:
+        data = encode(m)
+        for _ in range(copies):
+            self.sock.sendto(data, ("127.0.0.1", port))
+
+    def send_raw(self, data: bytes, port: int) -> None:
+        self.sock.sendto(data, ("127.0.0.1", port))
+
+    def mark(self) -> int:
+        with self.lock:
+            return len(self.got)
+
+    def received(self, since: int = 0) -> list[tuple[float, Message, int]]:
+        with self.lock:
+            return list(self.got[since:])
+
+    def wait_for(self, pred, timeout: float, what: str, since: int = 0):
+        """The first (time, Message, port) from index `since` on with pred(Message) true."""
+        def find():
+            for item in self.received(since):
+                if pred(item[1]):
+                    return item
+            return None
+        return wait_until(find, timeout, what)
+
+    def close(self) -> None:
+        self._stop = True
+        self.thread.join(timeout=1)
+        self.sock.close()
+
+
+class TestMaster(Node):
+    """A master (id 1) driving one ev3-agent at agent_port."""
+
+    __test__ = False  # not a pytest class
+
+    def __init__(self, port: int = 0) -> None:
+        self.msgid = 1000
+        self.auto_pong = True
+        self.agent_port = 0
+        super().__init__(port)
+
+    def next_msgid(self) -> int:
+        self.msgid += 1
+        return self.msgid
+
+    def on_message(self, m: Message, port: int) -> None:
+        if m.type == T["PING"] and self.auto_pong:
+            self.send(Message(1, m.sender, self.next_msgid(), T["PONG"], (str(m.msgid).encode(),)), port)
+
+    def command(self, agent_id: int, type_name: str, *params: str, msgid: int | None = None) -> int:
+        mid = self.next_msgid() if msgid is None else msgid
+        self.send(Message(1, agent_id, mid, T[type_name], tuple(p.encode() for p in params)), self.agent_port)
+        return mid
+
+    def answer(self, agent_id: int, msgid: int, since: int = 0, timeout: float = 2.0) -> Message:
+        """The agent's ACK or NOT of msgid."""
+        _, m, _ = self.wait_for(lambda m: m.sender == agent_id and m.type in (T["ACK"], T["NOT"])
+                                and m.params and m.params[0] == str(msgid).encode(),
+                                timeout, f"ACK/NOT of msgid {msgid} from agent {agent_id}", since)
+        return m
+
+    def ack(self, agent_id: int, type_name: str, *params: str, timeout: float = 2.0) -> int:
+        mark = self.mark()
+        mid = self.command(agent_id, type_name, *params)
+        m = self.answer(agent_id, mid, mark, timeout)
+        assert m.type == T["ACK"], f"{type_name} refused: {show(m)}"
+        return mid
+
+    def refused(self, agent_id: int, type_name: str, *params: str) -> bytes:
+        mark = self.mark()
+        mid = self.command(agent_id, type_name, *params)
+        m = self.answer(agent_id, mid, mark)
+        assert m.type == T["NOT"], f"{type_name} was not refused: {show(m)}"
+        return m.params[1]
+
+    def wait_state(self, agent_id: int, state: str, timeout: float = 2.0, since: int | None = None) -> float:
+        """Time of the first PING from agent_id reporting state (after `since`, default now)."""
+        s = self.mark() if since is None else since
+        t, _, _ = self.wait_for(lambda m: m.sender == agent_id and m.type == T["PING"]
+                                and m.params == (state.encode(),), timeout,
+                                f"PING {state} from agent {agent_id}", s)
+        return t
+
+    def sync(self, new_id: int = 2, timeout: float = 3.0) -> int:
+        """Answers the agent's AGENT with MASTER(new_id); returns the temporary id."""
+        _, a, port = self.wait_for(lambda m: m.type == T["AGENT"], timeout, "AGENT broadcast")
+        self.agent_port = port
+        mark = self.mark()
+        mid = self.command(new_id, "MASTER", str(a.sender))
+        m = self.answer(new_id, mid, mark)
+        assert m.type == T["ACK"]
+        return a.sender
+
+
+class FakeAgent(Node):
+    """An agent driving ev3-master: announces itself, ACKs MASTER, pings, answers commands."""
+
+    def __init__(self, master_port: int, temp_id: int, answer: bool = True) -> None:
+        self.master_port = master_port
+        self.temp_id = temp_id
+        self.id = 0
+        self.msgid = 0
+        self.answer = answer          # answer commands automatically with ACK
+        self.pinging = False
+        self.commands: list[Message] = []
+        super().__init__()
+        self._pinger = threading.Thread(target=self._ping_loop, daemon=True)
+        self._pinger.start()
+
+    def next_msgid(self) -> int:
+        self.msgid += 1
+        return self.msgid
+
+    def send_master(self, type_name: str, *params: str, sender: int | None = None, copies: int = 3) -> int:
+        mid = self.next_msgid()
+        self.send(Message(self.id if sender is None else sender, 1 if type_name not in ("AGENT", "PANIC") else 0,
+                          mid, T[type_name], tuple(p.encode() for p in params)), self.master_port, copies)
+        return mid
+
+    def on_message(self, m: Message, port: int) -> None:
+        if m.type == T["MASTER"] and m.params[0] == str(self.temp_id).encode() and self.id == 0:
+            self.id = m.receiver
+            self.send(Message(self.id, 1, self.next_msgid(), T["ACK"], (str(m.msgid).encode(),)), port)
+        elif T["BEHAVIOUR"] <= m.type <= T["RESTART"]:
+            self.commands.append(m)
+            if self.answer:
+                self.send(Message(self.id, 1, self.next_msgid(), T["ACK"], (str(m.msgid).encode(),)), port)
+
+    def register(self, timeout: float = 3.0) -> int:
+        end = time.monotonic() + timeout
+        while self.id == 0:
+            assert time.monotonic() < end, f"agent {self.temp_id} got no MASTER"
+            self.send_master("AGENT", "A", sender=self.temp_id)
+            time.sleep(0.05)
+        return self.id
+
+    def _ping_loop(self) -> None:
+        while not self._stop:
+            if self.pinging and self.id:
+                try:
+                    self.send_master("PING", "ACTIVE")
+                except OSError:
+                    return
+            time.sleep(HB / 1000)
+
+
+class Program:
+    """An ev3-agent / ev3-master process with its output in files under tmp."""
+
+    def __init__(self, exe: Path, args: list[str], tmp: Path, name: str, stdin=subprocess.DEVNULL) -> None:
+        self.name = name
+        self.out_path = tmp / f"{name}.out"
+        self.err_path = tmp / f"{name}.err"
+        self._out = open(self.out_path, "wb")
+        self._err = open(self.err_path, "wb")
+        self.proc = subprocess.Popen([str(exe), *args], stdin=stdin, stdout=self._out, stderr=self._err)
+
+    @property
+    def stdin(self):
+        return self.proc.stdin
+
+    def stdout(self) -> str:
+        return self.out_path.read_text(errors="replace")
+
+    def stderr(self) -> str:
+        return self.err_path.read_text(errors="replace")
+
+    def write(self, line: str) -> None:
+        self.proc.stdin.write((line + "\n").encode())
+        self.proc.stdin.flush()
+
+    def stop(self, sig: int = signal.SIGTERM, timeout: float = 5.0) -> int:
+        if self.proc.poll() is None:
+            self.proc.send_signal(sig)
+            try:
+                self.proc.wait(timeout)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+                raise AssertionError(f"{self.name} did not stop within {timeout} s of signal {sig}")
+        return self.proc.returncode
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+        if self.proc.stdin:
+            self.proc.stdin.close()
+        self._out.close()
+        self._err.close()
+
+
+def read_status(path: Path) -> dict | None:
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
