@@ -1,0 +1,301 @@
+#!/usr/bin/env python3
+"""Runner for the TLA+ spec of libev3proto (spec/tla/, docs/spec.md).
+
+Subcommands:
+  check --size small|full [--update]   SANY + TLC on each model of that size;
+                                       figures compared with spec/tla/manifest.json
+  refute                               every broken variant must be refuted on
+                                       the property it breaks
+  diagram [--check]                    docs/lifecycle.{dot,svg} from TLC's state graph
+                                       of MCAgent; --check fails if they are stale
+
+Python 3 standard library only.  Uses the pinned jar .tools/tla2tools.jar; every
+TLC run gets its own -metadir under build/spec/.
+"""
+import argparse
+import json
+import os
+import re
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+SPEC = os.path.join(ROOT, "spec", "tla")
+JAR = os.path.join(ROOT, ".tools", "tla2tools.jar")
+BUILD = os.path.join(ROOT, "build", "spec")
+MANIFEST = os.path.join(SPEC, "manifest.json")
+DOCS = os.path.join(ROOT, "docs")
+JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"]
+
+
+def load_manifest():
+    with open(MANIFEST) as f:
+        return json.load(f)
+
+
+def run(cmd, timeout=None):
+    t0 = time.monotonic()
+    p = subprocess.run(cmd, cwd=SPEC, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                       text=True, timeout=timeout)
+    return p.returncode, p.stdout, time.monotonic() - t0
+
+
+def metadir(name):
+    os.makedirs(BUILD, exist_ok=True)
+    d = tempfile.mkdtemp(prefix=name + "-", dir=BUILD)
+    return d
+
+
+def sany(module):
+    rc, out, _ = run(JAVA + ["-cp", JAR, "tla2sany.SANY", module + ".tla"])
+    if rc != 0 or "*** Errors" in out or "Semantic errors" in out or "Parse Error" in out:
+        print(out)
+        raise SystemExit("SANY failed on %s" % module)
+
+
+def tlc(module, cfg, workers=2, extra=(), name=None):
+    md = metadir(name or module)
+    cmd = JAVA + ["-cp", JAR, "tlc2.TLC", "-workers", str(workers), "-metadir", md,
+                  "-config", cfg] + list(extra) + [module + ".tla"]
+    rc, out, secs = run(cmd)
+    shutil.rmtree(md, ignore_errors=True)
+    return rc, out, secs
+
+
+def figures(out):
+    g = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found, (\d+) states left", out)
+    d = re.search(r"The depth of the complete state graph search is (\d+)", out)
+    if not g:
+        return None
+    return {"generated": int(g.group(1).replace(",", "")),
+            "distinct": int(g.group(2).replace(",", "")),
+            "depth": int(d.group(1)) if d else None}
+
+
+def violation(out):
+    """Name of the violated property, or a description, or None."""
+    m = re.search(r"Invariant (\w+) is violated", out)
+    if m:
+        return m.group(1)
+    m = re.search(r"Action property (\w+) of the temporal formula", out) or \
+        re.search(r"Action property (\w+) is violated", out)
+    if m:
+        return m.group(1)
+    if "Temporal properties were violated" in out:
+        return "temporal"
+    if "Deadlock reached" in out:
+        return "deadlock"
+    if re.search(r"^Error:", out, re.M):
+        return "error"
+    return None
+
+
+def counterexample(out):
+    i = out.find("Error:")
+    return out[i:] if i >= 0 else out[-4000:]
+
+
+def check_tsv():
+    """The spec's TypeNum must match docs/messages.tsv."""
+    tsv = {}
+    with open(os.path.join(DOCS, "messages.tsv")) as f:
+        for line in f:
+            if line.startswith("#") or not line.strip():
+                continue
+            cols = line.rstrip("\n").split("\t")
+            tsv[cols[1]] = int(cols[0])
+    with open(os.path.join(SPEC, "Messages.tla")) as f:
+        text = f.read()
+    body = text[text.index("TypeNum =="):text.index("TypeNames")]
+    spec = {k: int(v) for k, v in re.findall(r"(\w+) \|-> (\d+)", body)}
+    if spec != tsv:
+        raise SystemExit("Messages.tla TypeNum differs from docs/messages.tsv:\n  spec %s\n  tsv  %s"
+                         % (sorted(spec.items()), sorted(tsv.items())))
+    print("types: Messages.tla TypeNum matches docs/messages.tsv (%d types)" % len(tsv))
+
+
+def cmd_check(args):
+    man = load_manifest()
+    check_tsv()
+    failed = False
+    models = [m for m in man["models"] if m["size"] == args.size]
+    for mod in sorted({m["module"] for m in models}):
+        sany(mod)
+    for m in models:
+        # One worker: TLC's reported depth is only exact with a single worker.
+        rc, out, secs = tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"])
+        fig = figures(out)
+        v = violation(out)
+        if v or fig is None or "Model checking completed. No error has been found." not in out:
+            print("FAIL %s: %s" % (m["name"], v or "TLC did not complete"))
+            print(counterexample(out))
+            failed = True
+            continue
+        line = "%-14s states %9d  distinct %8d  depth %3d  time %6.1fs" % (
+            m["name"], fig["generated"], fig["distinct"], fig["depth"], secs)
+        if args.update:
+            m["distinct"], m["depth"] = fig["distinct"], fig["depth"]
+            m["measured"] = {"generated": fig["generated"], "seconds": round(secs, 1)}
+            print(line + "  (manifest updated)")
+        elif fig["distinct"] != m.get("distinct") or fig["depth"] != m.get("depth"):
+            print(line + "  MISMATCH: manifest says distinct %s depth %s"
+                  % (m.get("distinct"), m.get("depth")))
+            failed = True
+        else:
+            print(line + "  ok")
+    if args.update:
+        with open(MANIFEST, "w") as f:
+            json.dump(man, f, indent=2)
+            f.write("\n")
+    if failed:
+        raise SystemExit(1)
+
+
+def variant_cfg(base, bug, props):
+    """The base cfg with BUG = bug and only the given properties checked."""
+    with open(os.path.join(SPEC, base)) as f:
+        lines = f.read().splitlines()
+    outl, skip = [], False
+    for ln in lines:
+        s = ln.strip()
+        if s.startswith("BUG"):
+            outl.append('    BUG = "%s"' % bug)
+            continue
+        if s in ("INVARIANTS", "INVARIANT", "PROPERTIES", "PROPERTY"):
+            skip = True
+            continue
+        if skip and (ln.startswith(" ") or ln.startswith("\t")):
+            continue
+        skip = False
+        if s.startswith("SPECIFICATION"):
+            ln = "SPECIFICATION Spec"
+        outl.append(ln)
+    for p in props:
+        outl.append(("INVARIANT %s" if p.endswith("Inv") or p == "TypeOK" else "PROPERTY %s") % p)
+    os.makedirs(BUILD, exist_ok=True)
+    path = os.path.join(BUILD, "refute-%s.cfg" % bug)
+    with open(path, "w") as f:
+        f.write("\n".join(outl) + "\n")
+    return path
+
+
+def cmd_refute(args):
+    man = load_manifest()
+    failed = False
+    for v in man["refute"]:
+        base = next(m for m in man["models"] if m["name"] == v["model"])
+        cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]])
+        rc, out, secs = tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"])
+        got = violation(out)
+        ok = got == v["property"]
+        print("%-4s BUG=%-18s expect %-28s got %-28s %5.1fs" % (
+            "ok" if ok else "FAIL", v["bug"], v["property"], got, secs))
+        if not ok:
+            print(counterexample(out)[:3000])
+            failed = True
+    if failed:
+        raise SystemExit(1)
+
+
+STATE_RE = re.compile(r'state \|-> \\"(\w+)\\"')
+ACTION_RE = re.compile(r'lastAction = \[\s*name \|-> \\"(\w+)\\"')
+COLOURS = {"IDLE": "gold", "ACTIVE": "palegreen", "WORKING": "green3",
+           "PAUSED": "orange", "PANIC": "red", "OFF": "grey70"}
+
+
+def lifecycle_dot():
+    man = load_manifest()
+    base = next(m for m in man["models"] if m["name"] == man["diagram_model"])
+    os.makedirs(BUILD, exist_ok=True)
+    dump = os.path.join(BUILD, "agent-graph")
+    rc, out, _ = tlc(base["module"], base["cfg"], name="diagram",
+                     extra=["-dump", "dot,actionlabels,colorize", dump])
+    if violation(out):
+        print(counterexample(out))
+        raise SystemExit("TLC failed while dumping the state graph")
+    path = dump if os.path.exists(dump) else dump + ".dot"
+    # Edge labels of -dump carry the TLA+ action name only for actions without
+    # parameters (others show as "Next"), so the handler name is taken from
+    # lastAction of the target state, as the conformance replay does.
+    node_state, node_action, edges = {}, {}, set()
+    with open(path) as f:
+        for ln in f:
+            m = re.match(r'\s*(-?\d+) -> (-?\d+) \[label=', ln)
+            if m:
+                edges.add((m.group(1), m.group(2)))
+                continue
+            m = re.match(r'\s*(-?\d+) \[label="(.*)"', ln)
+            if m:
+                s = STATE_RE.search(m.group(2))
+                n = ACTION_RE.search(m.group(2))
+                if s:
+                    node_state[m.group(1)] = s.group(1)
+                if n:
+                    node_action[m.group(1)] = n.group(1)
+    trans = {}
+    for (a, b) in edges:
+        sa, sb = node_state.get(a), node_state.get(b)
+        if sa is None or sb is None or sa == sb:
+            continue
+        trans.setdefault((sa, sb), set()).add(node_action[b])
+    order = ["IDLE", "ACTIVE", "WORKING", "PAUSED", "PANIC", "OFF"]
+    leds = {"IDLE": "blinking yellow", "ACTIVE": "blinking green", "WORKING": "solid green",
+            "PAUSED": "solid orange", "PANIC": "blinking red", "OFF": "dark (shut down)"}
+    lines = ["// Generated by tools/spec.py diagram from TLC's state graph of %s." % base["cfg"],
+             "// %d states of the one-agent model collapsed to the agent's state. Do not edit."
+             % len(node_state),
+             "digraph lifecycle {", '  rankdir=LR;',
+             '  node [shape=box, style="rounded,filled", fontname="Helvetica"];',
+             '  edge [fontname="Helvetica", fontsize=10];']
+    for s in order:
+        if s in node_state.values():
+            lines.append('  %s [label="%s\\n%s", fillcolor=%s];' % (s, s, leds[s], COLOURS[s]))
+    for (sa, sb) in sorted(trans, key=lambda t: (order.index(t[0]), order.index(t[1]))):
+        lines.append('  %s -> %s [label="%s"];' % (sa, sb, "\\n".join(sorted(trans[(sa, sb)]))))
+    lines.append("}")
+    return "\n".join(lines) + "\n"
+
+
+def render(dot_text):
+    p = subprocess.run(["dot", "-Tsvg"], input=dot_text, stdout=subprocess.PIPE, text=True, check=True)
+    return p.stdout
+
+
+def cmd_diagram(args):
+    dot_text = lifecycle_dot()
+    svg = render(dot_text)
+    dot_path, svg_path = os.path.join(DOCS, "lifecycle.dot"), os.path.join(DOCS, "lifecycle.svg")
+    if args.check:
+        stale = []
+        for path, text in ((dot_path, dot_text), (svg_path, svg)):
+            if not os.path.exists(path) or open(path).read() != text:
+                stale.append(os.path.relpath(path, ROOT))
+        if stale:
+            raise SystemExit("stale: %s (run: python3 tools/spec.py diagram)" % ", ".join(stale))
+        print("diagram: docs/lifecycle.svg up to date")
+        return
+    with open(dot_path, "w") as f:
+        f.write(dot_text)
+    with open(svg_path, "w") as f:
+        f.write(svg)
+    print("diagram: wrote docs/lifecycle.dot, docs/lifecycle.svg")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    c = sub.add_parser("check")
+    c.add_argument("--size", choices=["small", "full"], default="small")
+    c.add_argument("--update", action="store_true", help="record the figures in the manifest")
+    sub.add_parser("refute")
+    d = sub.add_parser("diagram")
+    d.add_argument("--check", action="store_true")
+    args = ap.parse_args()
+    {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
+
+
+if __name__ == "__main__":
+    main()
