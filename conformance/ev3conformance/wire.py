@@ -174,6 +174,19 @@ _TABLE: tuple[MessageType, ...] = (
     _type(18, "SENSOR_VALUE", "agent->master", 3, 32, "text:port", "text:mode", "text:value..."),
     _type(19, "PANIC", "agent->0", 0, 0),
     _type(20, "EVENT", "agent->master", 1, 32, "text:event", "text:detail..."),
+    # Relay and election (spec/tla/Election.tla, docs/election.md).
+    _type(21, "RELAY_REQ", "agent->0", 1, 1, "u32:epoch"),
+    _type(22, "RELAY_OFFER", "agent->agent", 2, 2, "u32:epoch", "u16:master"),
+    _type(23, "RELAY_ACCEPT", "agent->agent", 2, 2, "u32:epoch", "u16:master"),
+    _type(24, "RELAY_ROUTE", "agent->master", 2, 2, "u32:epoch", "u16:relayed"),
+    _type(25, "RELAY", "both", 2, 2, "u16:target", "text:datagram"),
+    _type(26, "RELAY_DROP", "agent->agent", 1, 1, "u32:epoch"),
+    _type(27, "ELECT", "agent->0", 3, 3, "u32:epoch", "u32:score", "u16:records"),
+    _type(28, "VOTE", "agent->agent", 2, 2, "u32:epoch", "u16:candidate"),
+    _type(29, "LEADER", "master->0", 2, 32, "u32:epoch", "u16:leader", "u16:member..."),
+    _type(30, "EPOCH_STALE", "both", 1, 1, "u32:epoch"),
+    _type(31, "EPOCH_CMD", "master->agent", 2, 2, "u32:epoch", "text:datagram"),
+    _type(32, "HANDOVER", "master->master", 2, 32, "u32:epoch", "text:registry..."),
 )
 
 MESSAGE_TYPES: dict[int, MessageType] = {t.number: t for t in _TABLE}

@@ -22,7 +22,12 @@ TypeNum == [ AGENT |-> 1, MASTER |-> 2, ACK |-> 3, NOT |-> 4, PING |-> 5,
              PAUSE |-> 10, RESUME |-> 11, STANDBY |-> 12, CONTINUE |-> 13,
              RESTART |-> 14, ACTION_OK |-> 15, ACTION_INTERR |-> 16,
              ACTION_ERR |-> 17, SENSOR_VALUE |-> 18, PANIC |-> 19,
-             EVENT |-> 20 ]
+             EVENT |-> 20,
+             \* relay and election (Election.tla, docs/election.md)
+             RELAY_REQ |-> 21, RELAY_OFFER |-> 22, RELAY_ACCEPT |-> 23,
+             RELAY_ROUTE |-> 24, RELAY |-> 25, RELAY_DROP |-> 26, ELECT |-> 27,
+             VOTE |-> 28, LEADER |-> 29, EPOCH_STALE |-> 30, EPOCH_CMD |-> 31,
+             HANDOVER |-> 32 ]
 
 TypeNames == DOMAIN TypeNum
 

@@ -167,7 +167,7 @@ def _mutate_once(draw, data: bytes) -> bytes:
             i = starts[3]
             end = data.find(b":", i)
             end = len(data) if end < 0 else end
-            new = draw(st.sampled_from([b"0", b"21", b"39", b"255", b"256"] +
+            new = draw(st.sampled_from([b"0", b"21", b"33", b"39", b"255", b"256"] +
                                        [str(n).encode() for n in wire.MESSAGE_TYPES]))
             return data[:i] + new + data[end:]
     if op == "swap_param":
@@ -245,7 +245,7 @@ def any_messages(draw) -> wire.Message:
     if draw(st.integers(0, 9)) < 8:
         type_number = draw(st.sampled_from(list(wire.MESSAGE_TYPES)))
     else:
-        type_number = draw(st.one_of(st.sampled_from([0, 21, 39, 40, 255, 256, 1000]),
+        type_number = draw(st.one_of(st.sampled_from([0, 21, 33, 39, 40, 255, 256, 1000]),
                                      st.integers(0, 300)))
     mtype = wire.MESSAGE_TYPES.get(type_number)
     if mtype is not None:

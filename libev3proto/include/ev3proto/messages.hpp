@@ -38,6 +38,18 @@ enum class MsgType : std::uint8_t {
   SENSOR_VALUE = 18,  ///< agent -> master: port, mode and one or more values.
   PANIC = 19,         ///< agent -> 0: the agent lost its master.
   EVENT = 20,         ///< agent -> master: an event and its details.
+  RELAY_REQ = 21,     ///< agent -> 0: an agent without master asks for a relay.
+  RELAY_OFFER = 22,   ///< agent -> agent: a directly linked peer offers to relay.
+  RELAY_ACCEPT = 23,  ///< agent -> agent: the agent takes the offer.
+  RELAY_ROUTE = 24,   ///< agent -> master: the relay tells the master the route.
+  RELAY = 25,         ///< both: an inner datagram forwarded one hop.
+  RELAY_DROP = 26,    ///< agent -> agent: the relay lost its master link.
+  ELECT = 27,         ///< agent -> 0: a candidate stands in an epoch.
+  VOTE = 28,          ///< agent -> agent: a vote for a candidate in an epoch.
+  LEADER = 29,        ///< master -> 0: the master of an epoch and the fleet membership.
+  EPOCH_STALE = 30,   ///< both: the receiver is behind; the epoch seen.
+  EPOCH_CMD = 31,     ///< master -> agent: a command fenced by the master's epoch.
+  HANDOVER = 32,      ///< master -> master: the registry handed to the new master.
 };
 
 /// Kind of a param value (column `params` of docs/messages.tsv).
@@ -54,6 +66,9 @@ enum class Direction : std::uint8_t {
   master_to_agent,    ///< "master->agent"
   agent_to_master,    ///< "agent->master"
   both,               ///< "both"
+  agent_to_agent,     ///< "agent->agent"
+  master_to_broadcast, ///< "master->0"
+  master_to_master,   ///< "master->master"
 };
 
 /// The states an agent reports in PING (ParamKind::state).
@@ -134,6 +149,30 @@ inline constexpr MessageSpec kMessageTable[] = {
     {20, "EVENT", Direction::agent_to_master, 1, 32, 2, true,
      {detail::P(ParamKind::text, "event"), detail::P(ParamKind::text, "detail"), detail::kNoParam,
       detail::kNoParam}},
+    {21, "RELAY_REQ", Direction::agent_to_broadcast, 1, 1, 1, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
+    {22, "RELAY_OFFER", Direction::agent_to_agent, 2, 2, 2, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u16, "master"), detail::kNoParam, detail::kNoParam}},
+    {23, "RELAY_ACCEPT", Direction::agent_to_agent, 2, 2, 2, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u16, "master"), detail::kNoParam, detail::kNoParam}},
+    {24, "RELAY_ROUTE", Direction::agent_to_master, 2, 2, 2, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u16, "relayed"), detail::kNoParam, detail::kNoParam}},
+    {25, "RELAY", Direction::both, 2, 2, 2, false,
+     {detail::P(ParamKind::u16, "target"), detail::P(ParamKind::text, "datagram"), detail::kNoParam, detail::kNoParam}},
+    {26, "RELAY_DROP", Direction::agent_to_agent, 1, 1, 1, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
+    {27, "ELECT", Direction::agent_to_broadcast, 3, 3, 3, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u32, "score"), detail::P(ParamKind::u16, "records"), detail::kNoParam}},
+    {28, "VOTE", Direction::agent_to_agent, 2, 2, 2, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u16, "candidate"), detail::kNoParam, detail::kNoParam}},
+    {29, "LEADER", Direction::master_to_broadcast, 2, 32, 3, true,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u16, "leader"), detail::P(ParamKind::u16, "member"), detail::kNoParam}},
+    {30, "EPOCH_STALE", Direction::both, 1, 1, 1, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
+    {31, "EPOCH_CMD", Direction::master_to_agent, 2, 2, 2, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::text, "datagram"), detail::kNoParam, detail::kNoParam}},
+    {32, "HANDOVER", Direction::master_to_master, 2, 32, 2, true,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::text, "registry"), detail::kNoParam, detail::kNoParam}},
 };
 
 /// Number of rows of kMessageTable.
@@ -191,6 +230,9 @@ constexpr std::string_view to_string(Direction d) noexcept {
     case Direction::master_to_agent: return "master->agent";
     case Direction::agent_to_master: return "agent->master";
     case Direction::both: return "both";
+    case Direction::agent_to_agent: return "agent->agent";
+    case Direction::master_to_broadcast: return "master->0";
+    case Direction::master_to_master: return "master->master";
   }
   return {};
 }

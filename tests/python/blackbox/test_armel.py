@@ -16,8 +16,7 @@ from ev3net import Program, free_ports, read_status, wait_until
 @pytest.fixture
 def arm_agent_exe() -> Path:
     d = os.environ.get("EV3_ARM_BIN")
-    if not d:
-        pytest.skip("EV3_ARM_BIN not set (make test sets it after `make arm`)")
+    assert d, "EV3_ARM_BIN is not set: run this through `make test-blackbox` (it builds `make arm` first)"
     p = Path(d) / "ev3-agent"
     assert p.is_file(), f"{p} is missing: build it with `make arm`"
     assert shutil.which("qemu-arm"), "qemu-arm is missing (make deps installs qemu-user)"
