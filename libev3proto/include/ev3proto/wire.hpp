@@ -12,6 +12,10 @@
 #include <string_view>
 #include <type_traits>
 
+#if defined(__SSE2__)
+#include <emmintrin.h>
+#endif
+
 #include "messages.hpp"
 
 namespace ev3proto {
@@ -120,11 +124,10 @@ class Message {
   /// The unescaped value of param @p i; empty if @p i >= param_count().
   std::string_view param(std::size_t i) const noexcept {
     if (i >= count_) return {};
-    const std::size_t begin = i == 0 ? 0u : ends_[i - 1];
-    return std::string_view(data_ + begin, ends_[i] - begin);
+    return std::string_view(data_ + begins_[i], static_cast<std::size_t>(ends_[i] - begins_[i]));
   }
 
-  /// Total bytes used by the unescaped param values.
+  /// Bytes of the internal buffer in use (the values, and after decode() the separators between them).
   std::size_t params_size() const noexcept { return count_ == 0 ? 0u : ends_[count_ - 1u]; }
 
   /// Removes all params (the header is kept).
@@ -136,6 +139,7 @@ class Message {
     const std::size_t used = params_size();
     if (count_ >= kMaxParams || value.size() > kCapacity - used) return false;
     if (!value.empty()) std::memcpy(data_ + used, value.data(), value.size());
+    begins_[count_] = static_cast<std::uint16_t>(used);
     ends_[count_++] = static_cast<std::uint16_t>(used + value.size());
     return true;
   }
@@ -169,9 +173,8 @@ class Message {
         a.count_ != b.count_)
       return false;
     for (std::size_t i = 0; i < a.count_; ++i)
-      if (a.ends_[i] != b.ends_[i]) return false;
-    const std::size_t n = a.params_size();
-    return n == 0 || std::memcmp(a.data_, b.data_, n) == 0;
+      if (a.param(i) != b.param(i)) return false;
+    return true;
   }
   /// Negation of operator==.
   friend bool operator!=(const Message& a, const Message& b) noexcept { return !(a == b); }
@@ -179,9 +182,10 @@ class Message {
  private:
   friend DecodeResult decode(std::string_view datagram, Message& out) noexcept;
 
-  std::uint8_t count_ = 0;        // number of params
-  std::uint16_t ends_[kMaxParams]; // end offset of param i in data_
-  char data_[kCapacity];          // unescaped values, back to back
+  std::uint8_t count_ = 0;           // number of params
+  std::uint16_t begins_[kMaxParams]; // offset of param i's first byte in data_
+  std::uint16_t ends_[kMaxParams];   // offset just past param i's last byte in data_
+  char data_[kCapacity];             // unescaped values (decode() keeps the separators between them)
 };
 
 static_assert(std::is_trivially_copyable<Message>::value, "Message must stay trivially copyable");
@@ -309,17 +313,95 @@ inline std::size_t escaped_size(std::string_view v) noexcept {
   return n;
 }
 
-/// Loads the bytes [q, e) (fewer than a Word, at least one) as the low bytes of a Word, reading the
-/// Word that ends at @p e (so nothing before @p begin or after @p e is read); the high bytes are 0.
-/// Little-endian only; requires e - begin >= sizeof(Word).
-inline Word load_tail(const char* q, const char* e) noexcept {
-  Word x;
-  std::memcpy(&x, e - sizeof x, sizeof x);
-  return x >> (8u * (sizeof x - static_cast<std::size_t>(e - q)));
+
+/// Bytes of the blocks decode() classifies at once (one bit of a 64-bit mask per byte).
+inline constexpr std::size_t kBlock = 64;
+/// Granularity of the last block: the param region is padded to a multiple of this.
+inline constexpr std::size_t kChunk = 16;
+
+/// Reference classifier, one byte at a time: for the @p len bytes at @p b (at most 64), bit i of
+/// @p colon is set where b[i] is ':', bit i of @p special where b[i] may not stand raw in a param
+/// ('%', below 0x20, above 0x7E).
+inline void classify_scalar(const unsigned char* b, std::size_t len, std::uint64_t& colon,
+                            std::uint64_t& special) noexcept {
+  std::uint64_t c = 0, sp = 0;
+  for (std::size_t i = 0; i < len; ++i) {
+    const unsigned char x = b[i];
+    c |= std::uint64_t{x == ':'} << i;
+    sp |= std::uint64_t{x == '%' || x < 0x20 || x > 0x7E} << i;
+  }
+  colon = c;
+  special = sp;
 }
 
-/// Mask of the high bits of the low @p r bytes of a Word (0 < r < sizeof(Word)).
-constexpr Word low_bytes_highs(std::size_t r) noexcept { return kHighs & ((Word{1} << (8u * r)) - 1u); }
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+/// classify_scalar() 8 bytes at a time (@p len a multiple of 8): exact SWAR on a 64-bit word (no carry
+/// crosses a byte), each byte's high bit compressed to one bit with a multiply. Portable; the EV3
+/// (ARMv5TE) takes this path.
+inline void classify_swar(const unsigned char* b, std::size_t len, std::uint64_t& colon,
+                          std::uint64_t& special) noexcept {
+  constexpr std::uint64_t ones = 0x0101010101010101ull;
+  constexpr std::uint64_t low7 = 0x7F7F7F7F7F7F7F7Full;
+  constexpr std::uint64_t highs = 0x8080808080808080ull;
+  auto zero_bytes = [](std::uint64_t t) noexcept { return ~(((t & low7) + low7) | t | low7); };
+  auto compress = [](std::uint64_t m) noexcept {
+    return static_cast<std::uint64_t>(((m >> 7) * 0x0102040810204080ull) >> 56);
+  };
+  std::uint64_t c = 0, sp = 0;
+  for (std::size_t k = 0; k < len / 8u; ++k) {
+    std::uint64_t x;
+    std::memcpy(&x, b + 8u * k, sizeof x);
+    const std::uint64_t lo = x & low7;
+    const std::uint64_t below = ~((lo + 0x60u * ones) | x) & highs;  // byte < 0x20
+    const std::uint64_t above = ((lo + ones) | x) & highs;          // byte >= 0x7F
+    const std::uint64_t percent = zero_bytes(x ^ (0x25u * ones));
+    c |= compress(zero_bytes(x ^ (0x3Au * ones))) << (8u * k);
+    sp |= compress(below | above | percent) << (8u * k);
+  }
+  colon = c;
+  special = sp;
+}
+#endif
+
+#if defined(__SSE2__)
+/// classify_scalar() 16 bytes at a time (@p len a multiple of 16) with SSE2 (every x86-64 has it).
+inline void classify_sse2(const unsigned char* b, std::size_t len, std::uint64_t& colon,
+                          std::uint64_t& special) noexcept {
+  const __m128i k_colon = _mm_set1_epi8(':');
+  const __m128i k_percent = _mm_set1_epi8('%');
+  // Adding 0x60 maps 0x20..0x7E onto -128..-34 (signed); every other byte lands above -34.
+  const __m128i k_shift = _mm_set1_epi8(0x60);
+  const __m128i k_limit = _mm_set1_epi8(-34);
+  std::uint64_t c = 0, sp = 0;
+  for (std::size_t k = 0; k < len / 16u; ++k) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(b + 16u * k));
+    const __m128i outside = _mm_cmpgt_epi8(_mm_add_epi8(v, k_shift), k_limit);
+    const __m128i sv = _mm_or_si128(outside, _mm_cmpeq_epi8(v, k_percent));
+    c |= std::uint64_t{static_cast<std::uint16_t>(_mm_movemask_epi8(_mm_cmpeq_epi8(v, k_colon)))} << (16u * k);
+    sp |= std::uint64_t{static_cast<std::uint16_t>(_mm_movemask_epi8(sv))} << (16u * k);
+  }
+  colon = c;
+  special = sp;
+}
+#endif
+
+/// The classifier decode() uses: SSE2 where the compiler targets it, else SWAR on little-endian
+/// hosts, else the scalar reference. @p len is a multiple of 16, at most 64.
+inline void classify_block(const unsigned char* b, std::size_t len, std::uint64_t& colon,
+                           std::uint64_t& special) noexcept {
+#if defined(__SSE2__)
+  classify_sse2(b, len, colon, special);
+#elif defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  classify_swar(b, len, colon, special);
+#else
+  classify_scalar(b, len, colon, special);
+#endif
+}
+
+/// Index of the lowest set bit of a non-zero @p m.
+inline unsigned lowest_bit(std::uint64_t m) noexcept {
+  return static_cast<unsigned>(__builtin_ctzll(static_cast<unsigned long long>(m)));
+}
 
 } // namespace detail
 
@@ -372,74 +454,84 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
 
   // Params. p is the first byte of param 0. A datagram that ends with ':' after the type carries one
   // empty param, so "p == e" alone does not mean "no params".
+  //
+  // The whole param region is copied into the message's buffer once, separators included, and padded
+  // to a multiple of 16 bytes with a plain byte (the header takes at least 8 bytes, so the region is at
+  // most 4088 bytes and the padding stays within the 4096-byte buffer). Each block of up to 64 bytes is
+  // classified once (':' and bytes that may not stand raw); the params are then found by walking the
+  // set bits. A param without a special byte is its raw bytes, in place. A param with one is checked
+  // and unescaped in place from that byte on (unescaping only shrinks), byte by byte.
   std::size_t count = 0;
-  char* const base = out.data_;
-  char* w = base;
   if (has_params) {
     const std::size_t max_params = spec->max_params < kMaxParams ? spec->max_params : kMaxParams;
+    const std::size_t n = static_cast<std::size_t>(e - p);
+    const std::size_t padded = (n + detail::kChunk - 1u) & ~(detail::kChunk - 1u);
+    unsigned char* const d = reinterpret_cast<unsigned char*>(out.data_);
+    if (n != 0) std::memcpy(d, p, n);
+    // A fixed 16-byte store (one instruction) where it fits; the last 16 bytes of the buffer take the
+    // exact length.
+    if (n + detail::kChunk <= Message::kCapacity) std::memset(d + n, 'A', detail::kChunk);
+    else std::memset(d + n, 'A', padded - n);
+
+    std::size_t block = ~std::size_t{0};  // start of the block whose masks are cached
+    std::uint64_t events = 0, specials = 0;
+    std::size_t s = 0;  // first byte of the current param
     for (;;) {
       if (count >= max_params) return fail(Reason::too_many_params, kFieldParam0 + count);
-      const char* q = p;
-      char* const value_begin = w;
-      for (;;) {
-        // Fast path: whole words of plain bytes are copied as they are. Writing a whole word is safe:
-        // the header took at least 8 bytes and unescaping only shrinks, so w + sizeof(Word) stays
-        // within data_ whenever q + sizeof(Word) is within the datagram.
-        while (static_cast<std::size_t>(e - q) >= sizeof(detail::Word)) {
-          detail::Word x;
-          std::memcpy(&x, q, sizeof x);
-          std::memcpy(w, q, sizeof x);
-          const detail::Word m = detail::special_bytes(x);
-          if (m == 0) {
-            q += sizeof x;
-            w += sizeof x;
-            continue;
-          }
-          const std::size_t plain = detail::first_flagged(m);
-          q += plain;
-          w += plain;
+      // The first ':' or special byte at or after s (n when there is none).
+      std::size_t i = n;
+      bool special = false;
+      for (std::size_t base = s & ~(detail::kBlock - 1u); base < padded; base += detail::kBlock) {
+        if (base != block) {
+          std::uint64_t colons = 0;
+          const std::size_t span = padded - base < detail::kBlock ? padded - base : detail::kBlock;
+          detail::classify_block(d + base, span, colons, specials);
+          events = colons | specials;
+          block = base;
+        }
+        std::uint64_t m = events;
+        if (base < s) m &= ~std::uint64_t{0} << (s - base);
+        if (m != 0) {
+          const unsigned bit = detail::lowest_bit(m);
+          i = base + bit;
+          special = ((specials >> bit) & 1u) != 0;
           break;
         }
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-        // The tail (fewer bytes than a word, datagram at least a word long): one word that ends at e.
-        if (static_cast<std::size_t>(e - q) < sizeof(detail::Word) && q != e && len >= sizeof(detail::Word)) {
-          const std::size_t r = static_cast<std::size_t>(e - q);
-          const detail::Word x = detail::load_tail(q, e);
-          std::memcpy(w, &x, sizeof x);  // in bounds: see above; the bytes past r are overwritten or unused
-          const detail::Word m = detail::special_bytes(x) & detail::low_bytes_highs(r);
-          const std::size_t plain = m == 0 ? r : detail::first_flagged(m);
-          q += plain;
-          w += plain;
-        }
-#endif
-        if (q == e) break;
-        const unsigned char c = static_cast<unsigned char>(*q);
-        if (c == ':') break;
-        if (c < 0x20 || c > 0x7E) return fail(Reason::non_printable_byte, kFieldParam0 + count);
-        if (c == '%') {
-          if (e - q < 3) return fail(Reason::bad_escape, kFieldParam0 + count);
-          const int hi = detail::upper_hex_value(static_cast<unsigned char>(q[1]));
-          const int lo = detail::upper_hex_value(static_cast<unsigned char>(q[2]));
-          if (hi < 0 || lo < 0) return fail(Reason::bad_escape, kFieldParam0 + count);
-          const unsigned char b = static_cast<unsigned char>(hi * 16 + lo);
-          if (!detail::must_escape(b)) return fail(Reason::bad_escape, kFieldParam0 + count);
-          *w++ = static_cast<char>(b);
-          q += 3;
-        } else {
-          *w++ = static_cast<char>(c);
-          ++q;
-        }
       }
-      out.ends_[count] = static_cast<std::uint16_t>(w - base);
+      std::size_t end = i;
+      if (special) {
+        std::size_t r = i;
+        std::size_t w = i;
+        while (r < n && d[r] != ':') {
+          const unsigned char c = d[r];
+          if (c < 0x20 || c > 0x7E) return fail(Reason::non_printable_byte, kFieldParam0 + count);
+          if (c == '%') {
+            if (n - r < 3) return fail(Reason::bad_escape, kFieldParam0 + count);
+            const int hi = detail::upper_hex_value(d[r + 1]);
+            const int lo = detail::upper_hex_value(d[r + 2]);
+            if (hi < 0 || lo < 0) return fail(Reason::bad_escape, kFieldParam0 + count);
+            const unsigned char b = static_cast<unsigned char>(hi * 16 + lo);
+            if (!detail::must_escape(b)) return fail(Reason::bad_escape, kFieldParam0 + count);
+            d[w++] = b;
+            r += 3;
+          } else {
+            d[w++] = c;
+            ++r;
+          }
+        }
+        end = w;
+        i = r;  // the ':' that ends the param, or n
+      }
+      out.begins_[count] = static_cast<std::uint16_t>(s);
+      out.ends_[count] = static_cast<std::uint16_t>(end);
       const ParamKind kind = spec->kind(count);
       if (kind != ParamKind::text) {
-        const Reason r = detail::check_kind(
-            kind, std::string_view(value_begin, static_cast<std::size_t>(w - value_begin)));
+        const Reason r = detail::check_kind(kind, std::string_view(out.data_ + s, end - s));
         if (r != Reason::ok) return fail(r, kFieldParam0 + count);
       }
       ++count;
-      if (q == e) break;
-      p = q + 1;
+      if (i >= n) break;
+      s = i + 1;
     }
   }
   out.count_ = static_cast<std::uint8_t>(count);
