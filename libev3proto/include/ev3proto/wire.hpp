@@ -256,63 +256,10 @@ inline char* write_decimal(char* out, std::uint32_t v) noexcept {
   return out + n;
 }
 
-/// Machine word used by the SWAR scan: 8 bytes on 64-bit hosts, 4 on the EV3 (ARMv5TE).
-using Word = std::size_t;
-/// 0x0101...01 in a Word.
-inline constexpr Word kOnes = ~Word{0} / 0xFFu;
-/// 0x8080...80 in a Word.
-inline constexpr Word kHighs = kOnes * 0x80u;
-
-/// High bit set in (at least) the lowest byte of @p x that must not be copied as-is into a param:
-/// below 0x20, above 0x7E, ':' or '%'. Zero when all bytes are plain. Bytes above the lowest flagged
-/// one may be flagged falsely (borrows), never those below it.
-constexpr Word special_bytes(Word x) noexcept {
-  const Word below = (x - kOnes * 0x20u) & ~x;       // byte < 0x20 (or >= 0x80, masked below)
-  const Word above = (x + kOnes * 0x01u) | x;        // byte >= 0x7F
-  const Word c = x ^ (kOnes * 0x3Au);
-  const Word colon = (c - kOnes) & ~c;               // byte == ':'
-  const Word q = x ^ (kOnes * 0x25u);
-  const Word percent = (q - kOnes) & ~q;             // byte == '%'
-  return (below | above | colon | percent) & kHighs;
-}
-
-/// Index of the lowest flagged byte of a non-zero special_bytes() result (little-endian), or 0 on
-/// big-endian hosts (the caller then takes the byte-by-byte path).
-inline std::size_t first_flagged(Word m) noexcept {
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-  if constexpr (sizeof(Word) == sizeof(unsigned long long)) {
-    return static_cast<std::size_t>(__builtin_ctzll(static_cast<unsigned long long>(m))) / 8u;
-  } else {
-    return static_cast<std::size_t>(__builtin_ctz(static_cast<unsigned>(m))) / 8u;
-  }
-#else
-  (void)m;
-  return 0;
-#endif
-}
-
 /// A DecodeResult for a problem in field @p field.
 constexpr DecodeResult fail(Reason r, std::size_t field) noexcept {
   return DecodeResult{r, static_cast<std::uint8_t>(field)};
 }
-
-/// Number of bytes @p v takes on the wire once escaped (whole plain words are skipped at once).
-inline std::size_t escaped_size(std::string_view v) noexcept {
-  std::size_t n = v.size();
-  const char* p = v.data();
-  const char* const e = p + v.size();
-  while (static_cast<std::size_t>(e - p) >= sizeof(Word)) {
-    Word x;
-    std::memcpy(&x, p, sizeof x);
-    if (special_bytes(x) != 0) {
-      for (std::size_t k = 0; k < sizeof x; ++k) n += must_escape(static_cast<unsigned char>(p[k])) ? 2u : 0u;
-    }
-    p += sizeof x;
-  }
-  for (; p != e; ++p) n += must_escape(static_cast<unsigned char>(*p)) ? 2u : 0u;
-  return n;
-}
-
 
 /// Bytes of the blocks decode() classifies at once (one bit of a 64-bit mask per byte).
 inline constexpr std::size_t kBlock = 64;
@@ -396,6 +343,25 @@ inline void classify_block(const unsigned char* b, std::size_t len, std::uint64_
 #else
   classify_scalar(b, len, colon, special);
 #endif
+}
+
+/// Bit i set where p[i] must be escaped in a param (':' '%' and bytes outside 0x20..0x7E), for the
+/// 16 bytes at @p p.
+inline std::uint32_t escape_mask16(const char* p) noexcept {
+  std::uint64_t colon = 0, special = 0;
+  classify_block(reinterpret_cast<const unsigned char*>(p), 16, colon, special);
+  return static_cast<std::uint32_t>(colon | special);
+}
+
+/// Number of bytes @p v takes on the wire once escaped (16 bytes at a time).
+inline std::size_t escaped_size(std::string_view v) noexcept {
+  std::size_t n = v.size();
+  const char* p = v.data();
+  const char* const e = p + v.size();
+  for (; e - p >= 16; p += 16)
+    n += 2u * static_cast<std::size_t>(__builtin_popcount(escape_mask16(p)));
+  for (; p != e; ++p) n += must_escape(static_cast<unsigned char>(*p)) ? 2u : 0u;
+  return n;
 }
 
 /// Index of the lowest set bit of a non-zero @p m.
@@ -577,30 +543,25 @@ EncodeResult encode_impl(std::uint16_t sender, std::uint16_t receiver, std::uint
     const std::string_view value = param(i);
     const char* p = value.data();
     const char* const pe = p + value.size();
-    // Whole words without a byte to escape are copied at once. Writing a whole word is in bounds:
-    // those input bytes take at least as many output bytes, all within the computed size.
-    while (static_cast<std::size_t>(pe - p) >= sizeof(Word)) {
-      Word x;
-      std::memcpy(&x, p, sizeof x);
-      std::memcpy(w, &x, sizeof x);
-      const Word m = special_bytes(x);
+    // 16 bytes at a time: copied as they are, then the first byte to escape (if any) is rewritten.
+    // Writing 16 bytes is in bounds: those input bytes take at least as many output bytes, all
+    // within the computed size.
+    while (pe - p >= 16) {
+      std::memcpy(w, p, 16);
+      const std::uint32_t m = escape_mask16(p);
       if (m == 0) {
-        p += sizeof x;
-        w += sizeof x;
+        p += 16;
+        w += 16;
         continue;
       }
-      const std::size_t plain = first_flagged(m);
+      const unsigned plain = static_cast<unsigned>(__builtin_ctz(m));
       p += plain;
       w += plain;
       const unsigned char c = static_cast<unsigned char>(*p++);
-      if (must_escape(c)) {
-        w[0] = '%';
-        w[1] = kHex[c >> 4];
-        w[2] = kHex[c & 0x0Fu];
-        w += 3;
-      } else {  // a false positive above a flagged byte cannot be first, but stay exact anyway
-        *w++ = static_cast<char>(c);
-      }
+      w[0] = '%';
+      w[1] = kHex[c >> 4];
+      w[2] = kHex[c & 0x0Fu];
+      w += 3;
     }
     for (char ch : std::string_view(p, static_cast<std::size_t>(pe - p))) {
       const unsigned char c = static_cast<unsigned char>(ch);
