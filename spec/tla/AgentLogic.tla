@@ -35,8 +35,6 @@ ASSUME /\ UnknownBehaviour \notin Behaviours
 States   == {"IDLE", "ACTIVE", "WORKING", "PAUSED", "PANIC", "OFF"}
 Synced   == {"ACTIVE", "WORKING", "PAUSED"}     \* states that have a master
 Masterless == {"IDLE", "PANIC"}
-AssignedIds == 2..49999
-TempIds  == 50000..65535
 
 \* LED pattern of each state (OFF: the agent shut down, LEDs dark).
 LedOf == [ IDLE |-> "YELLOW_BLINK", ACTIVE |-> "GREEN_BLINK",

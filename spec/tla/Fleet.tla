@@ -1,80 +1,95 @@
 -------------------------------- MODULE Fleet --------------------------------
 (***************************************************************************)
-(* One master and N agents over a network that loses, duplicates and       *)
-(* reorders datagrams.  Agents run AgentLogic unchanged.  The master syncs *)
-(* agents (AGENT/PANIC -> MASTER with an id), answers PINGs of registered  *)
-(* agents with PONG, drives each agent through BEHAVIOUR then START (every *)
-(* command resent each tick until ACK or NOT), collects reports, and may   *)
-(* crash and restart with an empty registry.                               *)
+(* One master and the agents in Agents over a network that loses,         *)
+(* duplicates and reorders datagrams.  Agents run AgentLogic unchanged,    *)
+(* the master runs MasterLogic unchanged.  An operator (environment) gives *)
+(* the master commands; the master syncs agents (AGENT/PANIC -> MASTER     *)
+(* with an id), answers PINGs of registered agents with PONG, resends each *)
+(* pending command every tick until ACK or NOT, reconciles agents whose    *)
+(* reported state differs from what the operator asked, and may crash and  *)
+(* restart with an empty registry.                                         *)
 (*                                                                         *)
-(* Time is discrete: Tick advances every agent's timers together and is    *)
-(* taken only when the network has drained (bounded delay: a datagram is   *)
-(* delivered or lost within the tick it was sent in; order within a tick  *)
-(* is arbitrary).  Loss, duplication and crashes each have a budget (set   *)
-(* in the MC module): the network eventually stops losing.                 *)
+(* Time is discrete: Tick advances every agent's timers and the master's   *)
+(* together and is taken only when the network has drained (bounded       *)
+(* delay: a datagram is delivered or lost within the tick it was sent in; *)
+(* order within a tick is arbitrary).  Loss, duplication, crashes and      *)
+(* operator commands each have a budget (set in the cfg): the network      *)
+(* eventually stops losing.                                                *)
 (*                                                                         *)
 (* Extension point for relay and election (types 21-39): new endpoint      *)
-(* roles and master-side state go into `master', new message handlers into *)
-(* MasterRecv / AgentRecv; the network and time model stay as they are.    *)
+(* roles and master-side state go into MasterLogic / a new variable, new   *)
+(* message handlers into MasterRecv / AgentRecv; network and time stay.    *)
 (***************************************************************************)
-EXTENDS Naturals, Sequences, FiniteSets, Messages
+EXTENDS Naturals, Sequences, FiniteSets, TLC, Messages
 
 CONSTANTS Behaviours, UnknownBehaviour, ModelName, TSync, TPing, TLoss,
           TPaused, Window, Steps, BUG,
-          N,           \* number of agents
+          Agents,      \* the agents' endpoints (model values: a symmetry set)
           TDrop,       \* master drops an agent not heard for TDrop ticks
+          MaxResends,  \* an operator command fails after this many resends
           MaxLoss,     \* datagrams the network may lose, in all
           MaxDup,      \* datagrams the network may duplicate, in all
-          MaxCrashes   \* master crashes, in all
+          MaxCrashes,  \* master crashes, in all
+          MaxOps       \* operator commands, in all
 
 L == INSTANCE AgentLogic
+M == INSTANCE MasterLogic WITH ExactMsgids <- FALSE
 
-Agents == 1..N
 MasterEp == 0                      \* endpoint (address) of the master
 Endpoints == Agents \cup {MasterEp}
-TempOf(a) == 50000 + a             \* temporary id agent a draws
-Job == {"MASTER", "BEHAVIOUR", "START", "RESUME", "DONE"}  \* command pending per agent
+\* Agent a draws temporary id TempOf(a): any injective choice.  Temporary ids
+\* are only compared for equality, so the spec is symmetric in Agents.
+TempIdx == CHOOSE f \in [Agents -> 1..Cardinality(Agents)] :
+               \A x, y \in Agents : x # y => f[x] # f[y]
+TempOf(a) == 50000 + TempIdx[a]
+Mission == CHOOSE b \in Behaviours : TRUE   \* what the operator runs
 
 VARIABLES
     ag,          \* ag[a]: agent a's local state (AgentLogic)
     net,         \* datagrams in flight: [from, to : Endpoints, m : message]
-    master,      \* [up, reg, nextId, msgid]; msgid[a]: next msgid towards agent a
-    budget,      \* [loss, dup, crash]: what the environment may still do
+    up,          \* the master is running
+    ms,          \* the master's local state (MasterLogic)
+    sess,        \* sess[a]: MASTERs agent a has taken (its msgid stamp, below)
+    budget,      \* [loss, dup, crash, ops]: what the environment may still do
     lost         \* lost[a]: history, agent a was synced when the master crashed
 
-vars == <<ag, net, master, budget, lost>>
-
-\* A registry entry: announced id, assigned id, endpoint, pending command,
-\* its msgid, ticks since the agent was last heard.
-RegEntry == [ann : Nat, id : Nat, ep : Agents, job : Job, mid : Nat, quiet : Nat]
+vars == <<ag, net, up, ms, sess, budget, lost>>
 
 TypeOK ==
     /\ \A a \in Agents : ag[a] \in L!AgentType
     /\ \A e \in net : e.from \in Endpoints /\ e.to \in Endpoints
-    /\ master.up \in BOOLEAN
-    /\ master.reg \subseteq RegEntry
-    /\ master.nextId \in L!AssignedIds
-    /\ master.msgid \in [Agents -> Nat \ {0}]
-    /\ budget \in [loss : Nat, dup : Nat, crash : Nat]
+    /\ up \in BOOLEAN
+    /\ M!MasterType(ms, Agents, Behaviours)
+    /\ sess \in [Agents -> Nat]
+    /\ budget \in [loss : Nat, dup : Nat, crash : Nat, ops : Nat]
     /\ lost \in [Agents -> BOOLEAN]
 
 Init ==
     /\ ag = [a \in Agents |-> L!InitAgent(TempOf(a))]
     /\ net = {}
-    /\ master = [up |-> TRUE, reg |-> {}, nextId |-> 2, msgid |-> [a \in Agents |-> 1]]
-    /\ budget = [loss |-> MaxLoss, dup |-> MaxDup, crash |-> MaxCrashes]
+    /\ up = TRUE
+    /\ ms = M!InitMaster(Agents)
+    /\ sess = [a \in Agents |-> 0]
+    /\ budget = [loss |-> MaxLoss, dup |-> MaxDup, crash |-> MaxCrashes, ops |-> MaxOps]
     /\ lost = [a \in Agents |-> FALSE]
 
-\* Datagrams for what agent `from' emits.  Agents emit to the master or
-\* broadcast (AGENT, PANIC); a broadcast reaches the other agents too, but
-\* an agent ignores other agents' broadcasts (checked in Agent.tla), so the
-\* fleet routes them to the master only (abstraction, keeps TLC fast).
-Route(from, o, toEp) == {[from |-> from, to |-> toEp, m |-> o]}
-Emit(a, outs) == UNION {Route(a, outs[i], MasterEp) : i \in 1..Len(outs)}
-\* Agent messages are stamped msgid 0: the master's handlers are idempotent
-\* and need no msgid (abstraction, docs/spec.md).
-Stamp(o) == [src |-> o.src, dst |-> o.dst, msgid |-> 0, type |-> o.type,
-             ref |-> o.ref, args |-> o.args]
+\* The msgid an agent's datagram carries.  Real msgids grow by one per
+\* datagram (unbounded); the master only compares them (PANIC resync guard:
+\* "above every msgid heard from that agent").  The fleet stamps the
+\* coarse, order-preserving image 2*sess + (1 if the agent is in PANIC):
+\* every datagram of a later session, and the first PANIC after PINGs and
+\* answers of the same session, compare higher, copies of one PANIC equal --
+\* exactly the comparisons the real msgids give (docs/spec.md).
+Stamp(o, s, st) == [src |-> o.src, dst |-> o.dst, msgid |-> 2 * s + (IF st = "PANIC" THEN 1 ELSE 0),
+                    type |-> o.type, ref |-> o.ref, args |-> o.args]
+\* Datagrams for what agent a emits (in its state b, session s).  Agents
+\* emit to the master or broadcast (AGENT, PANIC); a broadcast reaches the
+\* other agents too, but an agent ignores other agents' broadcasts (checked
+\* in Agent.tla), so the fleet routes them to the master only.
+Emit(a, outs, s, b) ==
+    {[from |-> a, to |-> MasterEp, m |-> Stamp(outs[i], s, b.state)] : i \in 1..Len(outs)}
+\* Datagrams for what the master emits.
+MEmit(outs) == {[from |-> MasterEp, to |-> o.to, m |-> o.m] : o \in outs}
 
 -----------------------------------------------------------------------------
 (* The network.                                                             *)
@@ -83,125 +98,77 @@ Stamp(o) == [src |-> o.src, dst |-> o.dst, msgid |-> 0, type |-> o.type,
 Lose(e) == /\ budget.loss > 0
            /\ net' = net \ {e}
            /\ budget' = [budget EXCEPT !.loss = @ - 1]
-           /\ UNCHANGED <<ag, master, lost>>
+           /\ UNCHANGED <<ag, up, ms, sess, lost>>
 
 -----------------------------------------------------------------------------
 (* Agents.                                                                  *)
 
 \* Agent a receives datagram e (the copy stays in flight if duplicated).
 AgentRecv(a, e, dup) ==
-    LET r == L!Receive(ag[a], e.m) IN
+    LET r == L!Receive(ag[a], e.m)
+        s == IF L!Handler(ag[a], e.m) = "RecvMaster" THEN sess[a] + 1 ELSE sess[a]
+    IN
     /\ e.to = a
     /\ ag' = [ag EXCEPT ![a] = r.ag]
-    /\ net' = ((IF dup THEN net ELSE net \ {e}) \cup Emit(a, [i \in 1..Len(r.out) |-> Stamp(r.out[i])]))
+    /\ sess' = [sess EXCEPT ![a] = s]
+    /\ net' = (IF dup THEN net ELSE net \ {e}) \cup Emit(a, r.out, s, r.ag)
     /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
-    /\ UNCHANGED master
+    /\ UNCHANGED <<up, ms>>
 
 \* Agent a's timeout fires (SyncTimeout or HeartbeatLost).
 AgentTimeout(a) ==
     LET r == IF L!SyncTimeoutOk(ag[a]) THEN L!SyncTimeout(ag[a]) ELSE L!HeartbeatLost(ag[a]) IN
     /\ L!SyncTimeoutOk(ag[a]) \/ L!HeartbeatLostOk(ag[a])
     /\ ag' = [ag EXCEPT ![a] = r.ag]
-    /\ net' = net \cup Emit(a, [i \in 1..Len(r.out) |-> Stamp(r.out[i])])
+    /\ net' = net \cup Emit(a, r.out, sess[a], r.ag)
     /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
-    /\ UNCHANGED <<master, budget>>
+    /\ UNCHANGED <<up, ms, sess, budget>>
 
 -----------------------------------------------------------------------------
-(* The master.                                                              *)
-
-MsgTo(r, type, ref, args) ==
-    [from |-> MasterEp, to |-> r.ep,
-     m |-> Msg(MasterId, r.id, r.mid, type, ref, args)]
-\* The datagram of the command pending for entry r.
-Pending(r) ==
-    CASE r.job = "MASTER"    -> {MsgTo(r, "MASTER", r.ann, <<>>)}
-      [] r.job = "BEHAVIOUR" -> {MsgTo(r, "BEHAVIOUR", 0, <<CHOOSE b \in Behaviours : TRUE>>)}
-      [] r.job = "START"     -> {MsgTo(r, "START", 0, <<>>)}
-      [] r.job = "RESUME"    -> {MsgTo(r, "RESUME", 0, <<>>)}
-      [] OTHER               -> {}
-Next_(j) == CASE j = "MASTER" -> "BEHAVIOUR" [] j = "BEHAVIOUR" -> "START" [] OTHER -> "DONE"
-
-Known(reg, s) == {r \in reg : r.ann = s \/ r.id = s}
-
-\* The master receives AGENT or PANIC from announced id s: a new agent gets
-\* an id (its old one if it announces an assigned id, else the next free)
-\* and MASTER; an agent already registered gets the pending MASTER again.
-MasterSync(e) ==
-    LET s == e.m.src
-        k == Known(master.reg, s)
-        nid == IF s \in L!AssignedIds THEN s ELSE master.nextId
-        r == [ann |-> s, id |-> nid, ep |-> e.from, job |-> "MASTER",
-              mid |-> master.msgid[e.from], quiet |-> 0]
-    IN IF k # {}
-       THEN /\ net' = (net \ {e}) \cup UNION {Pending(x) : x \in k}
-            /\ master' = [master EXCEPT !.reg = (@ \ k) \cup {[x EXCEPT !.quiet = 0] : x \in k}]
-       ELSE /\ master' = [master EXCEPT
-                  !.reg = {x \in @ : x.ep # e.from} \cup {r},
-                  !.nextId = IF s \in L!AssignedIds THEN @ ELSE @ + 1,
-                  !.msgid[e.from] = @ + 1]
-            /\ net' = (net \ {e}) \cup Pending(r)
-
-\* ACK or NOT of the pending command: ACK moves to the next command, NOT
-\* gives up on this agent's job.
-MasterAnswer(e) ==
-    LET s == e.m.src
-        k == {x \in master.reg : x.id = s /\ x.mid = e.m.ref /\ x.job # "DONE"}
-        x == CHOOSE x \in k : TRUE
-        y == [x EXCEPT !.job = IF e.m.type = "ACK" THEN Next_(x.job) ELSE "DONE",
-                       !.mid = master.msgid[x.ep], !.quiet = 0]
-    IN IF k = {}
-       THEN net' = net \ {e} /\ UNCHANGED master
-       ELSE /\ master' = [master EXCEPT !.reg = (@ \ {x}) \cup {y}, !.msgid[x.ep] = @ + 1]
-            /\ net' = (net \ {e}) \cup Pending(y)
-
-\* PING from a registered agent: PONG at once (and the agent is heard).
-\* The master reconciles on the state the PING reports: an agent it has
-\* done with that reports PAUSED (heartbeat was lost) gets RESUME, one that
-\* reports ACTIVE gets its BEHAVIOUR and START again.
-\* A PING from an id the master does not know gets no answer, so an agent
-\* of a crashed master's session loses its heartbeat and resyncs via PANIC.
-MasterPing(e) ==
-    LET k == {x \in master.reg : x.id = e.m.src} IN
-    IF k = {} THEN net' = net \ {e} /\ UNCHANGED master
-    ELSE LET x == CHOOSE x \in k : TRUE IN
-         /\ LET j == IF x.job # "DONE" THEN x.job
-                     ELSE CASE e.m.args[1] = "PAUSED" -> "RESUME"
-                            [] e.m.args[1] = "ACTIVE" -> "BEHAVIOUR"
-                            [] OTHER                  -> "DONE"
-                y == [x EXCEPT !.quiet = 0, !.job = j,
-                               !.mid = IF j # x.job THEN master.msgid[x.ep] ELSE @]
-            IN master' = [master EXCEPT !.reg = (@ \ {x}) \cup {y},
-                                        !.msgid[x.ep] = IF j # x.job THEN @ + 1 ELSE @]
-         /\ net' = (net \ {e}) \cup
-                   {[from |-> MasterEp, to |-> e.from,
-                     m |-> Msg(MasterId, e.m.src, 0, "PONG", 0, <<>>)]}
+(* The master and its operator.                                             *)
 
 \* The master (when up) receives datagram e; a crashed master drops it.
-MasterRecv(e, dup) ==
+MasterRecv(e) ==
     /\ e.to = MasterEp
-    /\ IF ~master.up THEN net' = net \ {e} /\ UNCHANGED master
-       ELSE CASE e.m.type \in {"AGENT", "PANIC"} -> MasterSync(e)
-              [] e.m.type \in {"ACK", "NOT"}     -> MasterAnswer(e)
-              [] e.m.type = "PING"               -> MasterPing(e)
-              [] OTHER -> net' = net \ {e} /\ UNCHANGED master  \* reports: consumed
-    /\ UNCHANGED <<ag, lost>>
+    /\ IF ~up THEN net' = net \ {e} /\ UNCHANGED ms
+       ELSE LET r == M!Receive(ms, e.m, e.from)
+            IN /\ ms' = r.ms
+               /\ net' = (net \ {e}) \cup MEmit(r.out)
+    /\ UNCHANGED <<ag, up, sess, lost>>
 
-\* The master crashes: registry gone.  Its id and msgid counters survive
-\* (stable storage, or derived from a clock), so ids and msgids are never
-\* reused.
+\* The operator's mission: every registered agent runs Mission.  It gives
+\* agent a's entry the next command when nothing is queued or pending:
+\* BEHAVIOUR until one is ACKed, then START until asked.  After a crash or
+\* a drop the entry is new and the operator starts again.  The operator acts
+\* between deliveries, when the network has drained (as Tick): its timing
+\* relative to one tick's datagrams does not matter, and it keeps TLC fast.
+OpNext(x) == IF x.beh = M!NoBehaviour THEN M!Cmd("BEHAVIOUR", Mission) ELSE M!Cmd0("START")
+OpWanted(x) == x.synced /\ ~x.pending /\ x.queue = <<>>
+               /\ (x.beh = M!NoBehaviour \/ x.desired # "WORKING")
+Operate(a) ==
+    /\ up /\ budget.ops > 0 /\ net = {}
+    /\ \E x \in ms.reg :
+          /\ x.ep = a /\ OpWanted(x)
+          /\ LET r == M!MasterCommand(ms, x.id, OpNext(x)) IN
+             /\ ms' = r.ms
+             /\ net' = net \cup MEmit(r.out)
+    /\ budget' = [budget EXCEPT !.ops = @ - 1]
+    /\ UNCHANGED <<ag, up, sess, lost>>
+
+\* The master crashes: registry gone; nextId and msgid survive.
 MasterCrash ==
-    /\ master.up /\ budget.crash > 0
-    /\ master' = [master EXCEPT !.up = FALSE, !.reg = {},
-                     !.nextId = IF BUG = "ReuseIds" THEN 2 ELSE @]
+    /\ up /\ budget.crash > 0
+    /\ up' = FALSE
+    /\ ms' = M!CrashMaster(ms)
     /\ budget' = [budget EXCEPT !.crash = @ - 1]
     /\ lost' = [a \in Agents |-> ag[a].state \in L!Synced]
-    /\ UNCHANGED <<ag, net>>
+    /\ UNCHANGED <<ag, net, sess>>
 
 \* The master restarts with an empty registry.
 MasterRestart ==
-    /\ ~master.up
-    /\ master' = [master EXCEPT !.up = TRUE]
-    /\ UNCHANGED <<ag, net, budget, lost>>
+    /\ ~up
+    /\ up' = TRUE
+    /\ UNCHANGED <<ag, net, ms, sess, budget, lost>>
 
 -----------------------------------------------------------------------------
 (* Delivery and time.                                                       *)
@@ -210,15 +177,14 @@ MasterRestart ==
 Deliver(e, dup) ==
     /\ dup => budget.dup > 0
     /\ IF dup THEN budget' = [budget EXCEPT !.dup = @ - 1] ELSE UNCHANGED budget
-    /\ IF e.to = MasterEp THEN MasterRecv(e, dup) ELSE AgentRecv(e.to, e, dup)
+    /\ IF e.to = MasterEp THEN MasterRecv(e) ELSE AgentRecv(e.to, e, dup)
 
 DeliverAny == \E e \in net : Deliver(e, FALSE)
 
 \* One tick of time, once the network has drained and no timeout is due:
 \* every agent's timers advance (periodic AGENT/PING/PANIC go out, a running
-\* behaviour reports ACTION_OK), the
-\* master resends every pending command, counts ticks since it last heard
-\* each agent and drops those quiet for TDrop ticks.
+\* behaviour reports ACTION_OK), and the master's MasterTick (resends,
+\* failures, drops).
 Tick ==
     LET t == [a \in Agents |-> L!Tick(ag[a])]
         \* a running behaviour finishes one action per tick: ACTION_OK
@@ -228,26 +194,25 @@ Tick ==
                       out |-> t[a].out \o L!ActionOk(t[a].ag).out]
                 ELSE t[a]]
         live == {a \in Agents : ag[a].state # "OFF"}
+        mt == M!MasterTick(ms)
     IN
     /\ net = {}
     /\ \A a \in live : L!TickOk(ag[a])
     /\ ag' = [a \in Agents |-> IF a \in live THEN r[a].ag ELSE ag[a]]
-    /\ LET reg2 == {[x EXCEPT !.quiet = @ + 1] : x \in master.reg}
-           reg3 == {x \in reg2 : x.quiet < TDrop}
-       IN /\ master' = IF master.up THEN [master EXCEPT !.reg = reg3] ELSE master
-          /\ net' = UNION {Emit(a, [i \in 1..Len(r[a].out) |-> Stamp(r[a].out[i])]) : a \in live}
-                    \cup (IF master.up THEN UNION {Pending(x) : x \in reg3} ELSE {})
-    /\ UNCHANGED <<budget, lost>>
+    /\ ms' = IF up THEN mt.ms ELSE ms
+    /\ net' = UNION {Emit(a, r[a].out, sess[a], r[a].ag) : a \in live}
+              \cup (IF up THEN MEmit(mt.out) ELSE {})
+    /\ UNCHANGED <<up, sess, budget, lost>>
 
 Next ==
     \/ \E e \in net : Deliver(e, FALSE) \/ Deliver(e, TRUE) \/ Lose(e)
-    \/ \E a \in Agents : AgentTimeout(a)
+    \/ \E a \in Agents : AgentTimeout(a) \/ Operate(a)
     \/ MasterCrash \/ MasterRestart
     \/ Tick
 
 Fairness ==
     /\ WF_vars(DeliverAny)
-    /\ \A a \in Agents : WF_vars(AgentTimeout(a))
+    /\ \A a \in Agents : WF_vars(AgentTimeout(a)) /\ SF_vars(Operate(a))
     /\ WF_vars(MasterRestart)
     /\ WF_vars(Tick)
 
@@ -266,6 +231,8 @@ ActedOnceInv == \A a \in Agents : ~ag[a].dupActed
 UniqueIdsInv ==
     \A a, b \in Agents : a # b /\ ag[a].state \in L!Synced /\ ag[b].state \in L!Synced
                          => ag[a].id # ag[b].id
+\* The master's registry never holds one id twice.
+RegistryInv == \A x, y \in ms.reg : x.id = y.id => x = y
 AllowedTransitionsProp ==
     [][\A a \in Agents : \/ ag[a].state = ag'[a].state
                          \/ \E t \in L!AllowedTransitions :
@@ -275,10 +242,14 @@ AllowedTransitionsProp ==
 
 \* Every agent eventually is, and stays, ACTIVE-or-later with an id.
 EventuallySynced == \A a \in Agents : <>[](ag[a].state \in L!Synced)
-\* The master keeps sending BEHAVIOUR then START: they take effect.
+\* The operator's BEHAVIOUR and START, resent until answered, take effect
+\* and are kept in effect (reconcile): every agent ends up WORKING for good.
 CommandsTakeEffect == \A a \in Agents : <>[](ag[a].state = "WORKING")
 \* After a master crash every agent synced then leaves WORKING and panics.
 CrashLeadsToPanic == \A a \in Agents : lost[a] ~> ag[a].state = "PANIC"
-\* An agent in PANIC resyncs once the master is back.
+\* An agent in PANIC resyncs (once the master is back).
 Resync == \A a \in Agents : ag[a].state = "PANIC" ~> ag[a].state \in L!Synced
+
+\* Symmetry of the full model (safety only: TLC forbids it with liveness).
+Symmetry == Permutations(Agents)
 =============================================================================

@@ -1,5 +1,5 @@
 ------------------------------- MODULE MCFleet -------------------------------
-(* Bounds of the fleet models (sizes in MCFleet_small.cfg, MCFleet_full.cfg). *)
+(* Bounds of the fleet models (sizes in MCFleet_*.cfg).                     *)
 EXTENDS Fleet
 
 MCBehaviours == {"explore"}

@@ -33,6 +33,8 @@ TypeNames == DOMAIN TypeNum
 
 MasterId  == 1            \* the master, whoever acts as master
 Broadcast == 0            \* receiver 0 = everyone
+AssignedIds == 2..49999   \* ids a master assigns (docs/protocol.md "Ids")
+TempIds  == 50000..65535  \* temporary ids an unsynced agent draws
 
 \* Master commands: answered with ACK or NOT, acted on at most once.
 Commands == {"BEHAVIOUR", "START", "STOP", "PAUSE", "RESUME", "STANDBY",
