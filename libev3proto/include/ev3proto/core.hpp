@@ -122,10 +122,16 @@ enum class Action : std::uint8_t {
   // Master (Fleet.tla). MasterTick is the master's part of Fleet's Tick; MasterCommand and
   // MasterReport are operator-side extensions the spec abstracts (docs/core.md).
   MasterSync, MasterAnswer, MasterPing, MasterTick, MasterCommand, MasterReport,
+  // Relay and election (spec/tla/Election.tla), agent and master side. Election's Timeout is the
+  // agent's HeartbeatLost; SendCommand is MasterCommand (its EPOCH_CMD / RELAY wrapping).
+  RequestRelay, OfferRelay, HandleAccept, AcceptRelay, RelayDropped, StartElection, HandleElect,
+  HandleVote, BecomeMaster, Heartbeat, HandleHeartbeat, HandleStale, Forward, ApplyCommand,
+  // Master-side extensions the spec abstracts (docs/core.md): the route and the handover.
+  MasterRoute, MasterHandover,
 };
 
 /// Number of actions.
-inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::MasterReport) + 1;
+inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::MasterHandover) + 1;
 
 /// The spec's name of an action ("RecvStart").
 constexpr std::string_view to_string(Action a) noexcept {
@@ -134,7 +140,10 @@ constexpr std::string_view to_string(Action a) noexcept {
       "RecvResume", "RecvStandby", "RecvContinue", "RecvRestart", "RecvDuplicate", "Ignore",
       "Tick", "SyncTimeout", "HeartbeatLost", "ActionOk", "ActionInterrupted", "ActionFailed",
       "SensorReport", "DeviceUnplugged", "DevicePlugged", "BatteryLow",
-      "MasterSync", "MasterAnswer", "MasterPing", "Tick", "MasterCommand", "MasterReport"};
+      "MasterSync", "MasterAnswer", "MasterPing", "Tick", "MasterCommand", "MasterReport",
+      "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
+      "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
+      "Forward", "ApplyCommand", "MasterRoute", "MasterHandover"};
   const auto i = static_cast<std::size_t>(a);
   return i < kActionCount ? kNames[i] : std::string_view{};
 }
@@ -171,12 +180,46 @@ inline constexpr Transition kTransitions[] = {
     {State::PANIC, State::OFF, Action::BatteryLow},
 };
 
-/// The state action @p by leads to from @p from when it succeeds: the table's row, or @p from itself
-/// when the table has none (the action keeps the state).
+/// The state changes Election.tla adds, refined to the core's states (its CANDIDATE and MASTER are
+/// PANIC with a Role; docs/election.md sec. 5): relay accepted or a master's LEADER followed
+/// (PANIC -> ACTIVE), the relay dropped us (ACTIVE / WORKING / PAUSED -> PANIC), the master changed
+/// or a newer epoch seen while WORKING (-> PAUSED until the new master resumes it).
+inline constexpr Transition kElectionTransitions[] = {
+    {State::PANIC, State::ACTIVE, Action::AcceptRelay},
+    {State::PANIC, State::ACTIVE, Action::HandleHeartbeat},
+    {State::WORKING, State::PAUSED, Action::HandleHeartbeat},
+    {State::WORKING, State::PAUSED, Action::HandleElect},
+    {State::WORKING, State::PAUSED, Action::HandleStale},
+    {State::ACTIVE, State::PANIC, Action::RelayDropped},
+    {State::WORKING, State::PANIC, Action::RelayDropped},
+    {State::PAUSED, State::PANIC, Action::RelayDropped},
+};
+
+/// The state action @p by leads to from @p from when it succeeds: the row of kTransitions or
+/// kElectionTransitions, or @p from itself when neither has one (the action keeps the state).
 constexpr State next_state(State from, Action by) noexcept {
   for (const Transition& t : kTransitions)
     if (t.from == from && t.by == by) return t.to;
+  for (const Transition& t : kElectionTransitions)
+    if (t.from == from && t.by == by) return t.to;
   return from;
+}
+
+/// An agent's part in the election (Election.tla life CANDIDATE / MASTER; both are the core's PANIC).
+enum class Role : std::uint8_t {
+  none,      ///< Follower, or PANIC without standing.
+  candidate, ///< Stands in its epoch (voted for itself, counts votes).
+  master,    ///< Won its epoch: the program runs a Master core for it (docs/core.md).
+};
+
+/// Spelling of a role ("candidate").
+constexpr std::string_view to_string(Role r) noexcept {
+  switch (r) {
+    case Role::none: return "none";
+    case Role::candidate: return "candidate";
+    case Role::master: return "master";
+  }
+  return {};
 }
 
 namespace detail {
@@ -187,6 +230,9 @@ constexpr bool transitions_are_a_function() noexcept {
     for (std::size_t j = i + 1; j < n; ++j)
       if (kTransitions[i].from == kTransitions[j].from && kTransitions[i].by == kTransitions[j].by)
         return false;
+  for (const Transition& e : kElectionTransitions)
+    for (const Transition& t : kTransitions)
+      if (t.from == e.from && t.by == e.by) return false;
   return true;
 }
 static_assert(transitions_are_a_function(), "kTransitions has two rows for one (state, action)");

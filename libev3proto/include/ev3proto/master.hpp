@@ -13,6 +13,7 @@
 #include <cstdint>
 #include <deque>
 #include <map>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -31,7 +32,46 @@ struct MasterConfig {
   std::uint16_t next_id = kFirstAssignedId; ///< First id to assign (stable storage across restarts).
   std::uint32_t next_msgid = 1;  ///< msgid of the first datagram (stable storage across restarts).
   std::uint32_t max_resends = 10; ///< An operator command unanswered after this many resends fails.
+  // Relay and election (spec/tla/Election.tla, docs/core.md). Off by default: Fleet.tla's master.
+  bool election = false;          ///< LEADER heartbeats, epochs, EPOCH_CMD, relay routes, step-down.
+  std::uint32_t epoch = 1;        ///< The epoch (persisted; an elected agent: the epoch it won).
+  std::uint16_t self_id = kMasterId; ///< The master's id: 1 (PC) or the elected agent's id.
+  std::vector<std::uint16_t> members; ///< The fleet quorums count against (persisted / LEADER).
+  bool candidate = false;         ///< Start as a candidate (the PC back after a crash: Restart(PC)).
+
+  /// The configuration for an agent that won epoch @p epoch with membership @p members (see
+  /// Agent::master_epoch()): no new ids (AGENT from a temporary id is ignored), msgids disjoint
+  /// from the agent core's (@p next_msgid).
+  static MasterConfig for_elected_agent(const Timers& t, std::uint16_t self, std::uint32_t epoch,
+                                        std::vector<std::uint16_t> members, std::uint32_t next_msgid) {
+    MasterConfig c;
+    c.timers = t;
+    c.next_id = kLastAssignedId + 1;
+    c.next_msgid = next_msgid;
+    c.election = true;
+    c.epoch = epoch;
+    c.self_id = self;
+    c.members = std::move(members);
+    return c;
+  }
 };
+
+/// The master's part in the election (Election.tla life of the master node).
+enum class MasterRole : std::uint8_t {
+  master,       ///< MASTER: commands, LEADER heartbeats.
+  candidate,    ///< CANDIDATE (the PC back, or told of a newer epoch): stands until it wins.
+  stepped_down, ///< An elected agent's master that saw a newer epoch: silent; the program drops it.
+};
+
+/// Spelling of a master role.
+constexpr std::string_view to_string(MasterRole r) noexcept {
+  switch (r) {
+    case MasterRole::master: return "MASTER";
+    case MasterRole::candidate: return "CANDIDATE";
+    case MasterRole::stepped_down: return "STEPPED_DOWN";
+  }
+  return {};
+}
 
 /// An operator command for one agent: a master command type and, for BEHAVIOUR, name and args.
 struct Command {
@@ -88,7 +128,8 @@ constexpr std::string_view to_string(OperatorEvent::Kind k) noexcept {
 
 /// A datagram the master wants sent (unicast to a peer).
 struct MasterTransmit {
-  Peer peer = 0;      ///< Destination.
+  Peer peer = 0;      ///< Destination (Dest::peer).
+  Dest dest = Dest::peer; ///< peer, or broadcast (ELECT, LEADER: election only).
   std::string bytes;  ///< The encoded datagram (send it 3 times, as the transport does).
 };
 
@@ -108,6 +149,7 @@ struct RegistryEntry {
   std::uint32_t resends = 0;    ///< Resends so far.
   std::deque<Command> queue;    ///< Operator commands; the front one is pending once synced.
   std::uint32_t last_msgid = 0; ///< Highest msgid heard from the agent (orders its PANICs).
+  std::uint16_t via = 0;        ///< The relay this agent is reached through (0 = direct; RELAY_ROUTE).
 
   /// Spec job: "MASTER", the pending command's name, or "DONE".
   std::string_view job() const noexcept {
@@ -127,6 +169,9 @@ struct MasterTraceRecord {
   std::string reg_after;      ///< Registry as JSON, after.
   std::uint16_t next_id_before = 0, next_id_after = 0;   ///< master.nextId
   std::uint32_t msgid_before = 0, msgid_after = 0;       ///< master.msgid
+  std::string_view life_before, life_after;             ///< Election life (MASTER, CANDIDATE...)
+  std::uint32_t epoch_before = 0, epoch_after = 0;      ///< Election epoch
+  std::string votes_before, votes_after;                ///< Election votes ([ids])
 };
 
 /// The master core.
@@ -139,7 +184,15 @@ class Master {
 
   /// A master with an empty registry at time @p now.
   Master(const MasterConfig& config, Millis now, Trace* trace = nullptr)
-      : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now) {}
+      : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now),
+        role_(config.election && config.candidate ? MasterRole::candidate : MasterRole::master),
+        epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
+        members_(config.members.begin(), config.members.end()) {
+    if (cfg_.election) {
+      hb_at_ = role_ == MasterRole::master ? now : kNever;
+      cand_at_ = role_ == MasterRole::candidate ? now : kNever;
+    }
+  }
 
   // ---------------------------------------------------------------- inputs
 
@@ -148,8 +201,16 @@ class Master {
     for (Millis t = next_deadline(); t <= now && t != kNever; t = next_deadline()) {
       if (t > now_) now_ = t;
       Snapshot s = snap();
-      MasterTick();
-      record(Action::MasterTick, s, {});
+      if (HeartbeatOk()) {
+        Heartbeat();
+        record(Action::Heartbeat, s, {});
+      } else if (StartElectionOk()) {
+        StartElection();
+        record(Action::StartElection, s, {});
+      } else {
+        MasterTick();
+        record(Action::MasterTick, s, {});
+      }
     }
     if (now > now_) now_ = now;
   }
@@ -165,9 +226,46 @@ class Master {
       ++rejected_;
       return Action::Ignore;
     }
-    const Message& m = rx_;
-    if (m.receiver != kMasterId && m.receiver != kBroadcastId) return Action::Ignore;
     Snapshot s = snap();
+    const Action a = Dispatch(rx_, from, 0);
+    if (a != Action::Ignore) record(a, s, bytes);
+    if (BecomeMasterOk()) {
+      Snapshot b = snap();
+      BecomeMaster();
+      record(Action::BecomeMaster, b, {});
+    }
+    return a;
+  }
+
+  /// Takes @p m from @p from (through relay @p via, 0 = direct); returns the action taken.
+  Action Dispatch(const Message& m, Peer from, std::uint16_t via) {
+    if (m.receiver != self_ && m.receiver != kBroadcastId) return Action::Ignore;
+    if (cfg_.election) {
+      if (m.sender == self_) return Action::Ignore;  // our own broadcast
+      switch (m.type) {
+        case MsgType::ELECT: return HandleElect(m) ? Action::HandleElect : Action::Ignore;
+        case MsgType::VOTE: {
+          if (!HandleVoteOk(m)) return Action::Ignore;
+          HandleVote(m);
+          return Action::HandleVote;  // BecomeMaster follows as its own step (handle_datagram)
+        }
+        case MsgType::LEADER: return HandleHeartbeat(m, from) ? Action::HandleHeartbeat : Action::Ignore;
+        case MsgType::EPOCH_STALE: return HandleStale(m) ? Action::HandleStale : Action::Ignore;
+        case MsgType::RELAY_ROUTE: return MasterRoute(m, from) ? Action::MasterRoute : Action::Ignore;
+        case MsgType::HANDOVER: return MasterHandover(m) ? Action::MasterHandover : Action::Ignore;
+        case MsgType::RELAY: {
+          const auto target = m.param_u16(0);
+          if (via != 0 || role_ != MasterRole::master || !target || *target != self_ ||
+              !decode(m.param(1), inner_).ok() || inner_.type == MsgType::RELAY)
+            return Action::Ignore;
+          Message inner = inner_;
+          return Dispatch(inner, from, m.sender);
+        }
+        default: break;
+      }
+      if (role_ != MasterRole::master) return Action::Ignore;
+      note_route(m, from, via);
+    }
     Action a = Action::Ignore;
     switch (m.type) {
       case MsgType::AGENT:
@@ -182,7 +280,6 @@ class Master {
       case MsgType::EVENT: a = Action::MasterReport; MasterReport(m); break;
       default: return Action::Ignore;
     }
-    record(a, s, bytes);
     return a;
   }
 
@@ -215,7 +312,8 @@ class Master {
 
   /// When advance() must be called next at the latest (kNever when nothing is scheduled).
   Millis next_deadline() const noexcept {
-    Millis t = kNever;
+    Millis t = hb_at_ < cand_at_ ? hb_at_ : cand_at_;
+    if (role_ != MasterRole::master) return t;
     for (const auto& kv : reg_) {
       const RegistryEntry& e = kv.second;
       const Millis drop = e.heard + cfg_.timers[Timer::drop];
@@ -240,8 +338,198 @@ class Master {
   Millis now() const noexcept { return now_; }
   /// Datagrams that did not decode.
   std::uint32_t rejected() const noexcept { return rejected_; }
+  /// Election role (MASTER, CANDIDATE, stepped down).
+  MasterRole role() const noexcept { return role_; }
+  /// The epoch (persist it with next_id / next_msgid).
+  std::uint32_t epoch() const noexcept { return epoch_; }
+  /// The master's id (1, or the elected agent's).
+  std::uint16_t self_id() const noexcept { return self_; }
+  /// The fleet membership (persist it): the configured members and every agent registered since.
+  std::vector<std::uint16_t> members() const {
+    std::set<std::uint16_t> m = members_;
+    for (const auto& kv : reg_)
+      if (kv.second.synced) m.insert(kv.first);
+    return std::vector<std::uint16_t>(m.begin(), m.end());
+  }
+  /// True once this (elected agent's) master handed its registry over (HANDOVER sent).
+  bool handed_over() const noexcept { return handed_over_; }
 
  private:
+  // ------------------------------------------------ relay and election (Election.tla)
+
+  bool HeartbeatOk() const noexcept { return role_ == MasterRole::master && hb_at_ <= now_; }
+  /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat.
+  void Heartbeat() {
+    hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
+    std::vector<std::string> p{std::to_string(epoch_), std::to_string(self_)};
+    for (std::uint16_t id : members()) {
+      if (p.size() == kMaxParams) break;
+      p.push_back(std::to_string(id));
+    }
+    broadcast(MsgType::LEADER, p);
+  }
+
+  bool StartElectionOk() const noexcept { return role_ == MasterRole::candidate && cand_at_ <= now_; }
+  /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, records) broadcast; again
+  /// after the candidate timeout without a majority.
+  void StartElection() {
+    ++epoch_;
+    votes_.clear();
+    cand_at_ = now_ + cfg_.timers[Timer::candidate];
+    broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", "0"});
+  }
+
+  bool HandleVoteOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    const auto c = m.param_u16(1);
+    return role_ == MasterRole::candidate && m.receiver == self_ && e && c && *e == epoch_ &&
+           *c == self_ && members_.count(m.sender) != 0 && votes_.count(m.sender) == 0;
+  }
+  /// Spec HandleVote: one more vote.
+  void HandleVote(const Message& m) { votes_.insert(m.sender); }
+
+  bool BecomeMasterOk() const {
+    return role_ == MasterRole::candidate && 2 * votes_.size() > members_.size();
+  }
+  /// Spec BecomeMaster: master of the epoch, LEADER at once.
+  void BecomeMaster() {
+    role_ = MasterRole::master;
+    cand_at_ = kNever;
+    Heartbeat();
+  }
+
+  /// Spec HandleElect, the master node's part: an elected agent's master steps down on a newer
+  /// epoch (its agent core votes); the PC ignores ELECT (it learns epochs from EPOCH_STALE).
+  bool HandleElect(const Message& m) {
+    const auto e = m.param_u32(0);
+    if (self_ == kMasterId || role_ == MasterRole::stepped_down || !e || *e <= epoch_) return false;
+    epoch_ = *e;
+    step_down();
+    return true;
+  }
+
+  /// Spec HandleHeartbeat, the master node's part: an older master's LEADER is answered
+  /// EPOCH_STALE; a newer one ends our term: an elected agent hands its registry over (HANDOVER)
+  /// and steps down, the PC stands again above it.
+  bool HandleHeartbeat(const Message& m, Peer from) {
+    const auto e = m.param_u32(0);
+    if (!e) return false;
+    if (*e < epoch_) {
+      if (role_ == MasterRole::stepped_down) return false;
+      send(from, m.sender, MsgType::EPOCH_STALE, {std::to_string(epoch_)});
+      return true;
+    }
+    if (*e == epoch_ && (role_ == MasterRole::master || self_ == kMasterId || handed_over_)) return false;
+    epoch_ = *e;
+    if (self_ == kMasterId) {
+      role_ = MasterRole::candidate;
+      hb_at_ = kNever;
+      cand_at_ = now_;
+      return true;
+    }
+    if (!handed_over_) {
+      std::vector<std::string> p{std::to_string(epoch_)};
+      for (std::uint16_t id : members()) {
+        if (p.size() == kMaxParams) break;
+        p.push_back(std::to_string(id));
+      }
+      send(from, m.sender, MsgType::HANDOVER, p);
+      handed_over_ = true;
+    }
+    step_down();
+    return true;
+  }
+
+  /// Spec HandleStale: a newer epoch exists: the PC stands again (CANDIDATE), an elected agent's
+  /// master steps down.
+  bool HandleStale(const Message& m) {
+    const auto e = m.param_u32(0);
+    if (m.receiver != self_ || !e || *e <= epoch_) return false;
+    epoch_ = *e;
+    if (self_ == kMasterId) {
+      role_ = MasterRole::candidate;
+      hb_at_ = kNever;
+      cand_at_ = now_;
+    } else {
+      step_down();
+    }
+    return true;
+  }
+
+  void step_down() {
+    role_ = MasterRole::stepped_down;
+    hb_at_ = cand_at_ = kNever;
+  }
+
+  /// RELAY_ROUTE(epoch, agent) from relay p (Election abstracts it: the master reads the table):
+  /// the agent is reached through p from now on.
+  bool MasterRoute(const Message& m, Peer from) {
+    const auto e = m.param_u32(0);
+    const auto a = m.param_u16(1);
+    if (role_ != MasterRole::master || m.receiver != self_ || !e || *e != epoch_ || !a) return false;
+    auto it = reg_.find(*a);
+    if (it == reg_.end()) {
+      if (members_.count(*a) == 0) return false;
+      it = adopt(*a, from);
+    }
+    it->second.via = m.sender;
+    it->second.peer = from;
+    return true;
+  }
+
+  /// HANDOVER(epoch, id...) from the elected agent we replace: its fleet joins our membership.
+  bool MasterHandover(const Message& m) {
+    const auto e = m.param_u32(0);
+    if (role_ != MasterRole::master || m.receiver != self_ || !e || *e > epoch_) return false;
+    for (std::size_t i = 1; i < m.param_count(); ++i)
+      if (const auto id = m.param_u16(i)) {
+        if (is_assigned_id(*id) && *id != self_) members_.insert(*id);
+      }
+    return true;
+  }
+
+  /// Where a registered agent is (direct, or through relay @p via); a member we do not hold yet
+  /// (it follows our LEADER) is registered as synced when it pings.
+  void note_route(const Message& m, Peer from, std::uint16_t via) {
+    auto it = reg_.find(m.sender);
+    if (it == reg_.end()) {
+      if (m.type != MsgType::PING || members_.count(m.sender) == 0) return;
+      it = adopt(m.sender, from);
+    }
+    RegistryEntry& e = it->second;
+    if (m.type == MsgType::PING && !e.synced && members_.count(m.sender) != 0) {
+      // A member we were syncing (its PANIC reached us) pings: it follows our LEADER already.
+      e.synced = true;
+      e.pending = false;
+      start_next(e);
+    }
+    // A relay forwards the agent's datagrams unchanged: from the relay's peer they are relayed.
+    if (via == 0 && e.via != 0 && from == e.peer) return;
+    e.peer = from;
+    e.via = via;
+  }
+  std::map<std::uint16_t, RegistryEntry>::iterator adopt(std::uint16_t id, Peer from) {
+    RegistryEntry e;
+    e.ann = id;
+    e.id = id;
+    e.peer = from;
+    e.synced = true;
+    e.heard = now_;
+    return reg_.emplace(id, std::move(e)).first;
+  }
+
+  void broadcast(MsgType t, const std::vector<std::string>& params) {
+    std::vector<std::string_view> p(params.begin(), params.end());
+    char buf[kMaxDatagram];
+    const EncodeResult r = encode_parts(self_, kBroadcastId, msgid_++, static_cast<std::uint8_t>(t),
+                                        p.data(), p.size(), buf, sizeof buf);
+    if (r.ok()) tx_.push_back(MasterTransmit{0, Dest::broadcast, std::string(buf, r.size)});
+  }
+  void send(Peer to, std::uint16_t id, MsgType t, const std::vector<std::string>& params) {
+    std::vector<std::string_view> p(params.begin(), params.end());
+    send(to, id, t, p.data(), p.size());
+  }
+
   /// Spec Known(reg, s): entries whose announced or assigned id is s.
   std::vector<std::uint16_t> Known(std::uint16_t s) const {
     std::vector<std::uint16_t> k;
@@ -446,9 +734,27 @@ class Master {
   void send_with(Peer to, std::uint16_t id, std::uint32_t mid, MsgType t, const std::string_view* p,
                  std::size_t n) {
     char buf[kMaxDatagram];
-    const EncodeResult r = encode_parts(kMasterId, id, mid, static_cast<std::uint8_t>(t), p, n, buf,
+    const EncodeResult r = encode_parts(self_, id, mid, static_cast<std::uint8_t>(t), p, n, buf,
                                         sizeof buf);
-    if (r.ok()) tx_.push_back(MasterTransmit{to, std::string(buf, r.size)});
+    if (!r.ok()) return;
+    std::string bytes(buf, r.size);
+    if (cfg_.election) {
+      // Fencing: an elected master's (epoch > 1) MASTER and commands travel in EPOCH_CMD.
+      if (epoch_ > 1 && (t == MsgType::MASTER || is_command(t)))
+        bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(epoch_), bytes);
+      // Relay: an agent behind a relay gets RELAY(agent, datagram) through it.
+      const auto it = reg_.find(id);
+      if (it != reg_.end() && it->second.via != 0)
+        bytes = wrap(it->second.via, mid, MsgType::RELAY, std::to_string(id), bytes);
+    }
+    if (!bytes.empty()) tx_.push_back(MasterTransmit{to, Dest::peer, std::move(bytes)});
+  }
+  std::string wrap(std::uint16_t to, std::uint32_t mid, MsgType t, const std::string& first,
+                   const std::string& inner) {
+    char buf[kMaxDatagram];
+    const std::string_view p[2] = {first, inner};
+    const EncodeResult r = encode_parts(self_, to, mid, static_cast<std::uint8_t>(t), p, 2, buf, sizeof buf);
+    return r.ok() ? std::string(buf, r.size) : std::string();
   }
 
   void push(OperatorEvent::Kind k, std::uint16_t agent, MsgType t, std::string text) {
@@ -466,7 +772,15 @@ class Master {
     std::string reg;
     std::uint16_t next_id = 0;
     std::uint32_t msgid = 0;
+    std::string_view life;
+    std::uint32_t epoch = 0;
+    std::string votes;
   };
+  std::string votes_json() const {
+    std::string v = "[";
+    for (std::uint16_t id : votes_) v += (v.size() > 1 ? "," : "") + std::to_string(id);
+    return v + "]";
+  }
 
   /// The registry as the spec's master.reg (JSON array), for trace records.
   std::string reg_json() const {
@@ -483,7 +797,8 @@ class Master {
 
   Snapshot snap() const {
     if constexpr (Trace::enabled) {
-      if (trace_ != nullptr) return Snapshot{reg_json(), next_id_, msgid_};
+      if (trace_ != nullptr)
+        return Snapshot{reg_json(), next_id_, msgid_, to_string(role_), epoch_, votes_json()};
     }
     return Snapshot{};
   }
@@ -501,6 +816,12 @@ class Master {
       r.next_id_after = next_id_;
       r.msgid_before = before.msgid;
       r.msgid_after = msgid_;
+      r.life_before = before.life;
+      r.life_after = to_string(role_);
+      r.epoch_before = before.epoch;
+      r.epoch_after = epoch_;
+      r.votes_before = std::move(before.votes);
+      r.votes_after = votes_json();
       trace_->record(r);
     } else {
       (void)a, (void)before, (void)msg;
@@ -518,6 +839,15 @@ class Master {
   std::deque<OperatorEvent> ev_;
   std::uint32_t rejected_ = 0;
   Message rx_;
+  // Election.tla
+  MasterRole role_;
+  std::uint32_t epoch_;
+  std::uint16_t self_;
+  std::set<std::uint16_t> members_;
+  std::set<std::uint16_t> votes_;
+  Millis hb_at_ = kNever, cand_at_ = kNever;
+  bool handed_over_ = false;
+  Message inner_;
 };
 
 }  // namespace ev3proto

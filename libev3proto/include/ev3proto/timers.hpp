@@ -26,10 +26,15 @@ enum class Timer : std::uint8_t {
   paused,    ///< Agent: master not heard this long in PAUSED -> PANIC (spec TPaused, > loss).
   resend,    ///< Master: a pending command is resent at this interval (spec: every tick).
   drop,      ///< Master: an agent not heard this long leaves the registry (spec TDrop).
+  relay_retry, ///< Agent in PANIC: period of RELAY_REQ (Election RequestRelay).
+  backoff,     ///< Agent in PANIC: wait before standing (Election StartElection); grows with score.
+  backoff_step, ///< Agent: back-off added per score unit (weakest stands first).
+  candidate,   ///< Candidate without a majority this long stands again in epoch + 1.
+  leader_heartbeat, ///< Master (PC or elected agent): period of LEADER (Election Heartbeat).
 };
 
 /// Number of named timers.
-inline constexpr std::size_t kTimerCount = 6;
+inline constexpr std::size_t kTimerCount = 11;
 
 /// One row of the timer table: the timer, its name, the spec constant it stands for, its default.
 struct TimerSpec {
@@ -48,6 +53,11 @@ inline constexpr std::array<TimerSpec, kTimerCount> kTimerTable{{
     {Timer::paused, "paused", "TPaused", 6000, "master silent in PAUSED -> PANIC (> loss)"},
     {Timer::resend, "resend", "1 tick", 500, "master resends a pending command"},
     {Timer::drop, "drop", "TDrop", 10000, "master forgets an agent not heard for this long"},
+    {Timer::relay_retry, "relay_retry", "RequestRelay", 1000, "PANIC: RELAY_REQ period (first one at once)"},
+    {Timer::backoff, "backoff", "StartElection", 3000, "PANIC this long without relay -> stand (+ score)"},
+    {Timer::backoff_step, "backoff_step", "Score", 100, "back-off per score unit (weakest stands first)"},
+    {Timer::candidate, "candidate", "StartElection", 2000, "no majority this long -> stand again, epoch + 1"},
+    {Timer::leader_heartbeat, "leader_heartbeat", "Heartbeat", 1000, "period of a master's LEADER"},
 }};
 
 /// Values of all timers, in milliseconds; default-constructed with kTimerTable's defaults.

@@ -102,6 +102,10 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
     json_key(s, "ticks", afirst);
     s += std::to_string(r.ticks);
   }
+  if (r.action == Action::ApplyCommand) {
+    json_key(s, "cmd", afirst);
+    json_string(s, to_string(r.cmd));
+  }
   s += '}';
   json_key(s, "now", first);
   s += std::to_string(r.now);
@@ -134,6 +138,30 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
   if (a.win_rev != b.win_rev) {
     json_key(s, "win", c);
     s += trace_detail::window_json(agent.window());
+  }
+  if (a.election) {  // Election.tla's variables of this agent
+    auto life = [](const AgentVars& v) {
+      return v.role == Role::master ? std::string_view("MASTER")
+             : v.role == Role::candidate ? std::string_view("CANDIDATE")
+                                         : to_string(v.state);
+    };
+    auto ids = [&](std::string_view k, std::size_t n, auto get) {
+      json_key(s, k, c);
+      s += '[';
+      for (std::size_t i = 0; i < n; ++i) s += (i ? "," : "") + std::to_string(get(i));
+      s += ']';
+    };
+    if (life(a) != life(b)) str("life", life(a));
+    if (a.epoch != b.epoch) num("epoch", a.epoch);
+    if (a.voted_for != b.voted_for) num("votedFor", a.voted_for);
+    if (a.leader != b.leader) num("leader", a.leader);
+    if (a.following != b.following) num("following", a.following);
+    if (a.via != b.via) num("via", a.via);
+    if (a.relay_rev != b.relay_rev) {
+      ids("relays", agent.relay_count(), [&](std::size_t i) { return agent.relayed(i); });
+      ids("offered", agent.offered_count(), [&](std::size_t i) { return agent.offered(i); });
+      ids("votes", agent.vote_count(), [&](std::size_t i) { return agent.vote(i); });
+    }
   }
   s += "}}";
   return s;
@@ -174,6 +202,18 @@ inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node =
   if (r.msgid_after != r.msgid_before) {
     json_key(s, "msgid", c);
     s += std::to_string(r.msgid_after);
+  }
+  if (r.life_after != r.life_before) {
+    json_key(s, "life", c);
+    json_string(s, r.life_after);
+  }
+  if (r.epoch_after != r.epoch_before) {
+    json_key(s, "epoch", c);
+    s += std::to_string(r.epoch_after);
+  }
+  if (r.votes_after != r.votes_before) {
+    json_key(s, "votes", c);
+    s += r.votes_after;
   }
   s += "}}";
   return s;

@@ -97,6 +97,8 @@ class AgentDriver {
         event(w);
       } else if (w[0] == "trace") {
         show_trace = true;
+      } else if (w[0] == "show") {
+        out_.push_back(show());
       } else {
         out_.push_back("error: bad input: " + line);
       }
@@ -124,6 +126,14 @@ class AgentDriver {
       else if (k == "heartbeat") c.timers.set(Timer::heartbeat, std::stoull(v));
       else if (k == "loss") c.timers.set(Timer::loss, std::stoull(v));
       else if (k == "paused") c.timers.set(Timer::paused, std::stoull(v));
+      else if (k == "relay_retry") c.timers.set(Timer::relay_retry, std::stoull(v));
+      else if (k == "backoff") c.timers.set(Timer::backoff, std::stoull(v));
+      else if (k == "backoff_step") c.timers.set(Timer::backoff_step, std::stoull(v));
+      else if (k == "candidate") c.timers.set(Timer::candidate, std::stoull(v));
+      else if (k == "election") c.election.enabled = v == "1";
+      else if (k == "score") c.election.score = static_cast<std::uint32_t>(std::stoul(v));
+      else if (k == "epoch") c.election.epoch = static_cast<std::uint32_t>(std::stoul(v));
+      else if (k == "voted") c.election.voted_for = static_cast<std::uint16_t>(std::stoul(v));
       else out_.push_back("error: bad agent option " + w[i]);
     }
     model_ = model;
@@ -156,10 +166,31 @@ class AgentDriver {
     }
   }
 
+  /// Election variables: life (role), epoch, votedFor, leader, following, via, relays, votes, members.
+  std::string show() const {
+    const TracedAgent& a = *agent_;
+    auto list = [](std::size_t n, auto get) {
+      std::string l = "[";
+      for (std::size_t i = 0; i < n; ++i) l += (i ? "," : "") + std::to_string(get(i));
+      return l + "]";
+    };
+    return "show state=" + std::string(to_string(a.state())) + " role=" + std::string(to_string(a.role())) +
+           " epoch=" + std::to_string(a.epoch()) + " votedFor=" + std::to_string(a.durable().voted_for) +
+           " leader=" + std::to_string(a.leader()) + " following=" + std::to_string(a.following()) +
+           " via=" + std::to_string(a.via()) +
+           " relays=" + list(a.relay_count(), [&](std::size_t i) { return a.relayed(i); }) +
+           " offered=" + list(a.offered_count(), [&](std::size_t i) { return a.offered(i); }) +
+           " votes=" + list(a.vote_count(), [&](std::size_t i) { return a.vote(i); }) +
+           " members=" + list(a.member_count(), [&](std::size_t i) { return a.member(i); }) +
+           " master_epoch=" + std::to_string(a.master_epoch());
+  }
+
   void drain(std::vector<std::string>& lines) {
     Transmit t;
     while (agent_ && agent_->poll_transmit(t))
-      lines.push_back("send " + std::string(to_string(t.dest)) + " " + std::string(t.bytes));
+      lines.push_back("send " + std::string(to_string(t.dest)) +
+                      (t.dest == Dest::peer ? "=" + std::to_string(t.peer) : std::string()) + " " +
+                      std::string(t.bytes));
     AgentEvent e;
     while (agent_ && agent_->poll_event(e)) {
       switch (e.kind) {

@@ -117,6 +117,35 @@ TEST(AgentNoHeap, WholeLifecycleAllocatesNothing) {
   a->~Agent<>();
 }
 
+TEST(AgentNoHeap, RelayAndElectionAllocateNothing) {
+  alignas(Agent<>) static unsigned char storage[sizeof(Agent<>)];
+  AgentConfig c = config();
+  c.election.enabled = true;
+  c.election.score = 5;
+  const long before = g_news.load();
+  Agent<>* a = new (storage) Agent<>(c, 0);
+  a->handle_datagram("1:7:1:2:50001", 1, 10);            // synced as 7
+  a->handle_datagram("1:0:2:29:1:1:7:8:9", 1, 20);       // LEADER: members
+  a->handle_datagram("9:0:5:21:1", 9, 30);                // RELAY_REQ -> OfferRelay
+  a->handle_datagram("9:7:6:23:1:1", 9, 40);              // HandleAccept
+  a->handle_datagram("1:7:3:25:9:1%3A9%3A4%3A6%3A5", 1, 50);  // Forward to 9
+  a->handle_datagram("9:7:7:25:1:9%3A1%3A7%3A5%3AACTIVE", 9, 60);  // Forward to the master
+  drain(*a);
+  a->advance(10000);                                      // PANIC: RELAY_DROP, RELAY_REQ, stand
+  a->handle_datagram("8:7:3:28:2:7", 8, 10001);           // vote -> BecomeMaster (epoch 2)
+  a->handle_datagram("1:0:9:27:3:0:0", 1, 10002);         // the PC stands: step down, vote
+  a->handle_datagram("1:0:10:29:3:1:7:8:9", 1, 10003);    // follow the PC in epoch 3
+  a->handle_datagram("1:7:11:31:3:1%3A7%3A11%3A7%3Aexplore", 1, 10004);  // ApplyCommand
+  a->handle_datagram("1:7:12:31:2:1%3A7%3A12%3A8", 1, 10005);            // older: EPOCH_STALE
+  a->handle_datagram("1:7:13:8", 1, 10006);               // bare: fenced
+  a->handle_datagram("2:7:1:30:9", 2, 10007);             // HandleStale
+  a->advance(40000);
+  drain(*a);
+  EXPECT_EQ(g_news.load(), before) << "the agent core allocated";
+  EXPECT_GE(a->epoch(), 9u);  // then it stood alone (no majority) in later epochs
+  a->~Agent<>();
+}
+
 TEST(AgentNoHeap, CounterSeesAllocations) {  // the counter itself works
   const long before = g_news.load();
   void* p = ::operator new(16);  // a direct call: cannot be elided like a new-expression

@@ -80,6 +80,16 @@ class MasterDriver {
           else if (k == "next_id") c.next_id = static_cast<std::uint16_t>(std::stoul(v));
           else if (k == "next_msgid") c.next_msgid = static_cast<std::uint32_t>(std::stoul(v));
           else if (k == "at") now_ = std::stoull(v);
+          else if (k == "election") c.election = v == "1";
+          else if (k == "epoch") c.epoch = static_cast<std::uint32_t>(std::stoul(v));
+          else if (k == "self") c.self_id = static_cast<std::uint16_t>(std::stoul(v));
+          else if (k == "candidate") c.candidate = v == "1";
+          else if (k == "heartbeat") c.timers.set(Timer::leader_heartbeat, std::stoull(v));
+          else if (k == "candidate_timeout") c.timers.set(Timer::candidate, std::stoull(v));
+          else if (k == "members") {
+            std::istringstream ms(v);
+            for (std::string id; std::getline(ms, id, ',');) c.members.push_back(static_cast<std::uint16_t>(std::stoul(id)));
+          }
           else errors.push_back("error: bad master option " + w[i]);
         }
         master_ = std::make_unique<TracedMaster>(c, now_, &log_);
@@ -110,13 +120,25 @@ class MasterDriver {
         master_->command(id, c, now_);
       } else if (w[0] == "trace") {
         show_trace = true;
+      } else if (w[0] == "show") {
+        std::string l = "show life=" + std::string(to_string(master_->role())) + " epoch=" +
+                        std::to_string(master_->epoch()) + " members=";
+        for (auto id : master_->members()) l += std::to_string(id) + ",";
+        l += " reg=";
+        for (const auto& kv : master_->registry())
+          l += std::to_string(kv.first) + (kv.second.via ? "via" + std::to_string(kv.second.via) : "") + ",";
+        shows.push_back(l + " handed_over=" + (master_->handed_over() ? "1" : "0"));
       } else {
         errors.push_back("error: bad input: " + line);
       }
     }
     std::vector<std::string> lines = log_.actions;
     MasterTransmit t;
-    while (master_ && master_->poll_transmit(t)) lines.push_back("send peer=" + std::to_string(t.peer) + " " + t.bytes);
+    while (master_ && master_->poll_transmit(t))
+      lines.push_back(t.dest == Dest::broadcast ? "send broadcast " + t.bytes
+                                                : "send peer=" + std::to_string(t.peer) + " " + t.bytes);
+    for (auto& x : shows) lines.push_back(x);
+    shows.clear();
     OperatorEvent e;
     while (master_ && master_->poll_event(e)) lines.push_back(op_line(e));
     if (show_trace)
@@ -129,6 +151,7 @@ class MasterDriver {
 
  private:
   MasterLog log_;
+  std::vector<std::string> shows;
   std::unique_ptr<TracedMaster> master_;
   Millis now_ = 0;
 };

@@ -1,0 +1,271 @@
+// Relay and election over the simulated network (Election.tla in the real cores): a PC master
+// (may crash and come back as a candidate) and N agents, each of which runs a Master core once it
+// wins an epoch, the way the firmware does (docs/core.md "An agent becomes master"). Links can be
+// cut. Every copy is lost / delayed / duplicated as in fleet_sim.hpp. The agents' trace hook checks
+// fencing on every command acted on (Election StaleMasterFencedInv).
+#pragma once
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <random>
+#include <set>
+#include <string>
+#include <tuple>
+#include <utility>
+#include <vector>
+
+#include "ev3proto/agent.hpp"
+#include "ev3proto/master.hpp"
+#include "fleet_sim.hpp"
+
+namespace ev3sim {
+
+class ElectionFleet;
+
+/// Agent trace sink: every command that takes effect is checked against the history of elections.
+struct FenceCheck {
+  static constexpr bool enabled = true;
+  ElectionFleet* fleet = nullptr;
+  std::size_t index = 0;
+  template <typename A>
+  void record(const AgentTraceRecord& r, const A&);
+};
+
+using SimAgent = Agent<FenceCheck>;
+
+class ElectionFleet {
+ public:
+  static constexpr Peer kPcPeer = 1000;
+  static Peer agent_peer(std::size_t i) { return static_cast<Peer>(i + 1); }
+
+  ElectionFleet(std::size_t n, std::uint64_t seed, NetConfig net, Timers timers = Timers{})
+      : rng_(seed), net_(net), timers_(timers) {
+    std::set<std::uint16_t> temps;
+    std::uniform_int_distribution<std::uint32_t> tid(kFirstTempId, 65535);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint16_t t;
+      do t = static_cast<std::uint16_t>(tid(rng_)); while (!temps.insert(t).second);
+      AgentConfig c;
+      c.caps = Capabilities{"A", kBehaviours, 1, 1u};
+      c.timers = timers_;
+      c.temp_id = t;
+      c.election.enabled = true;
+      c.election.score = static_cast<std::uint32_t>(10 + (i * 7) % n);  // distinct, arbitrary order
+      auto node = std::make_unique<Node>();
+      node->trace.fleet = this;
+      node->trace.index = i;
+      node->agent = std::make_unique<SimAgent>(c, now_, &node->trace);
+      nodes_.push_back(std::move(node));
+    }
+    MasterConfig c;
+    c.timers = timers_;
+    c.election = true;
+    pc_ = std::make_unique<Master<>>(c, now_);
+    elected_[1] = kMasterId;
+  }
+
+  /// The PC crashes; its epoch, ids, msgids and membership are on stable storage.
+  void crash_pc() {
+    pc_store_ = MasterConfig{};
+    pc_store_.timers = timers_;
+    pc_store_.election = true;
+    pc_store_.next_id = pc_->next_id();
+    pc_store_.next_msgid = pc_->next_msgid();
+    pc_store_.epoch = pc_->epoch();
+    pc_store_.members = pc_->members();
+    pc_store_.candidate = true;
+    pc_.reset();
+  }
+  /// The PC comes back as a candidate (Election Restart(PC)).
+  void restart_pc() { pc_ = std::make_unique<Master<>>(pc_store_, now_); }
+
+  void cut(Peer a, Peer b) { down_.insert({std::min(a, b), std::max(a, b)}); }
+  void heal(Peer a, Peer b) { down_.erase({std::min(a, b), std::max(a, b)}); }
+
+  void run_until(Millis until, const std::function<void(ElectionFleet&)>& check) {
+    for (;;) {
+      Millis next = until;
+      if (pc_) next = std::min(next, pc_->next_deadline());
+      for (auto& nd : nodes_) {
+        next = std::min(next, nd->agent->next_deadline());
+        if (nd->master) next = std::min(next, nd->master->next_deadline());
+      }
+      if (!inflight_.empty()) next = std::min(next, std::get<0>(inflight_.begin()->first));
+      if (next < now_) next = now_;
+      now_ = next;
+      while (!inflight_.empty() && std::get<0>(inflight_.begin()->first) <= now_) {
+        const auto it = inflight_.begin();
+        const Packet p = it->second;
+        inflight_.erase(it);
+        deliver(p);
+        flush();
+        if (check) check(*this);
+      }
+      if (pc_) pc_->advance(now_);
+      for (auto& nd : nodes_) {
+        if (nd->master) nd->master->advance(now_);
+        nd->agent->advance(now_);
+      }
+      flush();
+      if (check) check(*this);
+      if (now_ >= until) break;
+    }
+  }
+
+  /// An operator command at the PC (when it is up).
+  void pc_command(std::uint16_t agent, const Command& c) {
+    if (pc_) pc_->command(agent, c, now_);
+    flush();
+  }
+  /// An operator command at agent @p i's Master core (when it runs one).
+  void agent_master_command(std::size_t i, std::uint16_t agent, const Command& c) {
+    if (nodes_[i]->master) nodes_[i]->master->command(agent, c, now_);
+    flush();
+  }
+
+  Millis now() const { return now_; }
+  std::size_t size() const { return nodes_.size(); }
+  SimAgent& agent(std::size_t i) { return *nodes_[i]->agent; }
+  Master<>* agent_master(std::size_t i) { return nodes_[i]->master.get(); }
+  Master<>* pc() { return pc_.get(); }
+  const Timers& timers() const { return timers_; }
+  /// History: the master of each epoch (Election elected).
+  const std::map<std::uint32_t, std::uint16_t>& elected() const { return elected_; }
+  /// The first violation seen, or "".
+  std::string failure;
+  /// Commands acted on (checked).
+  std::size_t applied = 0;
+  std::vector<OperatorEvent> ops;
+
+  /// Election AtMostOneMasterPerEpochInv over the history, recorded at every step.
+  void note_master(std::uint32_t epoch, std::uint16_t who) {
+    const auto it = elected_.find(epoch);
+    if (it == elected_.end()) {
+      elected_[epoch] = who;
+    } else if (it->second != who && failure.empty()) {
+      failure = "two masters in epoch " + std::to_string(epoch) + ": " + std::to_string(it->second) +
+                " and " + std::to_string(who) + " at " + std::to_string(now_);
+    }
+  }
+
+  /// A command took effect at agent @p i: fenced (its epoch is the highest the agent had seen)
+  /// and from the master elected in that epoch (Election StaleMasterFencedInv).
+  void note_applied(std::size_t i, std::string_view msg, std::uint32_t seen) {
+    ++applied;
+    Message m;
+    if (!decode(msg, m).ok()) return;
+    std::uint32_t e = 1;
+    if (m.type == MsgType::EPOCH_CMD) e = m.param_u32(0).value_or(0);
+    const auto it = elected_.find(e);
+    if (failure.empty() && (e != seen || it == elected_.end() || it->second != m.sender))
+      failure = "agent " + std::to_string(i) + " acted on " + std::string(msg) + " (epoch " +
+                std::to_string(e) + ") having seen epoch " + std::to_string(seen) + " at " +
+                std::to_string(now_);
+  }
+
+ private:
+  static constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}};
+  struct Node {
+    FenceCheck trace;
+    std::unique_ptr<SimAgent> agent;
+    std::unique_ptr<Master<>> master;  // while this agent is (or just was) master
+  };
+  struct Packet {
+    Peer from = 0, to = 0;
+    std::string bytes;
+  };
+
+  bool linked(Peer a, Peer b) const { return down_.count({std::min(a, b), std::max(a, b)}) == 0; }
+
+  void deliver(const Packet& p) {
+    if (!linked(p.from, p.to)) return;
+    if (p.to == kPcPeer) {
+      if (pc_) pc_->handle_datagram(p.bytes, p.from, now_);
+      return;
+    }
+    Node& nd = *nodes_[p.to - 1];
+    if (nd.master) nd.master->handle_datagram(p.bytes, p.from, now_);  // the program: master first
+    nd.agent->handle_datagram(p.bytes, p.from, now_);
+  }
+
+  void transmit(Peer from, Peer to, const std::string& bytes) {
+    std::uniform_real_distribution<double> u(0.0, 1.0);
+    std::uniform_int_distribution<Millis> delay(net_.min_delay, net_.max_delay);
+    for (int c = 0; c < net_.copies; ++c) {
+      if (u(rng_) < net_.loss) continue;
+      const int n = u(rng_) < net_.dup ? 2 : 1;
+      for (int k = 0; k < n; ++k) inflight_.emplace(std::make_tuple(now_ + delay(rng_), seq_++), Packet{from, to, bytes});
+    }
+  }
+  void broadcast(Peer from, const std::string& b) {
+    if (from != kPcPeer) transmit(from, kPcPeer, b);
+    for (std::size_t j = 0; j < nodes_.size(); ++j)
+      if (agent_peer(j) != from) transmit(from, agent_peer(j), b);
+  }
+
+  /// The firmware's part (docs/core.md): run a Master core while the agent is master of an epoch,
+  /// drop it once it stepped down; move every output onto the network.
+  void flush() {
+    for (std::size_t i = 0; i < nodes_.size(); ++i) {
+      Node& nd = *nodes_[i];
+      SimAgent& a = *nd.agent;
+      if (a.role() == Role::master && (!nd.master || nd.master->epoch() != a.master_epoch())) {
+        std::vector<std::uint16_t> members;
+        for (std::size_t k = 0; k < a.member_count(); ++k) members.push_back(a.member(k));
+        nd.master = std::make_unique<Master<>>(
+            MasterConfig::for_elected_agent(timers_, a.id(), a.master_epoch(), members,
+                                            a.next_msgid() + (1u << 30)),
+            now_);
+      }
+      if (a.role() == Role::master) note_master(a.master_epoch(), a.id());
+      if (nd.master && nd.master->role() == MasterRole::stepped_down && a.role() != Role::master)
+        nd.master.reset();
+      Transmit t;
+      while (a.poll_transmit(t)) {
+        const std::string b(t.bytes);
+        if (t.dest == Dest::broadcast) broadcast(agent_peer(i), b);
+        else transmit(agent_peer(i), t.peer, b);
+      }
+      AgentEvent e;
+      while (a.poll_event(e)) {
+      }
+      if (nd.master) drain_master(*nd.master, agent_peer(i));
+    }
+    if (pc_) {
+      if (pc_->role() == MasterRole::master) note_master(pc_->epoch(), kMasterId);
+      drain_master(*pc_, kPcPeer);
+    }
+  }
+  void drain_master(Master<>& m, Peer self) {
+    MasterTransmit mt;
+    while (m.poll_transmit(mt)) {
+      if (mt.dest == Dest::broadcast) broadcast(self, mt.bytes);
+      else transmit(self, mt.peer, mt.bytes);
+    }
+    OperatorEvent oe;
+    while (m.poll_event(oe)) ops.push_back(oe);
+  }
+
+  std::mt19937_64 rng_;
+  NetConfig net_;
+  Timers timers_;
+  Millis now_ = 0;
+  std::uint64_t seq_ = 0;
+  std::map<std::tuple<Millis, std::uint64_t>, Packet> inflight_;
+  std::vector<std::unique_ptr<Node>> nodes_;
+  std::unique_ptr<Master<>> pc_;
+  MasterConfig pc_store_;
+  std::set<std::pair<Peer, Peer>> down_;
+  std::map<std::uint32_t, std::uint16_t> elected_;
+};
+
+template <typename A>
+void FenceCheck::record(const AgentTraceRecord& r, const A&) {
+  Action a = r.action == Action::ApplyCommand ? r.cmd : r.action;
+  if (a >= Action::RecvBehaviour && a <= Action::RecvRestart && r.after.win_rev != r.before.win_rev)
+    fleet->note_applied(index, r.msg, r.before.epoch);
+}
+
+}  // namespace ev3sim
