@@ -12,7 +12,7 @@ SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
 .PHONY: help deps build demo test test-unit test-python test-blackbox test-fuzz test-arm fuzz fuzz-build \
-        bench arm \
+        bench arm conformance \
         spec spec-full diagrams clean
 
 PY := $(CURDIR)/.venv/bin/python
@@ -34,7 +34,7 @@ build: deps
 	@ninja -C build/native
 
 test: build
-	@$(MAKE) --no-print-directory test-unit test-python test-blackbox spec test-fuzz test-arm
+	@$(MAKE) --no-print-directory test-unit test-python test-blackbox spec conformance test-fuzz test-arm
 	@echo "make test: all suites passed"
 
 test-unit: build
@@ -51,6 +51,12 @@ test-blackbox: build arm
 # A master and three agents on loopback, narrated (tools/demo.py); ends by itself within a minute.
 demo: build
 	@$(PY) tools/demo.py --bin $(BIN)
+	@$(CURDIR)/.venv/bin/ev3-conformance validate build/demo/agent*.ndjson --heartbeat 200 --loss 1000 --paused 2000
+
+# Spec -> implementation: every edge of MCAgent's state graph replayed against `ev3-agent --driver`
+# (docs/driver.md, docs/spec.md "Conformance").
+conformance: build
+	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model agent
 
 fuzz-build: deps
 	@cmake -S . -B build/fuzz -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
@@ -68,7 +74,7 @@ bench: deps
 	@cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEV3_BENCH=ON -DEV3_TESTS=OFF \
 	   -DEV3_TOOLS=OFF >/dev/null
 	@ninja -C build/bench
-	@build/bench/bin/bench_codec --benchmark_min_time=0.2
+	@build/bench/bin/bench_codec --benchmark_min_time=0.2 --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
 
 arm: deps
 	@cmake -S . -B build/arm -G Ninja -DCMAKE_BUILD_TYPE=Release \

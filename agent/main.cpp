@@ -22,6 +22,7 @@
 #include "ev3io/udp.hpp"
 #include "leds.hpp"
 #include "agent_options.hpp"
+#include "driver.hpp"
 #include "wait_runner.hpp"
 
 namespace {
@@ -314,6 +315,9 @@ class Program {
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Driver mode (docs/driver.md): the core on a virtual clock, NDJSON on stdin/stdout; no sockets.
+  for (int i = 1; i < argc; ++i)
+    if (std::strcmp(argv[i], "--driver") == 0) return ev3agent::run_driver(argc, argv);
   ev3agent::AgentOptions o;
   std::string msg;
   switch (ev3agent::parse_agent_options(argc, argv, o, msg)) {

@@ -6,7 +6,14 @@
                                                   encode a message; params as text (UTF-8),
                                                   or in hex with --hex ('-' for an empty one)
 
-Exit status: 0 accepted, 1 rejected, 2 usage error.
+    ev3-conformance graph [--model agent]         TLC's state graph of the model: states, edges, paths
+    ev3-conformance replay [--model agent] [--driver CMD]
+                                                  replay every edge against the driver (docs/driver.md)
+    ev3-conformance validate TRACE... [--heartbeat MS ...]
+                                                  check NDJSON traces (--trace) against the spec with TLC
+
+Exit status: codec: 0 accepted, 1 rejected, 2 usage error; graph/replay/validate: 0 conforms,
+1 mismatch (a report to paste into a bug), 2 usage or tool error.
 """
 
 from __future__ import annotations
@@ -82,6 +89,63 @@ def _cmd_encode(args: argparse.Namespace) -> int:
     return 0
 
 
+MODELS = {"agent": ("MCAgent.tla", "MCAgent.cfg")}
+
+
+def _cmd_graph(args: argparse.Namespace) -> int:
+    from ev3conformance import graph, replay
+    module, cfg = MODELS[args.model]
+    g, figs = graph.dump_graph(module, cfg, args.model)
+    c = graph.cfg_constants(module, cfg)
+    r = replay.AgentReplay(g, c, [])
+    ps = graph.cover(g, r.replayable)
+    full = graph.cover(g)
+    print(f"{args.model} ({module} {cfg}): states {len(g.states)}  edges {len(g.edges)}  "
+          f"TLC {figs['tlc_seconds']}s  parse {figs['parse_seconds']}s")
+    print(f"  paths covering every edge: {full.paths} (longest {full.max_len})")
+    print(f"  paths covering every edge the core can take: {ps.paths} (longest {ps.max_len})")
+    return 0
+
+
+def _cmd_replay(args: argparse.Namespace) -> int:
+    import shlex
+    from ev3conformance import driver, graph, replay
+    module, cfg = MODELS[args.model]
+    argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-agent"), "--driver"]
+    g, figs = graph.dump_graph(module, cfg, args.model)
+    c = graph.cfg_constants(module, cfg)
+    r = replay.AgentReplay(g, c, argv)
+    r.fig.tlc_seconds = figs["tlc_seconds"] + figs["parse_seconds"]
+    try:
+        f = r.run()
+    except replay.Mismatch as m:
+        print(m.report)
+        print(f"FAIL after {r.fig.steps} steps ({r.fig.replayed} edges matched)")
+        return 1
+    except driver.DriverError as e:
+        print(f"driver failed: {e}")
+        return 2
+    print(f.summary(args.model))
+    print("replay: conforms")
+    return 0
+
+
+def _cmd_validate(args: argparse.Namespace) -> int:
+    from ev3conformance import tracecheck
+    consts = {"TPing": args.heartbeat, "TLoss": args.loss, "TSync": args.sync,
+              "TPaused": args.paused if args.paused else 2 * args.loss}
+    if args.window:
+        consts["Window"] = args.window
+    rs = tracecheck.validate_many(args.traces, consts, jobs=args.jobs)
+    bad = 0
+    for r in rs:
+        tag = "skip" if r.skipped else ("ok  " if r.ok else "FAIL")
+        print(f"{tag} {r.path}: {r.message}")
+        bad += not r.ok
+    print(f"validate: {len(rs) - bad} of {len(rs)} traces conform")
+    return 1 if bad else 0
+
+
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ev3-conformance", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -102,6 +166,25 @@ def _parser() -> argparse.ArgumentParser:
     enc.add_argument("params", nargs="*")
     enc.add_argument("--hex", action="store_true", help="params are hex ('-' for empty)")
     enc.set_defaults(run=_cmd_encode)
+
+    gp = sub.add_parser("graph", help="TLC's state graph of a model and its edge-covering paths")
+    gp.add_argument("--model", choices=sorted(MODELS), default="agent")
+    gp.set_defaults(run=_cmd_graph)
+
+    rp = sub.add_parser("replay", help="replay every edge of the model's state graph against a driver")
+    rp.add_argument("--model", choices=sorted(MODELS), default="agent")
+    rp.add_argument("--driver", help="driver command line (default: $EV3_BIN/ev3-agent --driver)")
+    rp.set_defaults(run=_cmd_replay)
+
+    vp = sub.add_parser("validate", help="check NDJSON traces of the programs against the spec (TLC)")
+    vp.add_argument("traces", nargs="+", help="NDJSON trace files (--trace FILE of the programs)")
+    vp.add_argument("--heartbeat", type=int, default=1000, help="the run's --heartbeat-ms (TPing)")
+    vp.add_argument("--loss", type=int, default=3000, help="the run's --master-timeout-ms (TLoss)")
+    vp.add_argument("--paused", type=int, default=0, help="the run's --paused-timeout-ms (default 2 x loss)")
+    vp.add_argument("--sync", type=int, default=10000, help="the run's --sync-timeout-ms (TSync)")
+    vp.add_argument("--window", type=int, default=0, help="dedupe window entries (default 50)")
+    vp.add_argument("--jobs", type=int, default=2, help="TLC runs in parallel (default 2)")
+    vp.set_defaults(run=_cmd_validate)
     return parser
 
 

@@ -1,0 +1,252 @@
+// A minimal JSON reader/writer for the driver mode (docs/driver.md): one NDJSON input line is one
+// object. Only what the driver needs: objects, arrays, strings (with \uXXXX for bytes < 0x100),
+// integers, booleans, null. Shared by ev3-agent --driver and ev3-master --driver.
+#pragma once
+
+#include <cstdint>
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace ev3driver {
+
+/// A parsed JSON value.
+struct Json {
+  enum class Kind { null, boolean, number, string, array, object } kind = Kind::null;
+  bool b = false;
+  long long n = 0;
+  std::string s;
+  std::vector<Json> a;
+  std::map<std::string, Json> o;
+
+  bool has(const std::string& k) const { return kind == Kind::object && o.count(k) != 0; }
+  const Json& operator[](const std::string& k) const {
+    static const Json none;
+    auto it = o.find(k);
+    return (kind == Kind::object && it != o.end()) ? it->second : none;
+  }
+  long long num(long long dflt = 0) const { return kind == Kind::number ? n : dflt; }
+  std::string str(std::string dflt = {}) const { return kind == Kind::string ? s : dflt; }
+  bool boolean(bool dflt = false) const { return kind == Kind::boolean ? b : dflt; }
+};
+
+/// Parses @p text into @p out; on error returns false and sets @p err.
+inline bool parse_json(std::string_view text, Json& out, std::string& err) {
+  std::size_t i = 0;
+  auto ws = [&] {
+    while (i < text.size() && (text[i] == ' ' || text[i] == '\t' || text[i] == '\r' || text[i] == '\n')) ++i;
+  };
+  auto fail = [&](const char* what) {
+    err = std::string(what) + " at offset " + std::to_string(i);
+    return false;
+  };
+  // Recursive lambda via std::function-free helper struct.
+  struct P {
+    std::string_view t;
+    std::size_t& i;
+    std::string& err;
+    int depth = 0;
+    void ws() {
+      while (i < t.size() && (t[i] == ' ' || t[i] == '\t' || t[i] == '\r' || t[i] == '\n')) ++i;
+    }
+    bool fail(const char* what) {
+      err = std::string(what) + " at offset " + std::to_string(i);
+      return false;
+    }
+    bool str(std::string& s) {
+      if (i >= t.size() || t[i] != '"') return fail("expected a string");
+      ++i;
+      while (i < t.size() && t[i] != '"') {
+        char c = t[i++];
+        if (c != '\\') {
+          s += c;
+          continue;
+        }
+        if (i >= t.size()) return fail("bad escape");
+        char e = t[i++];
+        switch (e) {
+          case '"': s += '"'; break;
+          case '\\': s += '\\'; break;
+          case '/': s += '/'; break;
+          case 'n': s += '\n'; break;
+          case 'r': s += '\r'; break;
+          case 't': s += '\t'; break;
+          case 'b': s += '\b'; break;
+          case 'f': s += '\f'; break;
+          case 'u': {
+            if (i + 4 > t.size()) return fail("bad \\u escape");
+            unsigned v = 0;
+            for (int k = 0; k < 4; ++k) {
+              char h = t[i++];
+              v <<= 4;
+              if (h >= '0' && h <= '9') v |= static_cast<unsigned>(h - '0');
+              else if (h >= 'a' && h <= 'f') v |= static_cast<unsigned>(h - 'a' + 10);
+              else if (h >= 'A' && h <= 'F') v |= static_cast<unsigned>(h - 'A' + 10);
+              else return fail("bad \\u escape");
+            }
+            if (v > 0xFF) return fail("\\u escape above \\u00ff (strings are bytes)");
+            s += static_cast<char>(v);
+            break;
+          }
+          default: return fail("bad escape");
+        }
+      }
+      if (i >= t.size()) return fail("unterminated string");
+      ++i;
+      return true;
+    }
+    bool value(Json& v) {
+      if (++depth > 32) return fail("nested too deeply");
+      ws();
+      if (i >= t.size()) return fail("unexpected end");
+      const char c = t[i];
+      bool ok = true;
+      if (c == '{') {
+        v.kind = Json::Kind::object;
+        ++i;
+        ws();
+        if (i < t.size() && t[i] == '}') {
+          ++i;
+        } else {
+          for (;;) {
+            ws();
+            std::string k;
+            if (!str(k)) return false;
+            ws();
+            if (i >= t.size() || t[i] != ':') return fail("expected ':'");
+            ++i;
+            Json item;
+            if (!value(item)) return false;
+            v.o[k] = std::move(item);
+            ws();
+            if (i < t.size() && t[i] == ',') { ++i; continue; }
+            if (i < t.size() && t[i] == '}') { ++i; break; }
+            return fail("expected ',' or '}'");
+          }
+        }
+      } else if (c == '[') {
+        v.kind = Json::Kind::array;
+        ++i;
+        ws();
+        if (i < t.size() && t[i] == ']') {
+          ++i;
+        } else {
+          for (;;) {
+            Json item;
+            if (!value(item)) return false;
+            v.a.push_back(std::move(item));
+            ws();
+            if (i < t.size() && t[i] == ',') { ++i; continue; }
+            if (i < t.size() && t[i] == ']') { ++i; break; }
+            return fail("expected ',' or ']'");
+          }
+        }
+      } else if (c == '"') {
+        v.kind = Json::Kind::string;
+        ok = str(v.s);
+      } else if (c == '-' || (c >= '0' && c <= '9')) {
+        v.kind = Json::Kind::number;
+        bool neg = c == '-';
+        if (neg) ++i;
+        if (i >= t.size() || t[i] < '0' || t[i] > '9') return fail("bad number");
+        long long n = 0;
+        while (i < t.size() && t[i] >= '0' && t[i] <= '9') {
+          if (n > 100000000000000000LL) return fail("number too large");
+          n = n * 10 + (t[i++] - '0');
+        }
+        if (i < t.size() && (t[i] == '.' || t[i] == 'e' || t[i] == 'E')) return fail("only integers");
+        v.n = neg ? -n : n;
+      } else if (t.substr(i, 4) == "true") {
+        v.kind = Json::Kind::boolean;
+        v.b = true;
+        i += 4;
+      } else if (t.substr(i, 5) == "false") {
+        v.kind = Json::Kind::boolean;
+        i += 5;
+      } else if (t.substr(i, 4) == "null") {
+        i += 4;
+      } else {
+        return fail("unexpected character");
+      }
+      --depth;
+      return ok;
+    }
+  };
+  (void)ws;
+  (void)fail;
+  P p{text, i, err};
+  if (!p.value(out)) return false;
+  p.ws();
+  if (i != text.size()) return p.fail("trailing characters");
+  return true;
+}
+
+/// Appends @p s as a JSON string (bytes >= 0x7F and control bytes as \u00XX).
+inline void put_string(std::string& out, std::string_view s) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  out += '"';
+  for (char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    if (c == '"' || c == '\\') {
+      out += '\\';
+      out += ch;
+    } else if (c < 0x20 || c > 0x7E) {
+      out += "\\u00";
+      out += kHex[c >> 4];
+      out += kHex[c & 0xF];
+    } else {
+      out += ch;
+    }
+  }
+  out += '"';
+}
+
+/// Lower-case hex of @p s.
+inline std::string hex(std::string_view s) {
+  static constexpr char kHex[] = "0123456789abcdef";
+  std::string h;
+  for (char ch : s) {
+    const auto c = static_cast<unsigned char>(ch);
+    h += kHex[c >> 4];
+    h += kHex[c & 0xF];
+  }
+  return h;
+}
+
+/// Bytes of hex text @p h; false when it is not hex.
+inline bool unhex(std::string_view h, std::string& out) {
+  if (h.size() % 2 != 0) return false;
+  auto nib = [](char c) -> int {
+    if (c >= '0' && c <= '9') return c - '0';
+    if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+    if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+    return -1;
+  };
+  for (std::size_t i = 0; i < h.size(); i += 2) {
+    const int a = nib(h[i]), b = nib(h[i + 1]);
+    if (a < 0 || b < 0) return false;
+    out += static_cast<char>(a * 16 + b);
+  }
+  return true;
+}
+
+/// The datagram of an input: "hex" (exact bytes) or "text" (the JSON string's bytes).
+inline bool datagram_of(const Json& in, std::string& out, std::string& err) {
+  if (in["hex"].kind == Json::Kind::string) {
+    if (!unhex(in["hex"].s, out)) {
+      err = "\"hex\" is not hex";
+      return false;
+    }
+    return true;
+  }
+  if (in["text"].kind == Json::Kind::string) {
+    out = in["text"].s;
+    return true;
+  }
+  err = "a datagram needs \"text\" or \"hex\"";
+  return false;
+}
+
+}  // namespace ev3driver

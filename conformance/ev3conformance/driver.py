@@ -1,0 +1,149 @@
+"""A driver process (`ev3-agent --driver`, `ev3-master --driver`, or any program speaking
+docs/driver.md): NDJSON in, one NDJSON line out per input line."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import tempfile
+import threading
+from pathlib import Path
+
+from ev3conformance import wire
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def default_bin() -> Path:
+    return Path(os.environ.get("EV3_BIN") or ROOT / "build" / "bin")
+
+
+class DriverError(RuntimeError):
+    pass
+
+
+class Driver:
+    """One driver process. `ask(obj)` sends one input and returns its output; `stream(lines)`
+    pipelines many inputs (a writer thread) and yields the outputs in order."""
+
+    def __init__(self, argv: list[str], trace: Path | None = None) -> None:
+        self.argv = list(argv) + (["--trace", str(trace)] if trace else [])
+        self._err = tempfile.TemporaryFile()
+        self.proc = subprocess.Popen(self.argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     stderr=self._err, bufsize=1 << 16)
+        self.lines = 0
+
+    def stderr(self) -> str:
+        self._err.seek(0)
+        return self._err.read().decode("utf-8", "replace")[-3000:]
+
+    def _read(self, sent: str) -> dict:
+        line = self.proc.stdout.readline()
+        if not line:
+            raise DriverError(f"{' '.join(self.argv)} exited (status {self.proc.poll()}) without "
+                              f"answering {sent!r}; stderr:\n{self.stderr()}")
+        self.lines += 1
+        try:
+            return json.loads(line)
+        except ValueError as exc:
+            raise DriverError(f"driver output is not JSON ({exc}): {line[:300]!r}") from None
+
+    def ask(self, obj: dict) -> dict:
+        s = json.dumps(obj, separators=(",", ":"))
+        try:
+            self.proc.stdin.write(s.encode() + b"\n")
+            self.proc.stdin.flush()
+        except BrokenPipeError:
+            raise DriverError(f"driver exited; stderr:\n{self.stderr()}") from None
+        return self._read(s)
+
+    def stream(self, objs):
+        """Pipelined: yields (input, output) for each input of the iterable `objs`."""
+        fifo: list[str] = []
+        lock = threading.Condition()
+        done = [False]
+
+        def writer():
+            try:
+                for o in objs:
+                    s = json.dumps(o, separators=(",", ":"))
+                    with lock:
+                        fifo.append(s)
+                        lock.notify()
+                    self.proc.stdin.write(s.encode() + b"\n")
+                self.proc.stdin.flush()
+            except (BrokenPipeError, ValueError):
+                pass
+            finally:
+                with lock:
+                    done[0] = True
+                    lock.notify()
+
+        t = threading.Thread(target=writer, daemon=True)
+        t.start()
+        i = 0
+        while True:
+            with lock:
+                while i >= len(fifo) and not done[0]:
+                    lock.wait()
+                if i >= len(fifo):
+                    break
+                s = fifo[i]
+            i += 1
+            yield s, self._read(s)
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            try:
+                self.proc.stdin.close()
+            except OSError:
+                pass
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+        for f in (self.proc.stdin, self.proc.stdout):
+            try:
+                f.close()
+            except OSError:
+                pass
+        self._err.close()
+
+    def kill(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait()
+
+
+# --- spec messages <-> wire ----------------------------------------------------------------------
+
+TYPE_NUM = {t.name: n for n, t in wire.MESSAGE_TYPES.items()}
+REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTION_ERR"}
+
+
+def spec_to_wire(m: dict, msgid: int | None = None) -> bytes:
+    """A spec message record (Messages.tla Msg) -> its datagram (reference codec)."""
+    args = [a.encode() for a in m.get("args", ())]
+    params = ([str(m["ref"]).encode()] + args) if m["type"] in REF_TYPES else args
+    mid = m["msgid"] if msgid is None else msgid
+    return wire.encode(wire.Message(m["src"], m["dst"], mid, TYPE_NUM[m["type"]], tuple(params)))
+
+
+def wire_to_spec(data: bytes) -> tuple:
+    """A datagram -> the spec's Out record as a tuple (src, dst, type, ref, args); msgid dropped."""
+    msg = wire.decode(data)
+    name = msg.type_name
+    ps = [p.decode("latin-1") for p in msg.params]
+    if name in REF_TYPES and ps:
+        return (msg.sender, msg.receiver, name, int(ps[0]), tuple(ps[1:]))
+    return (msg.sender, msg.receiver, name, 0, tuple(ps))
+
+
+def msgid_of(data: bytes) -> int:
+    return wire.decode(data).msgid
+
+
+def spec_out(m: dict) -> tuple:
+    return (m["src"], m["dst"], m["type"], m["ref"], tuple(m["args"]))

@@ -1,0 +1,182 @@
+"""TLC's state graph of a model (`-dump dot,actionlabels`), parsed, and an edge-covering path set.
+
+Every node's label is the state (ag/out/lastAction for the agent model); the spec action of an
+edge is the target state's `lastAction` (TLC labels edges with the bare name, usually "Next").
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import subprocess
+import tempfile
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ev3conformance import tla
+
+ROOT = Path(os.environ.get("EV3_ROOT") or Path(__file__).resolve().parents[2])
+SPEC = ROOT / "spec" / "tla"
+JAR = ROOT / ".tools" / "tla2tools.jar"
+BUILD = ROOT / "build" / "conformance"
+JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"]
+
+
+def tlc(module: str, cfg: str, extra: list[str], workers: int = 1, cwd: Path = SPEC,
+        timeout: float | None = None) -> tuple[int, str]:
+    """Runs TLC on module with cfg; own -metadir; returns (exit status, output)."""
+    BUILD.mkdir(parents=True, exist_ok=True)
+    md = tempfile.mkdtemp(prefix="meta-", dir=BUILD)
+    cmd = JAVA + ["-cp", str(JAR), "tlc2.TLC", "-workers", str(workers), "-metadir", md,
+                  "-config", cfg] + extra + [module]
+    try:
+        p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                           timeout=timeout)
+    finally:
+        shutil.rmtree(md, ignore_errors=True)
+    return p.returncode, p.stdout
+
+
+def cfg_constants(module: str, cfg: str, cwd: Path = SPEC) -> dict:
+    """The constants of a model: `X = v` from the cfg, `X <- Y` resolved from `Y == v` in the module."""
+    text = (cwd / cfg).read_text()
+    mod = (cwd / (module[:-4] if module.endswith(".tla") else module)).with_suffix(".tla").read_text()
+    out = {}
+    body = text.split("CONSTANTS", 1)[1] if "CONSTANTS" in text else text.split("CONSTANT", 1)[1]
+    for line in body.splitlines():
+        line = line.split("\\*")[0].strip()
+        if re.match(r"^(SPECIFICATION|INVARIANTS?|PROPERTIES|PROPERTY|INIT|NEXT|CHECK_DEADLOCK)\b", line):
+            break
+        m = re.match(r"(\w+)\s*=\s*(.+)$", line)
+        if m:
+            try:
+                out[m.group(1)] = tla.parse_value(m.group(2))
+            except tla.TlaParseError:
+                out[m.group(1)] = m.group(2)
+            continue
+        m = re.match(r"(\w+)\s*<-\s*(\w+)$", line)
+        if m:
+            d = re.search(r"^" + m.group(2) + r"\s*==\s*(.+)$", mod, re.M)
+            try:
+                out[m.group(1)] = tla.parse_value(d.group(1)) if d else m.group(2)
+            except tla.TlaParseError:
+                out[m.group(1)] = d.group(1).strip()  # an expression (e.g. MCOpTypes == Commands)
+    return out
+
+
+@dataclass
+class Graph:
+    states: dict[str, dict] = field(default_factory=dict)  # node id -> parsed state
+    edges: list[tuple[str, str]] = field(default_factory=list)
+    init: list[str] = field(default_factory=list)
+    out: dict[str, list[int]] = field(default_factory=dict)  # node -> indices into edges
+
+
+_NODE = re.compile(r'^(-?\d+) \[label="((?:[^"\\]|\\.)*)"(,style = filled)?\]')
+_EDGE = re.compile(r'^(-?\d+) -> (-?\d+)')
+
+
+def _unescape(label: str) -> str:
+    return re.sub(r'\\(.)', lambda m: "\n" if m.group(1) == "n" else m.group(1), label)
+
+
+def parse_dot(path: Path) -> Graph:
+    g = Graph()
+    seen = set()
+    with open(path) as f:
+        for line in f:
+            m = _EDGE.match(line)
+            if m:
+                e = (m.group(1), m.group(2))
+                if e in seen:
+                    continue
+                seen.add(e)
+                g.out.setdefault(e[0], []).append(len(g.edges))
+                g.edges.append(e)
+                continue
+            m = _NODE.match(line)
+            if m:
+                g.states[m.group(1)] = tla.parse_state(_unescape(m.group(2)))
+                if m.group(3):
+                    g.init.append(m.group(1))
+    return g
+
+
+def dump_graph(module: str, cfg: str, name: str, cwd: Path = SPEC) -> tuple[Graph, dict]:
+    """Runs TLC with -dump dot,actionlabels and parses the graph. Returns (graph, figures)."""
+    BUILD.mkdir(parents=True, exist_ok=True)
+    dump = BUILD / f"{name}-graph"
+    t0 = time.monotonic()
+    rc, out = tlc(module, cfg, ["-dump", "dot,actionlabels", str(dump)], cwd=cwd)
+    if rc != 0:
+        raise RuntimeError(f"TLC failed (exit {rc}) on {module} {cfg}:\n{out[-3000:]}")
+    path = dump if dump.exists() else dump.with_suffix(".dot")
+    t1 = time.monotonic()
+    g = parse_dot(path)
+    figs = {"tlc_seconds": round(t1 - t0, 1), "parse_seconds": round(time.monotonic() - t1, 1)}
+    m = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found", out)
+    if m:
+        figs["generated"] = int(m.group(1).replace(",", ""))
+        figs["distinct"] = int(m.group(2).replace(",", ""))
+    return g, figs
+
+
+@dataclass
+class PathSet:
+    """Edge-covering paths from the initial states, as a prefix tree.
+
+    `tree[v]` = index of the edge by which v is first reached (BFS: shortest prefixes). The paths
+    are: for every edge (u, v), the tree path to u followed by (u, v); prefixes of other paths are
+    dropped. Replaying the tree depth-first (snapshot at each tree node) replays every path.
+    """
+    tree_edge: dict[str, int]
+    order: list[str]          # nodes in BFS order
+    depth: dict[str, int]
+    paths: int
+    max_len: int
+    unreachable_edges: int
+
+    def path_to(self, g: Graph, v: str) -> list[int]:
+        p = []
+        while v in self.tree_edge:
+            e = self.tree_edge[v]
+            p.append(e)
+            v = g.edges[e][0]
+        return p[::-1]
+
+
+def cover(g: Graph, ok=None) -> PathSet:
+    """Paths over the edges for which ok(edge index) holds (all when ok is None)."""
+    ok = ok or (lambda ei: True)
+    tree: dict[str, int] = {}
+    depth = {v: 0 for v in g.init}
+    order = list(g.init)
+    q = deque(g.init)
+    while q:
+        u = q.popleft()
+        for ei in g.out.get(u, []):
+            v = g.edges[ei][1]
+            if ok(ei) and v not in depth:
+                depth[v] = depth[u] + 1
+                tree[v] = ei
+                order.append(v)
+                q.append(v)
+    tree_edges = set(tree.values())
+    # A path ends at every edge that is not a tree edge into a node with successors.
+    paths = 0
+    max_len = 0
+    unreachable = 0
+    for ei, (u, v) in enumerate(g.edges):
+        if not ok(ei):
+            continue
+        if u not in depth:
+            unreachable += 1
+            continue
+        if ei in tree_edges and any(ok(x) for x in g.out.get(v, [])):
+            continue
+        paths += 1
+        max_len = max(max_len, depth[u] + 1)
+    return PathSet(tree, order, depth, paths, max_len, unreachable)

@@ -1,0 +1,107 @@
+"""Unit tests of the conformance runner (ev3conformance.replay, .tracecheck): a tiny hand-made
+state graph of MCAgent replayed against the real driver (passes) and a broken one (must fail);
+a driver trace validated by TLC (passes) and the same trace corrupted (must fail)."""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ev3conformance import graph as gr
+from ev3conformance import replay, tracecheck
+
+REPO = Path(__file__).resolve().parents[3]
+BIN = Path(os.environ.get("EV3_BIN") or REPO / "build" / "bin")
+AGENT = [str(BIN / "ev3-agent"), "--driver"]
+CONSTS = gr.cfg_constants("MCAgent", "MCAgent.cfg")
+
+
+def ag(**kw):
+    a = {"state": "IDLE", "led": "YELLOW_BLINK", "id": 50000, "beh": "NONE", "step": 0, "wait": "NONE",
+         "motors": "OFF", "devOk": True, "silence": 0, "clk": 0, "win": (), "dupActed": False}
+    a.update(kw)
+    return a
+
+
+def mini_graph() -> gr.Graph:
+    master = {"src": 1, "dst": 2, "msgid": 1, "type": "MASTER", "ref": 50000, "args": ()}
+    ack = {"src": 2, "dst": 1, "type": "ACK", "ref": 1, "args": ()}
+    win = ({"src": 1, "msgid": 1, "ans": ack},)
+    active = dict(state="ACTIVE", led="GREEN_BLINK", id=2, win=win)
+    g = gr.Graph()
+    g.states = {
+        "0": {"ag": ag(), "out": (), "lastAction": {"name": "Init", "args": ()}},
+        "1": {"ag": ag(**active), "out": (ack,), "lastAction": {"name": "RecvMaster", "args": (master,)}},
+        "2": {"ag": ag(**active, silence=1), "out": ({"src": 2, "dst": 1, "type": "PING", "ref": 0,
+                                                     "args": ("ACTIVE",)},),
+              "lastAction": {"name": "Tick", "args": ()}},
+        "3": {"ag": ag(**dict(active, state="PANIC", led="RED_BLINK")),
+              "out": ({"src": 2, "dst": 0, "type": "PANIC", "ref": 0, "args": ()},),
+              "lastAction": {"name": "HeartbeatLost", "args": ()}},
+    }
+    g.init = ["0"]
+    for u, v in (("0", "1"), ("1", "2"), ("2", "3")):
+        g.out.setdefault(u, []).append(len(g.edges))
+        g.edges.append((u, v))
+    return g
+
+
+def test_replay_real_driver_conforms():
+    f = replay.AgentReplay(mini_graph(), CONSTS, AGENT).run()
+    assert f.replayed == 3 and f.steps == 3 and f.paths == 1
+
+
+def test_replay_fails_on_a_broken_driver():
+    argv = [sys.executable, str(Path(__file__).with_name("fake_driver.py"))] + AGENT
+    with pytest.raises(replay.Mismatch) as e:
+        replay.AgentReplay(mini_graph(), CONSTS, argv).run()
+    assert "state after RecvMaster differs" in e.value.report
+    assert "WORKING" in e.value.report and "RecvMaster" in e.value.report
+
+
+def test_replay_fails_on_a_wrong_spec_message():
+    g = mini_graph()
+    g.states["2"]["out"] = ()  # the spec says: no PING on this tick
+    with pytest.raises(replay.Mismatch) as e:
+        replay.AgentReplay(g, CONSTS, AGENT).run()
+    assert "emitted messages differ" in e.value.report
+
+
+def _driver_trace(tmp_path: Path) -> Path:
+    trace = tmp_path / "agent.ndjson"
+    inputs = [{"type": "config", "timers": {"sync": 5, "heartbeat": 2, "loss": 3, "paused": 6},
+               "behaviours": [{"name": "wait", "devices": 0}], "temp_id": 50001},
+              {"type": "advance", "ms": 3},
+              {"type": "recv", "from": 101, "text": "1:7:1:2:50001"},
+              {"type": "recv", "from": 101, "text": "1:7:2:7:wait"},
+              {"type": "recv", "from": 101, "text": "1:7:3:8"},
+              {"type": "recv", "from": 101, "text": "1:7:3:8"},
+              {"type": "event", "event": "action_ok"},
+              {"type": "advance", "ms": 10}]
+    subprocess.run(AGENT + ["--trace", str(trace)], input="\n".join(json.dumps(i) for i in inputs) + "\n",
+                   text=True, capture_output=True, check=True)
+    return trace
+
+
+CHECK = {"TSync": 5, "TPing": 2, "TLoss": 3, "TPaused": 6}
+
+
+def test_validate_driver_trace(tmp_path):
+    r = tracecheck.validate(_driver_trace(tmp_path), CHECK)
+    assert r.ok, r.message
+    assert r.records >= 8
+
+
+def test_validate_rejects_a_corrupted_trace(tmp_path):
+    trace = _driver_trace(tmp_path)
+    recs = [json.loads(x) for x in trace.read_text().splitlines()]
+    k = next(i for i, r in enumerate(recs) if r["action"] == "RecvStart")
+    recs[k]["changed"]["state"] = "PAUSED"
+    trace.write_text("\n".join(json.dumps(r) for r in recs) + "\n")
+    r = tracecheck.validate(trace, CHECK)
+    assert not r.ok
+    assert f"record {k + 1} of" in r.message
