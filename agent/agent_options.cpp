@@ -14,6 +14,10 @@ std::vector<ev3io::OptionSpec> specs() {
       {"master-timeout-ms", "N", "master silent this long: ACTIVE -> PANIC, WORKING -> PAUSED (default 3000)", false},
       {"paused-timeout-ms", "N", "master silent this long in PAUSED -> PANIC (default 2 x master timeout)", false},
       {"sync-timeout-ms", "N", "IDLE without MASTER this long -> PANIC (default 10000)", false},
+      {"election", "", "relay and master election on (off by default: one master, the PC)", false},
+      {"score", "N", "election score, lower = stands first and wins (default: from the capabilities)", false},
+      {"state-dir", "DIR", "keep the election state (epoch, vote) in DIR/ev3-agent.state (default: none, in memory only)", false},
+      {"master-script", "FILE", "console commands (as ev3-master --script) run when this agent is elected master", false},
   });
   return s;
 }
@@ -29,7 +33,9 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
         "usage: ev3-agent [--port N] [--model NAME] [--broadcast HOST:PORT ...] [options]\n"
         "       ev3-agent port=12233 model=A loglevel=2      (the thesis' form)\n\n"
         "One EV3 robot of the fleet: syncs with a master over UDP, answers its commands and runs\n"
-        "the built-in behaviour 'wait seconds=N'. SIGINT/SIGTERM stop it cleanly.",
+        "the built-in behaviour 'wait seconds=N'. SIGINT/SIGTERM stop it cleanly.\n"
+        "With --election it relays for peers that lost the master and, when the master is gone,\n"
+        "takes part in electing a new one (possibly itself: it then runs a master for the fleet).",
         sp);
     return ParseOutcome::help;
   }
@@ -62,6 +68,30 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
     message = ev3io::read_uint(a, r.flag, 1, 86400000, v);
     if (!message.empty()) return ParseOutcome::error;
     out.timers.set(r.t, v);
+  }
+  out.election = a.has("election");
+  if (a.has("score")) {
+    std::uint64_t v = 0;
+    message = ev3io::read_uint(a, "score", 0, 1000000, v);
+    if (!message.empty()) return ParseOutcome::error;
+    out.score = static_cast<std::uint32_t>(v);
+  }
+  struct {
+    const char* flag;
+    std::string* to;
+  } const paths[] = {{"state-dir", &out.state_dir}, {"master-script", &out.master_script}};
+  for (const auto& p : paths) {
+    if (!a.has(p.flag)) continue;
+    *p.to = a.get(p.flag);
+    if (p.to->empty()) {
+      message = std::string("bad value for --") + p.flag + ": empty path";
+      return ParseOutcome::error;
+    }
+  }
+  if ((a.has("score") || a.has("state-dir") || a.has("master-script")) && !out.election) {
+    message = std::string("--") + (a.has("score") ? "score" : a.has("state-dir") ? "state-dir" : "master-script") +
+              " needs --election";
+    return ParseOutcome::error;
   }
   if (a.has("master-timeout-ms") && !a.has("paused-timeout-ms"))
     out.timers.set(Timer::paused, 2 * out.timers[Timer::loss]);

@@ -3,6 +3,7 @@
 ///        the thesis' `port=12233 model=A loglevel=2`.
 #pragma once
 
+#include <cstdint>
 #include <string>
 
 #include <ev3proto/timers.hpp>
@@ -16,6 +17,10 @@ struct AgentOptions {
   std::string model = "A";
   std::string sysfs_root = "/sys";
   ev3proto::Timers timers;  ///< sync, heartbeat, loss (--master-timeout-ms), paused
+  bool election = false;    ///< --election: relay and election on (AgentConfig::election)
+  std::uint32_t score = 0xFFFFFFFFu;  ///< --score N (default: computed from the capabilities)
+  std::string state_dir;    ///< --state-dir DIR: epoch and votedFor on disk ("" = in memory only)
+  std::string master_script;  ///< --master-script FILE: console commands run when elected master
 };
 
 /// Result of parse_agent_options().

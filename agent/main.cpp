@@ -1,7 +1,9 @@
 // ev3-agent: one robot of the fleet. The I/O around the agent core (libev3proto agent.hpp): a UDP
 // socket, one event loop (ppoll) that sleeps until the next datagram or the next deadline (core,
 // behaviour runner, copy sends, log flush), the LEDs, the `wait` behaviour runner, logging and the
-// NDJSON trace. docs/programs.md describes the command line.
+// NDJSON trace. With --election: the election state on disk (--state-dir) and, while this agent is
+// the elected master, a Master core fed before the agent core (docs/core.md "An agent becomes
+// master"; tests/cpp/sim/election_sim.hpp does the same). docs/programs.md describes the command line.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -9,16 +11,21 @@
 #include <cstdio>
 #include <optional>
 #include <cstring>
+#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
 
 #include <ev3proto/agent.hpp>
+#include <ev3proto/dedupe.hpp>
+#include <ev3proto/master.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
+#include "console.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
+#include "ev3io/state_file.hpp"
 #include "ev3io/udp.hpp"
 #include "leds.hpp"
 #include "agent_options.hpp"
@@ -84,6 +91,16 @@ std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
 }
 
 using AgentCore = ev3proto::Agent<ev3proto::NdjsonTrace>;
+using MasterCore = ev3proto::Master<>;  // run while this agent is the elected master
+
+std::string role_name(ev3proto::Role r) {
+  switch (r) {
+    case ev3proto::Role::none: return "follower";
+    case ev3proto::Role::candidate: return "CANDIDATE";
+    case ev3proto::Role::master: return "MASTER";
+  }
+  return "?";
+}
 
 class Program {
  public:
@@ -122,16 +139,34 @@ class Program {
     const std::uint64_t r = random_u64();
     cfg.temp_id = static_cast<std::uint16_t>(ev3proto::kFirstTempId + r % 15536u);
     cfg.first_msgid = static_cast<std::uint32_t>(1 + (r >> 20) % 1000000000u);
+    cfg.election.enabled = opt_.election;
+    if (opt_.election) cfg.election.score = opt_.score;
+    if (!load_state(cfg.election)) return 2;
+    if (!opt_.master_script.empty()) {
+      std::ifstream in(opt_.master_script);
+      if (!in) {
+        std::fprintf(stderr, "ev3-agent: bad value for --master-script: cannot open '%s'\n",
+                     opt_.master_script.c_str());
+        return 2;
+      }
+      for (std::string l; std::getline(in, l);) script_.push_back(l);
+    }
     if (opt_.model != "A")
       log_.log(kInfo, "model %s: using model A's capability table (wait)", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
     agent_.emplace(cfg, now, trace_file_ != nullptr ? &trace_ : nullptr);
+    saved_rev_ = agent_->durable_rev();
+    seen_epoch_ = agent_->durable().epoch;
     leds_.emplace(opt_.sysfs_root, log_);
     leds_->set(agent_->led());
     std::string bc;
     for (const auto& e : opt_.common.broadcast) bc += " " + e.str();
     log_.log(kInfo, "listening on %s (model %s, temporary id %u, broadcast to%s)", net_.local().str().c_str(),
              opt_.model.c_str(), cfg.temp_id, bc.c_str());
+    if (opt_.election)
+      log_.log(kInfo, "election on: score %u, epoch %u, voted for %u, state %s", agent_->score(),
+               cfg.election.epoch, cfg.election.voted_for,
+               state_path_.empty() ? "in memory only (no --state-dir)" : state_path_.c_str());
     log_.log(kInfo, "state IDLE");
     log_.flush();
     loop();
@@ -152,8 +187,10 @@ class Program {
       }
       now = ev3io::monotonic_ms();
       run_behaviour(now);
+      if (mc_) mc_->advance(now);
       agent_->advance(now);
       pump(now);
+      run_script(now);
       net_.flush(now);
       if (now >= next_summary) {
         if (drops_changed_) log_.log(kVerbose, "drops: %s", counters_line(drops_).c_str());
@@ -161,6 +198,8 @@ class Program {
         next_summary = now + 5000;
       }
       Millis deadline = agent_->next_deadline();
+      if (mc_) deadline = std::min(deadline, mc_->next_deadline());
+      if (mc_ && script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
       deadline = std::min(deadline, runner_.deadline());
       deadline = std::min(deadline, net_.next_send());
       deadline = std::min(deadline, log_.tick(now));
@@ -195,12 +234,17 @@ class Program {
     const std::uint16_t my_id = agent_->id();
     const ev3proto::Peer peer = net_.peer_of(from);
     log_.log(kDebug, "recv %s from %s", printable(d).c_str(), from.str().c_str());
+    // The elected master's part first (docs/core.md); like ev3-master, one copy of each (sender,
+    // msgid) only: the Master core's registry does not dedupe PING copies.
+    if (mc_ && copies_.first_time(rx_.sender, rx_.msgid)) mc_->handle_datagram(d, peer, now);
     const ev3proto::Action a = agent_->handle_datagram(d, peer, now);
     if (a == ev3proto::Action::Ignore) {
       if (rx_.receiver != my_id && rx_.receiver != ev3proto::kBroadcastId)
         drop("misaddressed", d);
-      else if (rx_.sender != ev3proto::kMasterId)
+      else if (rx_.sender != ev3proto::kMasterId && !opt_.election)
         drop("foreign_sender", d);
+      else if (mc_)
+        drop("for_the_master_core", d);
       else if (agent_->window().contains(rx_.sender, rx_.msgid))
         drop("stale", d);
       else
@@ -231,17 +275,26 @@ class Program {
 
   /// Drains the core's outputs after every call into it.
   void pump(Millis now) {
+    save_state();  // before anything this call queued goes out (a VOTE must not outlive votedFor)
+    election_changes(now);
     ev3proto::Transmit t;
     while (agent_->poll_transmit(t)) {
       log_.log(kDebug, "send %s to %s", printable(t.bytes).c_str(), std::string(to_string(t.dest)).c_str());
-      const ev3io::Endpoint* ep = t.dest == ev3proto::Dest::master ? net_.endpoint_of(t.peer) : nullptr;
+      if (t.dest == ev3proto::Dest::broadcast) {
+        broadcast(t.bytes, now);
+        continue;
+      }
+      const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
       if (ep != nullptr) {
-        master_peer_ = t.peer;
+        if (t.dest == ev3proto::Dest::master) master_peer_ = t.peer;
         net_.send(*ep, t.bytes, now);
+      } else if (t.dest == ev3proto::Dest::master) {
+        broadcast(t.bytes, now);  // no master address yet: as before, to everyone
       } else {
-        for (const auto& b : opt_.common.broadcast) net_.send(b, t.bytes, now);
+        drop("unknown_peer", t.bytes);
       }
     }
+    pump_master(now);
     ev3proto::AgentEvent e;
     while (agent_->poll_event(e)) {
       switch (e.kind) {
@@ -296,6 +349,143 @@ class Program {
     }
   }
 
+  void broadcast(std::string_view bytes, Millis now) {
+    for (const auto& b : opt_.common.broadcast) net_.send(b, bytes, now);
+  }
+
+  // ------------------------------------------------------------------ relay and election
+  /// The election state file: DIR/ev3-agent.state (epoch, voted_for); none without --state-dir.
+  bool load_state(ev3proto::ElectionConfig& e) {
+    if (opt_.state_dir.empty()) return true;
+    state_path_ = opt_.state_dir + "/ev3-agent.state";
+    std::map<std::string, std::string> kv;
+    std::string err;
+    if (!ev3io::read_state_file(state_path_, kv, err)) {
+      if (err.empty()) return true;  // first start
+      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s\n", err.c_str());
+      return false;
+    }
+    std::uint64_t epoch = 1, voted = 0;
+    if (!ev3io::to_uint(kv["epoch"], 1, 0xFFFFFFFFu, epoch) || !ev3io::to_uint(kv["voted_for"], 0, 65535, voted)) {
+      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged (expected epoch=N, voted_for=N)\n",
+                   state_path_.c_str());
+      return false;
+    }
+    e.epoch = static_cast<std::uint32_t>(epoch);
+    e.voted_for = static_cast<std::uint16_t>(voted);
+    return true;
+  }
+
+  /// Writes durable() when durable_rev() changed (before sending what the call queued).
+  void save_state() {
+    if (!agent_ || agent_->durable_rev() == saved_rev_) return;
+    saved_rev_ = agent_->durable_rev();
+    const ev3proto::Durable d = agent_->durable();
+    log_.log(kDebug, "durable: epoch %u, voted for %u", d.epoch, d.voted_for);
+    if (state_path_.empty()) return;
+    std::string err;
+    if (!ev3io::write_state_file(state_path_, {{"epoch", std::to_string(d.epoch)},
+                                               {"voted_for", std::to_string(d.voted_for)}}, err))
+      log_.log(kError, "%s", err.c_str());
+  }
+
+  /// Reads the election observers after every call: logs role / epoch / leader / relay changes,
+  /// starts the Master core when this agent won an epoch, drops it once it stepped down.
+  void election_changes(Millis now) {
+    if (!opt_.election) return;
+    const ev3proto::Role role = agent_->role();
+    const std::uint32_t epoch = agent_->durable().epoch;
+    if (epoch != seen_epoch_) {
+      log_.log(kInfo, "epoch %u (was %u)", epoch, seen_epoch_);
+      seen_epoch_ = epoch;
+    }
+    if (role != seen_role_) {
+      if (role == ev3proto::Role::candidate)
+        log_.log(kInfo, "election: standing as CANDIDATE in epoch %u (score %u)", epoch, agent_->score());
+      else if (role == ev3proto::Role::master)
+        log_.log(kInfo, "election: won epoch %u (score %u): role MASTER", agent_->master_epoch(), agent_->score());
+      else
+        log_.log(kInfo, "election: role %s", role_name(role).c_str());
+      seen_role_ = role;
+    }
+    if (agent_->leader() != seen_leader_ || agent_->via() != seen_via_) {
+      seen_leader_ = agent_->leader();
+      seen_via_ = agent_->via();
+      if (seen_leader_ != 0 && seen_via_ != 0)
+        log_.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", seen_leader_, epoch, seen_via_);
+      else if (seen_leader_ != 0)
+        log_.log(kInfo, "following master %u (epoch %u) directly", seen_leader_, epoch);
+    }
+    std::string relays;
+    for (std::size_t i = 0; i < agent_->relay_count(); ++i) relays += " " + std::to_string(agent_->relayed(i));
+    if (relays != seen_relays_) {
+      log_.log(kInfo, "relaying for agents:%s", relays.empty() ? " none" : relays.c_str());
+      seen_relays_ = relays;
+    }
+    if (role == ev3proto::Role::master && (!mc_ || mc_->epoch() != agent_->master_epoch())) {
+      std::vector<std::uint16_t> members;
+      for (std::size_t i = 0; i < agent_->member_count(); ++i) members.push_back(agent_->member(i));
+      mc_.emplace(ev3proto::MasterConfig::for_elected_agent(opt_.timers, agent_->id(), agent_->master_epoch(),
+                                                            members, agent_->next_msgid() + (1u << 30)),
+                  now);
+      std::string m;
+      for (std::uint16_t id : members) m += " " + std::to_string(id);
+      log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", mc_->epoch(),
+               agent_->id(), m.c_str(), script_.empty() ? "" : "; running --master-script");
+      script_pos_ = 0;
+      script_at_ = now;
+    }
+    if (mc_ && mc_->role() == ev3proto::MasterRole::stepped_down && role != ev3proto::Role::master) {
+      log_.log(kInfo, "master of epoch %u stepped down (epoch %u is newer)%s; Master core dropped",
+               agent_->master_epoch(), mc_->epoch(),
+               mc_->handed_over() ? " (HANDOVER sent to the new master)" : "");
+      mc_.reset();
+    }
+  }
+
+  /// Drains the Master core (when this agent runs one).
+  void pump_master(Millis now) {
+    if (!mc_) return;
+    ev3proto::MasterTransmit t;
+    while (mc_->poll_transmit(t)) {
+      log_.log(kDebug, "master core: send %s", printable(t.bytes).c_str());
+      if (t.dest == ev3proto::Dest::broadcast) {
+        broadcast(t.bytes, now);
+      } else if (const ev3io::Endpoint* ep = net_.endpoint_of(t.peer)) {
+        net_.send(*ep, t.bytes, now);
+      }
+    }
+    ev3proto::OperatorEvent e;
+    while (mc_->poll_event(e)) {
+      std::string addr;
+      const auto it = mc_->registry().find(e.agent);
+      if (it != mc_->registry().end())
+        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
+      log_.log(kInfo, "master: %s", view_.on_event(e, addr, now).c_str());
+    }
+  }
+
+  /// --master-script: console commands for the Master core, from the moment this agent won.
+  void run_script(Millis now) {
+    while (mc_ && mc_->role() == ev3proto::MasterRole::master && script_pos_ < script_.size() && now >= script_at_) {
+      const std::string line = script_[script_pos_++];
+      ev3master::ConsoleCommand c;
+      const std::string err = ev3master::parse_console_line(line, c);
+      using K = ev3master::ConsoleCommand::Kind;
+      if (!err.empty()) {
+        log_.log(kError, "master script: %s", err.c_str());
+      } else if (c.kind == K::wait) {
+        script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
+      } else if (c.kind == K::send) {
+        log_.log(kInfo, "master script> %s", line.c_str());
+        mc_->command(c.agent, c.command, now);
+        pump(now);
+      } else if (c.kind == K::list) {
+        for (const std::string& l : view_.table(mc_->registry(), drops_, now)) log_.log(kInfo, "master: %s", l.c_str());
+      }
+    }
+  }
+
   ev3agent::AgentOptions opt_;
   ev3io::Logger log_;
   ev3io::Signals signals_;
@@ -310,6 +500,18 @@ class Program {
   std::map<std::string, std::uint64_t> drops_;
   bool drops_changed_ = false;
   ev3proto::Peer master_peer_ = 0;  // the master's handle, as the core last sent to it
+  // election
+  std::string state_path_;
+  std::uint32_t saved_rev_ = 0, seen_epoch_ = 1;
+  ev3proto::Role seen_role_ = ev3proto::Role::none;
+  std::uint16_t seen_leader_ = 0, seen_via_ = 0;
+  std::string seen_relays_;
+  std::optional<MasterCore> mc_;
+  ev3proto::DedupeWindow<4096> copies_;  // in front of mc_
+  ev3master::FleetView view_;
+  std::vector<std::string> script_;
+  std::size_t script_pos_ = 0;
+  Millis script_at_ = 0;
 };
 
 }  // namespace

@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <fstream>
+#include <map>
 #include <optional>
 #include <string>
 #include <vector>
@@ -20,8 +21,10 @@
 #include <ev3proto/wire.hpp>
 
 #include "console.hpp"
+#include "driver.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
+#include "ev3io/state_file.hpp"
 #include "ev3io/udp.hpp"
 #include "master_options.hpp"
 
@@ -38,7 +41,10 @@ using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;
 
 constexpr Millis kStatusEveryMs = 500;
 constexpr Millis kRedrawEveryMs = 500;
-constexpr int kTableRows = 14;  // rows reserved for the live table at the top of the terminal
+constexpr int kTableRows = 14;
+// --state-file: msgids are reserved in blocks (the file holds the end of the block in use), so a
+// restarted master continues above every msgid it may have sent without a write per datagram.
+constexpr std::uint32_t kMsgidBlock = 4096;  // rows reserved for the live table at the top of the terminal
 
 std::string reason_key(ev3proto::Reason r) {
   std::string k = "decode:" + std::string(ev3proto::to_string(r));
@@ -91,12 +97,18 @@ class Program {
     ev3proto::MasterConfig cfg;
     cfg.timers = opt_.timers;
     cfg.max_resends = opt_.max_resends;
+    cfg.election = opt_.election;
+    std::string restored;
+    if (!load_state(cfg, restored)) return 2;
     master_.emplace(cfg, start_, trace_file_ != nullptr ? &trace_ : nullptr);
+    save_state(true);
     listening_ = net_.local().str();
     log_.log(kInfo, "listening on %s", listening_.c_str());
     log_.flush();
     if (tty_) setup_screen();
     else say("listening on " + listening_);
+    if (!restored.empty()) say(restored);
+    election_changes();
     loop();
     shutdown();
     return 0;
@@ -172,6 +184,16 @@ class Program {
       case MsgType::EVENT:
         if (master_->registry().count(rx_.sender) == 0) drop("unknown_sender");
         break;
+      case MsgType::LEADER:
+      case MsgType::VOTE:
+      case MsgType::EPOCH_STALE:
+      case MsgType::ELECT:
+      case MsgType::RELAY:
+      case MsgType::RELAY_ROUTE:
+      case MsgType::HANDOVER:
+        if (opt_.election) break;
+        drop("unexpected_type");
+        return;
       default: drop("unexpected_type"); return;
     }
     log_.log(kDebug, "recv %s from %s", d.c_str(), from.str().c_str());
@@ -180,8 +202,15 @@ class Program {
   }
 
   void pump(Millis now) {
+    save_state(false);  // before what this call queued goes out (ids, msgids, epoch)
+    election_changes();
     ev3proto::MasterTransmit t;
     while (master_->poll_transmit(t)) {
+      if (t.dest == ev3proto::Dest::broadcast) {  // ELECT, LEADER
+        log_.log(kDebug, "send %s to everyone", t.bytes.c_str());
+        for (const auto& b : opt_.common.broadcast) net_.send(b, t.bytes, now);
+        continue;
+      }
       const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
       if (ep == nullptr) continue;
       log_.log(kDebug, "send %s to %s", t.bytes.c_str(), ep->str().c_str());
@@ -337,6 +366,82 @@ class Program {
     trace_file_ = nullptr;
   }
 
+  /// --state-file: restores next id, msgid (the end of the reserved block), epoch and members; the
+  /// master then starts as a candidate (Election Restart(PC), docs/core.md).
+  bool load_state(ev3proto::MasterConfig& cfg, std::string& note) {
+    if (opt_.state_file.empty()) return true;
+    std::map<std::string, std::string> kv;
+    std::string err;
+    if (!ev3io::read_state_file(opt_.state_file, kv, err)) {
+      if (err.empty()) return true;  // first start
+      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s\n", err.c_str());
+      return false;
+    }
+    std::uint64_t id = 0, msgid = 0, epoch = 0;
+    if (!ev3io::to_uint(kv["next_id"], ev3proto::kFirstAssignedId, 65535, id) ||
+        !ev3io::to_uint(kv["next_msgid"], 1, 0xFFFFFFFFu, msgid) || !ev3io::to_uint(kv["epoch"], 1, 0xFFFFFFFFu, epoch)) {
+      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged (expected next_id, next_msgid, epoch)\n",
+                   opt_.state_file.c_str());
+      return false;
+    }
+    cfg.next_id = static_cast<std::uint16_t>(id);
+    cfg.next_msgid = static_cast<std::uint32_t>(msgid);
+    cfg.epoch = static_cast<std::uint32_t>(epoch);
+    std::string members = kv["members"];
+    for (std::size_t pos = 0; pos < members.size();) {
+      std::size_t comma = members.find(',', pos);
+      if (comma == std::string::npos) comma = members.size();
+      std::uint64_t m = 0;
+      if (ev3io::to_uint(members.substr(pos, comma - pos), 2, 65535, m)) cfg.members.push_back(static_cast<std::uint16_t>(m));
+      pos = comma + 1;
+    }
+    cfg.candidate = cfg.election;
+    note = "restarted from " + opt_.state_file + ": next id " + std::to_string(id) + ", msgid " +
+           std::to_string(msgid) + ", epoch " + std::to_string(epoch) + ", members " + (members.empty() ? "none" : members) +
+           (cfg.election ? "; standing to take the fleet back" : "");
+    return true;
+  }
+
+  /// Writes the state file when next id, epoch or members changed or the msgid block is used up.
+  void save_state(bool force) {
+    if (opt_.state_file.empty()) return;
+    std::string members;
+    for (std::uint16_t m : master_->members()) members += (members.empty() ? "" : ",") + std::to_string(m);
+    if (!force && master_->next_id() == saved_id_ && master_->epoch() == saved_epoch_ && members == saved_members_ &&
+        master_->next_msgid() + kMsgidBlock / 2 < msgid_limit_)
+      return;
+    msgid_limit_ = master_->next_msgid() + kMsgidBlock;
+    saved_id_ = master_->next_id();
+    saved_epoch_ = master_->epoch();
+    saved_members_ = members;
+    std::string err;
+    if (!ev3io::write_state_file(opt_.state_file, {{"next_id", std::to_string(saved_id_)},
+                                                   {"next_msgid", std::to_string(msgid_limit_)},
+                                                   {"epoch", std::to_string(saved_epoch_)},
+                                                   {"members", members}}, err) && !state_warned_) {
+      log_.log(kError, "%s", err.c_str());
+      state_warned_ = true;
+    }
+  }
+
+  /// Election observers (role, epoch, handover): one console line per change.
+  void election_changes() {
+    if (!opt_.election) return;
+    const ev3proto::MasterRole r = master_->role();
+    if (r != seen_role_ || master_->epoch() != seen_epoch_) {
+      seen_role_ = r;
+      seen_epoch_ = master_->epoch();
+      std::string members;
+      for (std::uint16_t m : master_->members()) members += " " + std::to_string(m);
+      say("election: " + std::string(to_string(r)) + " of epoch " + std::to_string(seen_epoch_) + " (members" +
+          (members.empty() ? " none" : members) + ")");
+    }
+    if (master_->handed_over() && !seen_handover_) {
+      seen_handover_ = true;
+      say("election: the elected agent handed the fleet over (HANDOVER)");
+    }
+  }
+
   ev3master::MasterOptions opt_;
   ev3io::Logger log_;
   ev3io::Signals signals_;
@@ -357,11 +462,21 @@ class Program {
   Millis start_ = 0, next_status_ = 0, next_redraw_ = 0;
   bool tty_ = false, stdin_open_ = true, quit_ = false, dirty_ = false, status_warned_ = false;
   int rows_ = 24;
+  // --state-file, election
+  std::uint16_t saved_id_ = 0;
+  std::uint32_t saved_epoch_ = 0, msgid_limit_ = 0;
+  std::string saved_members_;
+  bool state_warned_ = false, seen_handover_ = false;
+  ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;
+  std::uint32_t seen_epoch_ = 0;
 };
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  // Driver mode (docs/driver.md): the core on a virtual clock, NDJSON on stdin/stdout; no sockets.
+  for (int i = 1; i < argc; ++i)
+    if (std::strcmp(argv[i], "--driver") == 0) return ev3master::run_driver(argc, argv);
   ev3master::MasterOptions o;
   std::string msg;
   switch (ev3master::parse_master_options(argc, argv, o, msg)) {

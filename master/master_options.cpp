@@ -12,6 +12,9 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
       {"max-resends", "N", "a command unanswered after N resends times out (default 10)", false},
       {"status-json", "FILE", "write the fleet's state to FILE (atomically, twice a second)", false},
       {"script", "FILE", "console commands to run (with 'wait SECONDS' between them)", false},
+      {"election", "", "relay and election on: LEADER heartbeats, epochs; agents may elect a new master", false},
+      {"state-file", "FILE", "keep next id, msgids, epoch and members in FILE; restarted with it, the master "
+                             "continues them and (with --election) stands to take the fleet back (default: none)", false},
   });
   ev3io::ParsedArgs a;
   message = ev3io::parse_args(argc, argv, sp, "master", a);
@@ -47,6 +50,12 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
   out.script = a.get("script");
   if (a.has("script") && out.script.empty()) {
     message = "bad value for --script: empty path";
+    return ParseOutcome::error;
+  }
+  out.election = a.has("election");
+  out.state_file = a.get("state-file");
+  if (a.has("state-file") && out.state_file.empty()) {
+    message = "bad value for --state-file: empty path";
     return ParseOutcome::error;
   }
   return ParseOutcome::run;

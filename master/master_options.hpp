@@ -16,6 +16,8 @@ struct MasterOptions {
   std::uint32_t max_resends = 10;
   std::string status_json;       ///< --status-json FILE
   std::string script;            ///< --script FILE
+  bool election = false;         ///< --election: LEADER heartbeats, epochs, relay routes (MasterConfig::election)
+  std::string state_file;        ///< --state-file FILE: next id, msgid, epoch, members across restarts
 };
 
 enum class ParseOutcome { run, help, error };

@@ -1,13 +1,21 @@
 #!/usr/bin/env python3
 """make demo: a master and three agents on this machine (loopback), narrated.
 
-Phases (each a function; relay and election are one more phase to add when the core has them):
-  1. sync       ev3-master and three ev3-agent start; the fleet syncs (the master's table)
+Phases (each a function):
+  1. sync       ev3-master and three ev3-agent start, all with --election; the fleet syncs (the
+                master's table). The --broadcast lists make a line: agent #1 and agent #3 do not
+                hear each other, agent #2 hears both (and everyone hears the PC)
   2. behaviour  `wait seconds=N` is assigned, started, paused, resumed, stopped; another agent
                 runs one to the end (ACTION_OK); a third... is left ACTIVE
   3. master     the master is killed (SIGKILL); the agents fall back (WORKING -> PAUSED -> PANIC,
                 ACTIVE -> PANIC), read from their NDJSON traces
-  4. relay/election  not implemented yet (the core has no relay/election; the spec is being written)
+  4. election   the weakest agent (lowest --score: #1) stands first and wins epoch 2; #2 follows it
+                directly; #3, which cannot hear #1, asks for a relay (RELAY_REQ), #2 offers
+                (RELAY_OFFER), #3 accepts (RELAY_ACCEPT) and leaves PANIC through #2's relay
+  5. command    the new master runs its --master-script: `behaviour all wait seconds=2`, `start
+                all`; both followers (#3 through the relay) go WORKING and report ACTION_OK
+  6. handover   the PC master comes back with its --state-file: it stands in epoch 3 (score 0),
+                the agent-master steps down and hands the fleet over (HANDOVER)
 Then a summary: the timeline with times. Logs, traces and the status JSON stay in build/demo/.
 Only the standard library: runs wherever `make deps` has run.
 """
@@ -25,6 +33,13 @@ import time
 from pathlib import Path
 
 HB, LOSS, PAUSED = 200, 1000, 2000  # short demo timers (ms): heartbeat, master timeout, paused timeout
+SCORES = (1, 20, 40)  # --score of agents #1..#3: the lowest stands first and wins
+# Whom each agent's broadcasts reach besides the PC (indices of agents): #1 and #3 do not hear
+# each other; #2 hears both. The PC's broadcasts reach everyone.
+HEARS = {0: [1], 1: [0, 2], 2: [1]}
+MASTER_SCRIPT = "# run by the agent that wins an election (ev3-agent --master-script)\nwait 2\nbehaviour all wait seconds=2\nstart all\n"
+TYPES = {21: "RELAY_REQ", 22: "RELAY_OFFER", 23: "RELAY_ACCEPT", 24: "RELAY_ROUTE", 25: "RELAY", 26: "RELAY_DROP",
+         27: "ELECT", 28: "VOTE", 29: "LEADER", 30: "EPOCH_STALE", 31: "EPOCH_CMD", 32: "HANDOVER"}
 
 
 def free_ports(n: int) -> list[int]:
@@ -58,6 +73,10 @@ class Demo:
         self.trace_pos: dict[int, int] = {}
         self.agent_state: dict[int, str] = {}
         self.ids: list[int] = []
+        self.id_of: dict[int, int] = {}        # agent index -> assigned id (from its trace)
+        self.log_pos: dict[int, int] = {}
+        self.following: dict[int, tuple[float, str]] = {}  # agent index -> (when, its last "following ..." line)
+        self.master_out = "master.out"
 
     # --- output -------------------------------------------------------------------------------
     def t(self) -> float:
@@ -72,7 +91,7 @@ class Demo:
 
     def follow_master(self) -> list[str]:
         """New lines of the master's console (stdout), echoed."""
-        path = self.dir / "master.out"
+        path = self.dir / self.master_out
         if not path.exists():
             return []
         data = path.read_bytes()[self.master_out_pos:]
@@ -127,28 +146,44 @@ class Demo:
     def start(self) -> None:
         self.dir.mkdir(parents=True, exist_ok=True)
         for f in self.dir.iterdir():
-            f.unlink()
+            if f.is_dir():
+                for g in f.iterdir():
+                    g.unlink()
+                f.rmdir()
+            else:
+                f.unlink()
         ports = free_ports(4)
         self.mport, self.aports = ports[0], ports[1:]
-        self.master = subprocess.Popen(
-            [str(self.bin / "ev3-master"), "--port", str(self.mport), "--bind", "127.0.0.1",
-             *sum((["--broadcast", f"127.0.0.1:{p}"] for p in self.aports), []),
-             "--agent-timeout-ms", "5000", "--status-json", str(self.dir / "status.json"),
-             "--trace", str(self.dir / "master.ndjson"), "--log-file", str(self.dir / "master.log")],
-            stdin=subprocess.PIPE, stdout=open(self.dir / "master.out", "wb"), stderr=subprocess.STDOUT)
-        self.event(f"started ev3-master on 127.0.0.1:{self.mport} (pid {self.master.pid})")
+        self.start_master("master.out")
+        self.event(f"started ev3-master --election --state-file on 127.0.0.1:{self.mport} (pid {self.master.pid})")
+        (self.dir / "master-script.txt").write_text(MASTER_SCRIPT)
         for i, p in enumerate(self.aports):
-            others = [self.mport] + [q for q in self.aports if q != p]
+            others = [self.mport] + [self.aports[j] for j in HEARS[i]]
+            (self.dir / f"state{i + 1}").mkdir()
             a = subprocess.Popen(
                 [str(self.bin / "ev3-agent"), "--port", str(p), "--bind", "127.0.0.1", "--model", "A",
                  *sum((["--broadcast", f"127.0.0.1:{q}"] for q in others), []),
                  "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
+                 "--election", "--score", str(SCORES[i]), "--state-dir", str(self.dir / f"state{i + 1}"),
+                 "--master-script", str(self.dir / "master-script.txt"),
                  "--sysfs-root", str(self.dir / "no-sysfs"),
                  "--trace", str(self.dir / f"agent{i + 1}.ndjson"), "--log-file", str(self.dir / f"agent{i + 1}.log")],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             self.agents.append(a)
-            self.event(f"started ev3-agent #{i + 1} on 127.0.0.1:{p} (pid {a.pid}), heartbeat {HB} ms, "
-                       f"master timeout {LOSS} ms")
+            hears = ", ".join(f"#{j + 1}" for j in HEARS[i])
+            self.event(f"started ev3-agent #{i + 1} on 127.0.0.1:{p} (pid {a.pid}), --election --score {SCORES[i]}, "
+                       f"its broadcasts reach the PC and {hears}")
+
+    def start_master(self, out: str) -> None:
+        self.master_out, self.master_out_pos = out, 0
+        self.master = subprocess.Popen(
+            [str(self.bin / "ev3-master"), "--port", str(self.mport), "--bind", "127.0.0.1",
+             *sum((["--broadcast", f"127.0.0.1:{p}"] for p in self.aports), []),
+             "--agent-timeout-ms", "5000", "--status-json", str(self.dir / "status.json"),
+             "--election", "--state-file", str(self.dir / "master.state"),
+             "--trace", str(self.dir / out.replace(".out", ".ndjson")),
+             "--log-file", str(self.dir / out.replace(".out", ".log"))],
+            stdin=subprocess.PIPE, stdout=open(self.dir / out, "wb"), stderr=subprocess.STDOUT)
 
     def cmd(self, line: str, expect: str = "acknowledged") -> None:
         assert self.master and self.master.stdin
@@ -171,6 +206,8 @@ class Demo:
             self.trace_pos[i] = self.trace_pos.get(i, 0) + cut
             for line in data[:cut].splitlines():
                 rec = json.loads(line)
+                if rec.get("changed", {}).get("id"):
+                    self.id_of[i] = rec["changed"]["id"]
                 st = rec.get("changed", {}).get("state")
                 if st and self.agent_state.get(i) != st:
                     old = self.agent_state.get(i, "?")
@@ -257,17 +294,140 @@ class Demo:
             raise DemoFailed("the agents did not all reach PANIC")
         self.event("every agent is in PANIC (broadcasting PANIC, waiting for a master)")
 
-    def phase_relay_election(self) -> None:
-        self.heading("4. relay and election")
-        self.event("relay and election are NOT implemented yet (core lacks them; their TLA+ spec is being "
-                   "written): no new master takes over")
+    # --- relay and election ---------------------------------------------------------------------
+    def name(self, i: int) -> str:
+        return f"#{i + 1} (id {self.id_of.get(i, '?')})"
+
+    def agent_log(self, quiet=("behaviour wait", "durable")) -> list[tuple[int, str]]:
+        """New lines of the agents' logs (their election / relay / state news), echoed."""
+        out = []
+        for i in range(len(self.agents)):
+            path = self.dir / f"agent{i + 1}.log"
+            if not path.exists():
+                continue
+            data = path.read_bytes()[self.log_pos.get(i, 0):]
+            cut = data.rfind(b"\n") + 1
+            self.log_pos[i] = self.log_pos.get(i, 0) + cut
+            for line in data[:cut].decode(errors="replace").splitlines():
+                text = line.split(" agent: ", 1)[-1]
+                if any(q in text for q in quiet):
+                    continue
+                print(f"         agent {self.name(i)} | {text}", flush=True)
+                out.append((i, text))
+                if text.startswith("following master"):
+                    self.following[i] = (self.t(), text)
+        return out
+
+    def relay_records(self, i: int) -> list[str]:
+        """The relay handshake in agent i's trace: RELAY_REQ sent, RELAY_OFFER / RELAY_ACCEPT taken."""
+        rows: list[list] = []
+        for line in (self.dir / f"agent{i + 1}.ndjson").read_text().splitlines():
+            rec = json.loads(line)
+            a = rec["action"]
+            if a not in ("RequestRelay", "OfferRelay", "AcceptRelay", "HandleAccept"):
+                continue
+            msg = rec.get("args", {}).get("msg", "")
+            parts = msg.split(":")
+            what = f"{TYPES.get(int(parts[3]), parts[3])} from {parts[0]}" if len(parts) > 3 else "RELAY_REQ broadcast"
+            row = f"{a:<13} {what:<22} changed {json.dumps(rec.get('changed', {}))[:80]}"
+            if rows and rows[-1][0] == row:
+                rows[-1][1] += 1
+            else:
+                rows.append([row, 1])
+        return [r if n == 1 else f"{r}  (x{n})" for r, n in rows]
+
+    def watch(self, seconds: float, until, what: str):
+        end = time.monotonic() + seconds
+        while True:
+            self.agent_states()
+            got = until(self.agent_log())
+            self.follow_master()
+            if got:
+                return got
+            if time.monotonic() >= end:
+                raise DemoFailed(f"gave up after {seconds:g} s waiting for {what}")
+            time.sleep(0.1)
+
+    def phase_election(self) -> None:
+        self.heading("4. election: the weakest agent stands first; #3 gets through #2's relay")
+        print(f"         (scores {', '.join(f'#{i + 1}={s}' for i, s in enumerate(SCORES))}; back-off before standing = "
+              f"3000 ms + score x 100 ms after PANIC; #1 and #3 cannot hear each other)", flush=True)
+        for i in range(3):  # the agents' logs from here on
+            p = self.dir / f"agent{i + 1}.log"
+            self.log_pos[i] = p.stat().st_size if p.exists() else 0
+        won: dict = {}
+
+        def elected(lines):
+            for i, text in lines:
+                if text.startswith("election: won epoch"):
+                    won["i"], won["text"] = i, text
+            return "i" in won
+        self.watch(12, elected, "an agent to win the election")
+        w = won["i"]
+        self.winner = w
+        self.event(f"agent {self.name(w)} won epoch 2 ({won['text'].split('(')[1].rstrip(')').split(')')[0]}, "
+                   f"the lowest): it runs a Master core and sends LEADER")
+        who = f"following master {self.id_of.get(w)} (epoch 2)"
+
+        def followed(_):
+            return all(i == w or who in self.following.get(i, (0, ""))[1] for i in range(3))
+        self.watch(10, followed, "the other agents to follow the new master")
+        for i in range(3):
+            if i != w:
+                self.event(f"agent {self.name(i)} is ACTIVE again, {self.following[i][1]}")
+        time.sleep(0.4)  # the agents flush their traces every 0.2 s
+        self.agent_states()
+        print("         +-- agent #3's trace, the relay handshake (epoch 1 relays after the PC died included):", flush=True)
+        for r in self.relay_records(2):
+            print(f"         | {r}")
+        print("         +-- agent #2's trace (the relay):", flush=True)
+        for r in self.relay_records(1):
+            print(f"         | {r}")
+
+    def phase_new_master_commands(self) -> None:
+        w = self.winner
+        self.heading(f"5. the new master (agent {self.name(w)}) runs its --master-script")
+        print("         " + MASTER_SCRIPT.strip().replace("\n", "\n         "), flush=True)
+        done = set()
+
+        def finished(lines):
+            for i, text in lines:
+                if i == w and "ACTION_OK" in text:
+                    done.add(text.split(":")[1].strip())
+            return len(done) >= 2
+        self.watch(10, finished, "ACTION_OK from both followers")
+        self.event(f"the agent-master's commands took effect: {', '.join(sorted(done))} ran 'wait seconds=2' "
+                   f"to ACTION_OK (agent #3's EPOCH_CMDs and answers went through #2's relay)")
+
+    def phase_handover(self) -> None:
+        self.heading("6. the PC master comes back (same --state-file): it takes the fleet back")
+        self.start_master("master2.out")
+        self.event(f"restarted ev3-master with its state file (pid {self.master.pid})")
+
+        def back(lines):
+            if any(self.name(self.winner) and "stepped down" in t for i, t in lines if i == self.winner):
+                self.event(f"agent {self.name(self.winner)} stepped down (HANDOVER to the PC)")
+                self.stepped = True
+            ags = self.status().get("agents", [])
+            return getattr(self, "stepped", False) and len(ags) == 3 and all(a["state"] != "SYNCING" for a in ags)
+        self.watch(12, back, "the PC master to take the fleet back")
+        self.show_table(force=True)
+        self.event("the PC master is master of epoch 3 again: all three agents in its table "
+                   "(those that were WORKING are PAUSED: their master changed)")
+        self.cmd("stop all")
+
+        def active(_):
+            ags = self.status().get("agents", [])
+            return len(ags) == 3 and all(a["state"] == "ACTIVE" for a in ags)
+        self.watch(5, active, "all three agents ACTIVE")
+        self.show_table(force=True)
+        self.event("the PC's STOP (EPOCH_CMD of epoch 3) took effect: all three agents ACTIVE")
 
     def summary(self) -> None:
         self.heading("summary")
         for t, text in self.timeline:
             print(f"  {t:5.1f}s  {text}")
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
-        print("  not shown (not implemented yet): relay through a synced agent, election of a new master.")
 
 
 def main() -> int:
@@ -286,7 +446,9 @@ def main() -> int:
         d.phase_sync()
         d.phase_behaviour()
         d.phase_master_lost()
-        d.phase_relay_election()  # the place for relay/election phases once the core has them
+        d.phase_election()
+        d.phase_new_master_commands()
+        d.phase_handover()
     except DemoFailed as e:
         d.event(f"DEMO FAILED: {e}")
         ok = False

@@ -30,8 +30,10 @@ def tlc(module: str, cfg: str, extra: list[str], workers: int = 1, cwd: Path = S
     """Runs TLC on module with cfg; own -metadir; returns (exit status, output)."""
     BUILD.mkdir(parents=True, exist_ok=True)
     md = tempfile.mkdtemp(prefix="meta-", dir=BUILD)
-    cmd = JAVA + ["-cp", str(JAR), "tlc2.TLC", "-workers", str(workers), "-metadir", md,
-                  "-config", cfg] + extra + [module]
+    # Its own java.io.tmpdir too: TLC extracts the standard modules (Naturals.tla, ...) there, and
+    # parallel runs sharing /tmp race on those files (tlaplus/tlaplus#378).
+    cmd = JAVA + [f"-Djava.io.tmpdir={md}", "-cp", str(JAR), "tlc2.TLC", "-workers", str(workers),
+                  "-metadir", md, "-config", cfg] + extra + [module]
     try:
         p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                            timeout=timeout)

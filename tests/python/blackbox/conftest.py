@@ -72,3 +72,128 @@ def start_agent(agent_exe, programs, tmp_path, tm):
         tm.agent_port = port
         return p
     return start
+
+
+# --- trace validation (issue 7; docs/spec.md "Conformance") -----------------------------------------
+# Every ev3-agent / ev3-master started by a scenario runs with `--trace FILE`; when the test ends the
+# trace is checked by TLC against the spec (ev3conformance.tracecheck) in a background pool of 2 TLC
+# runs, so the checks overlap the following scenarios. At the end of the session every failed check
+# is reported as an error at teardown of its test, with the first record the spec cannot match.
+# EV3_TRACE_VALIDATE=0 turns it off; =sync checks at each teardown (slower, fails the test at once).
+
+import concurrent.futures as _cf  # noqa: E402
+import time as _time  # noqa: E402
+
+import ev3net as _ev3net  # noqa: E402
+
+_MODE = os.environ.get("EV3_TRACE_VALIDATE", "1")
+_POOL: _cf.ThreadPoolExecutor | None = None
+_PENDING: list[tuple[str, str, _cf.Future]] = []   # (nodeid, program name, future of Result)
+_CURRENT: list = []                                 # the running test's item
+_STATS = {"traces": 0, "records": 0, "skipped": 0, "seconds": 0.0}
+_orig_init = _ev3net.Program.__init__
+
+_TIMER_FLAGS = {"--heartbeat-ms": "TPing", "--master-timeout-ms": "TLoss", "--paused-timeout-ms": "TPaused",
+                "--sync-timeout-ms": "TSync"}
+
+
+def _traced_init(self, exe, args, tmp, name, *a, **kw):
+    args = list(args)
+    self.trace_path = None
+    prog = Path(args[0]).name if Path(exe).name.startswith("qemu") and args else Path(exe).name
+    if (_MODE != "0" and prog in ("ev3-agent", "ev3-master") and args and "--driver" not in args
+            and not any(x == "--trace" or x.startswith("--trace=") for x in args)
+            and any(x.startswith("--") for x in args)):
+        self.trace_path = Path(tmp) / f"{name}.trace.ndjson"
+        args += ["--trace", str(self.trace_path)]
+    elif "--trace" in args:
+        self.trace_path = Path(args[args.index("--trace") + 1])
+    self.trace_args = args
+    self.trace_prog = prog
+    if self.trace_path is not None and _CURRENT:
+        _CURRENT[0].__dict__.setdefault("_ev3_started", []).append(self)
+    _orig_init(self, exe, args, tmp, name, *a, **kw)
+
+
+_ev3net.Program.__init__ = _traced_init
+
+
+def _consts(args: list[str]) -> dict:
+    c = {"TPing": 1000, "TLoss": 3000, "TSync": 10000}
+    for i, x in enumerate(args[:-1]):
+        if x in _TIMER_FLAGS:
+            c[_TIMER_FLAGS[x]] = int(args[i + 1])
+    c.setdefault("TPaused", 2 * c["TLoss"])
+    return c
+
+
+def _validate(path: Path, consts: dict):
+    from ev3conformance import tracecheck
+    t0 = _time.monotonic()
+    r = tracecheck.validate(path, consts)
+    _STATS["seconds"] += _time.monotonic() - t0
+    return r
+
+
+def _submit(nodeid: str, p) -> None:
+    global _POOL
+    path = getattr(p, "trace_path", None)
+    if path is None or _MODE == "0":
+        return
+    if p.trace_prog != "ev3-agent":
+        return  # master traces: validated once the master trace check exists (tracecheck node "master")
+    if _POOL is None:
+        _POOL = _cf.ThreadPoolExecutor(max_workers=2)
+    fut = _POOL.submit(_validate, path, _consts(p.trace_args))
+    if _MODE == "sync":
+        r = fut.result()
+        _count(r)
+        assert r.ok, f"trace of {p.name} does not conform to the spec: {r.message}"
+        return
+    _PENDING.append((nodeid, p.name, fut))
+
+
+def _count(r) -> None:
+    _STATS["traces"] += 1
+    _STATS["records"] += r.records
+    _STATS["skipped"] += r.skipped
+
+
+@pytest.hookimpl(tryfirst=True)
+def pytest_runtest_setup(item):
+    _CURRENT[:] = [item]
+
+
+@pytest.fixture(autouse=True)
+def _trace_check(request):
+    """Collects the traces of the programs the test started (see `programs`)."""
+    yield
+    for p in getattr(request.node, "_ev3_started", []):
+        _submit(request.node.nodeid, p)
+
+
+def pytest_sessionfinish(session, exitstatus):
+    if not _PENDING:
+        return
+    from _pytest.reports import TestReport
+    t0 = _time.monotonic()
+    bad = 0
+    for nodeid, name, fut in _PENDING:
+        r = fut.result()
+        _count(r)
+        if r.ok:
+            continue
+        bad += 1
+        rep = TestReport(nodeid=nodeid, location=(nodeid.split("::")[0], None, nodeid), keywords={},
+                         outcome="failed", longrepr=f"trace of {name} does not conform to the spec: {r.message}",
+                         when="teardown")
+        session.config.hook.pytest_runtest_logreport(report=rep)
+    waited = _time.monotonic() - t0
+    tr = session.config.pluginmanager.get_plugin("terminalreporter")
+    if tr is not None:
+        tr.ensure_newline()
+        tr.write_line(f"trace validation: {_STATS['traces']} traces ({_STATS['records']} records, "
+                      f"{_STATS['skipped']} skipped), {bad} not conforming; TLC {_STATS['seconds']:.0f} s "
+                      f"in 2 parallel runs, {waited:.0f} s waited at the end")
+    if bad:
+        session.exitstatus = pytest.ExitCode.TESTS_FAILED

@@ -1,0 +1,19 @@
+/// @file state_file.hpp
+/// @brief Small stable-storage files of the programs (the agent's election state, the master's
+///        ids / msgids / epoch / membership): `key=value` lines, written atomically (temp file,
+///        fsync, rename, fsync of the directory) so a crash leaves the old or the new file.
+#pragma once
+
+#include <map>
+#include <string>
+
+namespace ev3io {
+
+/// Writes @p kv to @p path atomically. False with a message in @p err.
+bool write_state_file(const std::string& path, const std::map<std::string, std::string>& kv, std::string& err);
+
+/// Reads @p path into @p kv. False when it does not exist or cannot be read (@p err says which;
+/// empty when it does not exist).
+bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err);
+
+}  // namespace ev3io

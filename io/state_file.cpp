@@ -1,0 +1,67 @@
+#include "ev3io/state_file.hpp"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <fstream>
+
+namespace ev3io {
+
+bool write_state_file(const std::string& path, const std::map<std::string, std::string>& kv, std::string& err) {
+  std::string doc;
+  for (const auto& e : kv) doc += e.first + "=" + e.second + "\n";
+  const std::string tmp = path + ".tmp";
+  const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  if (fd < 0) {
+    err = "cannot write " + tmp + ": " + std::strerror(errno);
+    return false;
+  }
+  std::size_t off = 0;
+  while (off < doc.size()) {
+    const ssize_t n = ::write(fd, doc.data() + off, doc.size() - off);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) {
+      err = "cannot write " + tmp + ": " + std::strerror(errno);
+      ::close(fd);
+      return false;
+    }
+    off += static_cast<std::size_t>(n);
+  }
+  if (::fsync(fd) != 0) {
+    err = "cannot fsync " + tmp + ": " + std::strerror(errno);
+    ::close(fd);
+    return false;
+  }
+  ::close(fd);
+  if (std::rename(tmp.c_str(), path.c_str()) != 0) {
+    err = "cannot rename " + tmp + " to " + path + ": " + std::strerror(errno);
+    return false;
+  }
+  const std::size_t slash = path.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+  const int dfd = ::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+  if (dfd >= 0) {
+    ::fsync(dfd);  // the rename itself on stable storage
+    ::close(dfd);
+  }
+  return true;
+}
+
+bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err) {
+  std::ifstream in(path);
+  if (!in) {
+    err = errno == ENOENT ? std::string() : "cannot read " + path + ": " + std::strerror(errno);
+    return false;
+  }
+  for (std::string l; std::getline(in, l);) {
+    const std::size_t eq = l.find('=');
+    if (eq == std::string::npos || l.empty() || l[0] == '#') continue;
+    kv[l.substr(0, eq)] = l.substr(eq + 1);
+  }
+  return true;
+}
+
+}  // namespace ev3io

@@ -1,0 +1,285 @@
+// ev3-master --driver: the master core on a virtual clock, no sockets; NDJSON on stdin/stdout, one
+// output line per input line (docs/driver.md, "Master driver"). Logs go to stderr. The conformance
+// runner (conformance/, `ev3-conformance replay --model master`) drives it with MCMaster's edges.
+#include "driver.hpp"
+
+#include <cstdio>
+#include <iostream>
+#include <map>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include <ev3proto/master.hpp>
+#include <ev3proto/trace.hpp>
+#include <ev3proto/wire.hpp>
+
+#include "../agent/driver_json.hpp"
+
+namespace ev3master {
+namespace {
+
+using ev3driver::Json;
+using ev3driver::put_string;
+using ev3proto::Millis;
+
+struct MasterSink;
+using Core = ev3proto::Master<MasterSink>;
+
+/// The master's variables (MasterLogic ms: reg, nextId, msgid) plus what the spec abstracts from
+/// (heard, state, via): JSON.
+std::string vars_json(const Core& m) {
+  std::string s = "{\"nextId\":" + std::to_string(m.next_id()) + ",\"msgid\":" + std::to_string(m.next_msgid()) +
+                  ",\"reg\":[";
+  bool first = true;
+  for (const auto& kv : m.registry()) {
+    const ev3proto::RegistryEntry& e = kv.second;
+    if (!first) s += ',';
+    first = false;
+    s += "{\"ann\":" + std::to_string(e.ann) + ",\"id\":" + std::to_string(e.id) + ",\"ep\":" +
+         std::to_string(e.peer) + ",\"synced\":" + (e.synced ? "true" : "false") + ",\"pending\":" +
+         (e.pending ? "true" : "false") + ",\"mid\":" + std::to_string(e.mid) + ",\"resends\":" +
+         std::to_string(e.resends) + ",\"queue\":[";
+    bool q1 = true;
+    for (const ev3proto::Command& c : e.queue) {
+      if (!q1) s += ',';
+      q1 = false;
+      s += "{\"type\":\"" + std::string(to_string(c.type)) + "\",\"name\":";
+      put_string(s, c.type == ev3proto::MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
+      s += "}";
+    }
+    s += "],\"beh\":";
+    put_string(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
+    s += ",\"heard\":" + std::to_string(e.heard) + ",\"quiet_ms\":" + std::to_string(m.now() - e.heard) +
+         ",\"hi\":" + std::to_string(e.last_msgid) + ",\"state\":\"" +
+         (e.has_state ? std::string(to_string(e.state)) : std::string("NONE")) + "\",\"via\":" +
+         std::to_string(e.via) + "}";
+  }
+  return s + "]}";
+}
+
+/// Trace sink: every spec action with its message and the variables after it.
+struct MasterSink {
+  static constexpr bool enabled = true;
+  const Core* core = nullptr;  // the core the records come from (for the variables after)
+  std::vector<std::string> actions;
+  std::FILE* trace = nullptr;
+  void record(const ev3proto::MasterTraceRecord& r) {
+    std::string s = "{\"action\":\"" + std::string(to_string(r.action)) + "\",\"args\":{";
+    if (!r.msg.empty()) {
+      s += "\"msg\":";
+      put_string(s, r.msg);
+    }
+    s += "},\"now\":" + std::to_string(r.now) + ",\"next_msgid\":" + std::to_string(r.msgid_after);
+    if (core != nullptr) s += ",\"vars\":" + vars_json(*core);
+    s += "}";
+    actions.push_back(std::move(s));
+    if (trace != nullptr) {
+      const std::string line = ev3proto::to_ndjson(r, "master");
+      std::fwrite(line.data(), 1, line.size(), trace);
+      std::fputc('\n', trace);
+    }
+  }
+};
+
+std::optional<ev3proto::MsgType> command_type(const std::string& n) {
+  using ev3proto::MsgType;
+  const MsgType all[] = {MsgType::BEHAVIOUR, MsgType::START,   MsgType::STOP,     MsgType::PAUSE,
+                         MsgType::RESUME,    MsgType::STANDBY, MsgType::CONTINUE, MsgType::RESTART};
+  for (MsgType t : all)
+    if (n == to_string(t)) return t;
+  return std::nullopt;
+}
+
+const char* event_kind(ev3proto::OperatorEvent::Kind k) { return to_string(k).data(); }
+
+class Driver {
+ public:
+  explicit Driver(std::FILE* trace) { sink_.trace = trace; }
+
+  int run() {
+    std::string line;
+    while (std::getline(std::cin, line)) {
+      if (line.empty()) continue;
+      ++seq_;
+      std::string out = handle(line);
+      std::fwrite(out.data(), 1, out.size(), stdout);
+      std::fputc('\n', stdout);
+      std::fflush(stdout);
+      if (sink_.trace != nullptr) std::fflush(sink_.trace);
+    }
+    return 0;
+  }
+
+ private:
+  std::string error(const std::string& msg) {
+    std::fprintf(stderr, "ev3-master --driver: input %llu: %s\n", seq_, msg.c_str());
+    std::string s = "{\"in\":" + std::to_string(seq_) + ",\"error\":";
+    put_string(s, msg);
+    return s + "}";
+  }
+
+  bool configure(const Json& in, std::string& err) {
+    ev3proto::MasterConfig c;
+    const Json& t = in["timers"];
+    if (t.has("resend")) c.timers.set(ev3proto::Timer::resend, static_cast<Millis>(t["resend"].num(1)));
+    if (t.has("drop")) c.timers.set(ev3proto::Timer::drop, static_cast<Millis>(t["drop"].num(1)));
+    if (c.timers[ev3proto::Timer::resend] == 0 || c.timers[ev3proto::Timer::drop] == 0) {
+      err = "timers: resend and drop must be > 0";
+      return false;
+    }
+    c.max_resends = static_cast<std::uint32_t>(in["max_resends"].num(10));
+    c.next_id = static_cast<std::uint16_t>(in["next_id"].num(ev3proto::kFirstAssignedId));
+    c.next_msgid = static_cast<std::uint32_t>(in["next_msgid"].num(1));
+    const Millis now = static_cast<Millis>(in["now"].num(0));
+    core_.emplace(c, now, &sink_);
+    sink_.core = &*core_;
+    snaps_.clear();
+    std::fprintf(stderr, "ev3-master --driver: configured (resend %llu ms, drop %llu ms, max resends %u, now %llu)\n",
+                 static_cast<unsigned long long>(c.timers[ev3proto::Timer::resend]),
+                 static_cast<unsigned long long>(c.timers[ev3proto::Timer::drop]), c.max_resends,
+                 static_cast<unsigned long long>(now));
+    return true;
+  }
+
+  std::string handle(const std::string& line) {
+    Json in;
+    std::string err;
+    if (!ev3driver::parse_json(line, in, err)) return error("not JSON: " + err);
+    if (in.kind != Json::Kind::object) return error("an input is a JSON object");
+    const std::string type = in["type"].str();
+    sink_.actions.clear();
+    if (type == "config") {
+      if (!configure(in, err)) return error(err);
+      return output(true);
+    }
+    if (!core_) {
+      Json dflt;
+      dflt.kind = Json::Kind::object;
+      if (!configure(dflt, err)) return error(err);
+    }
+    const Millis now = core_->now();
+    if (type == "advance") {
+      Millis to = now;
+      if (in.has("ms")) to = now + static_cast<Millis>(in["ms"].num());
+      else if (in.has("to")) to = static_cast<Millis>(in["to"].num());
+      else return error("advance needs \"ms\" or \"to\"");
+      core_->advance(to);
+      return output(true);
+    }
+    if (type == "recv") {
+      std::string bytes;
+      if (!ev3driver::datagram_of(in, bytes, err)) return error(err);
+      const auto from = static_cast<ev3proto::Peer>(in["from"].num(1));
+      core_->handle_datagram(bytes, from, now);
+      return output(true);
+    }
+    if (type == "command") {
+      const auto t = command_type(in["command"].str());
+      if (!t) return error("unknown command '" + in["command"].str() + "' (BEHAVIOUR START STOP PAUSE RESUME STANDBY CONTINUE RESTART)");
+      ev3proto::Command c = ev3proto::Command::simple(*t);
+      if (*t == ev3proto::MsgType::BEHAVIOUR) {
+        std::vector<std::string> args;
+        for (const Json& a : in["args"].a) args.push_back(a.str());
+        c = ev3proto::Command::assign(in["behaviour"].str("wait"), std::move(args));
+      }
+      core_->command(static_cast<std::uint16_t>(in["agent"].num(0)), c, now);
+      return output(true);
+    }
+    if (type == "save") {
+      snaps_.insert_or_assign(in["slot"].num(), *core_);
+      return output(true);
+    }
+    if (type == "restore") {
+      auto it = snaps_.find(in["slot"].num());
+      if (it == snaps_.end()) return error("no snapshot in that slot");
+      *core_ = it->second;
+      sink_.actions.clear();
+      ev3proto::MasterTransmit t;
+      while (core_->poll_transmit(t)) {
+      }
+      ev3proto::OperatorEvent e;
+      while (core_->poll_event(e)) {
+      }
+      return output(true);
+    }
+    return error("unknown input type '" + type + "'");
+  }
+
+  std::string output(bool taken) {
+    std::string s = "{\"in\":" + std::to_string(seq_) + ",\"ok\":" + (taken ? "true" : "false");
+    if (!core_) return s + "}";
+    s += ",\"now\":" + std::to_string(core_->now()) + ",\"actions\":[";
+    for (std::size_t i = 0; i < sink_.actions.size(); ++i) {
+      if (i) s += ',';
+      s += sink_.actions[i];
+    }
+    sink_.actions.clear();
+    s += "],\"sent\":[";
+    ev3proto::MasterTransmit t;
+    bool first = true;
+    while (core_->poll_transmit(t)) {
+      if (!first) s += ',';
+      first = false;
+      s += std::string("{\"to\":\"") + (t.dest == ev3proto::Dest::broadcast ? "broadcast" : "peer") +
+           "\",\"peer\":" + std::to_string(t.peer) + ",\"text\":";
+      put_string(s, t.bytes);
+      s += ",\"hex\":\"" + ev3driver::hex(t.bytes) + "\"}";
+    }
+    s += "],\"events\":[";
+    ev3proto::OperatorEvent e;
+    first = true;
+    while (core_->poll_event(e)) {
+      if (!first) s += ',';
+      first = false;
+      s += std::string("{\"kind\":\"") + event_kind(e.kind) + "\",\"agent\":" + std::to_string(e.agent) +
+           ",\"command\":\"" + std::string(to_string(e.command)) + "\",\"text\":";
+      put_string(s, e.text);
+      s += "}";
+    }
+    const Millis d = core_->next_deadline();
+    s += "],\"deadline\":" + (d == Core::kNever ? std::string("null") : std::to_string(d));
+    s += ",\"vars\":" + vars_json(*core_) + "}";
+    return s;
+  }
+
+  MasterSink sink_;
+  std::optional<Core> core_;
+  std::map<long long, Core> snaps_;
+  unsigned long long seq_ = 0;
+};
+
+}  // namespace
+
+int run_driver(int argc, char** argv) {
+  std::FILE* trace = nullptr;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--driver") continue;
+    if (a == "--help" || a == "-h") {
+      std::printf(
+          "usage: ev3-master --driver [--trace FILE]\n\n"
+          "The master core on a virtual clock without sockets: one NDJSON input per stdin line\n"
+          "(config, recv, command, advance, save, restore), one NDJSON output line per input\n"
+          "on stdout, logs on stderr. docs/driver.md has the protocol.\n");
+      return 0;
+    }
+    if (a == "--trace" || a.rfind("--trace=", 0) == 0) {
+      std::string f = a == "--trace" ? (i + 1 < argc ? argv[++i] : "") : a.substr(8);
+      trace = std::fopen(f.c_str(), "w");
+      if (trace == nullptr) {
+        std::fprintf(stderr, "ev3-master: bad value for --trace: cannot open '%s'\n", f.c_str());
+        return 2;
+      }
+      continue;
+    }
+    std::fprintf(stderr, "ev3-master: --driver takes only --trace FILE (got '%s')\n", a.c_str());
+    return 2;
+  }
+  static Driver d(trace);
+  const int rc = d.run();
+  if (trace != nullptr) std::fclose(trace);
+  return rc;
+}
+
+}  // namespace ev3master

@@ -1,0 +1,121 @@
+"""Relay and election with real programs over loopback UDP (docs/programs.md "Relay and election"):
+ev3-master and three ev3-agent, all with --election; the master is killed (SIGKILL); the agents
+elect one of them master of epoch 2 (the lowest --score), the others follow it, and its
+--master-script commands take effect. With broadcast lists that make a line (#1 and #3 do not hear
+each other), #3 gets through #2's relay and answers the new master's PINGs and commands through it.
+
+These runs pass `--trace=FILE` themselves: their agent traces contain Election.tla actions, which
+the AgentLogic trace check (conftest) does not model."""
+
+from __future__ import annotations
+
+import json
+import re
+import signal
+import time
+from pathlib import Path
+
+from ev3net import Program, free_ports, read_status, wait_until
+
+HB, LOSS, PAUSED = 100, 600, 1200          # ms; back-off before standing: 3000 + score x 100
+SCORES = (1, 20, 40)
+
+
+def log_lines(tmp: Path, name: str) -> list[str]:
+    p = tmp / f"{name}.log"
+    return p.read_text(errors="replace").splitlines() if p.exists() else []
+
+
+def trace(tmp: Path, name: str) -> list[dict]:
+    p = tmp / f"{name}.nd"
+    return [json.loads(l) for l in p.read_text().splitlines() if l.strip()] if p.exists() else []
+
+
+def start_fleet(master_exe, agent_exe, programs, tmp: Path, hears: dict[int, list[int]]):
+    mport, *aports = free_ports(4)
+    status = tmp / "status.json"
+    master = Program(master_exe, ["--port", str(mport), "--bind", "127.0.0.1", "--election",
+                                  "--state-file", str(tmp / "master.state"), "--status-json", str(status),
+                                  *sum((["--broadcast", f"127.0.0.1:{p}"] for p in aports), []),
+                                  f"--trace={tmp / 'master.nd'}", "--log-file", str(tmp / "master.log")],
+                     tmp, "master")
+    script = tmp / "script.txt"
+    script.write_text("wait 1.5\nbehaviour all wait seconds=0.5\nstart all\n")
+    for i, p in enumerate(aports):
+        (tmp / f"s{i + 1}").mkdir()
+        programs.append(Program(agent_exe, [
+            "--port", str(p), "--bind", "127.0.0.1",
+            *sum((["--broadcast", f"127.0.0.1:{q}"] for q in [mport] + [aports[j] for j in hears[i]]), []),
+            "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
+            "--election", "--score", str(SCORES[i]), "--state-dir", str(tmp / f"s{i + 1}"),
+            "--master-script", str(script), "--sysfs-root", str(tmp / "nosys"),
+            f"--trace={tmp / f'agent{i + 1}.nd'}", "--log-level", "2", "--log-file", str(tmp / f"agent{i + 1}.log")],
+            tmp, f"agent{i + 1}"))
+    ags = wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == 3 and
+                     all(a["state"] == "ACTIVE" for a in s["agents"]) and s["agents"], 5, "three ACTIVE agents")
+    ids = {}
+    for i in range(3):
+        m = wait_until(lambda: next((re.search(r"state ACTIVE \(id (\d+)\)", l) for l in log_lines(tmp, f"agent{i + 1}")
+                                     if "state ACTIVE (id" in l), None), 2, "agent id")
+        ids[i] = int(m.group(1))
+    assert sorted(ids.values()) == sorted(a["id"] for a in ags)
+    # An agent stands only once it knows the membership: the PC's next LEADER (every second) lists them.
+    wait_until(lambda: all(any(r["action"] == "HandleHeartbeat" and r["args"]["msg"].count(":") >= 8
+                               for r in trace(tmp, f"agent{i + 1}")) for i in range(3)), 3, "LEADER with the members")
+    master.stop(signal.SIGKILL)  # the PC dies
+    master.close()
+    return ids
+
+
+def winner_of(tmp: Path) -> list[tuple[int, str]]:
+    return [(i, l) for i in range(3) for l in log_lines(tmp, f"agent{i + 1}") if "election: won epoch" in l]
+
+
+def test_election_after_the_master_is_killed(master_exe, agent_exe, programs, tmp_path):
+    ids = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1, 2], 1: [0, 2], 2: [0, 1]})
+    t0 = time.monotonic()
+    wait_until(lambda: winner_of(tmp_path), 12, "an agent to win an election")
+    won = winner_of(tmp_path)
+    assert len(won) == 1 and won[0][0] == 0 and "won epoch 2 (score 1)" in won[0][1], won  # the lowest score
+    leader = ids[0]
+    # The others follow it (ACTIVE, epoch 2), directly.
+    for i in (1, 2):
+        wait_until(lambda: any(f"following master {leader} (epoch 2) directly" in l
+                               for l in log_lines(tmp_path, f"agent{i + 1}")), 4, f"agent{i + 1} to follow")
+    # Its --master-script (after 1.5 s: a relayed agent needs up to relay_retry to join): BEHAVIOUR + START to both followers, which run it to ACTION_OK.
+    for i in (1, 2):
+        wait_until(lambda: any(f"master: agent {ids[i]}: ACTION_OK" in l for l in log_lines(tmp_path, "agent1")),
+                   5, f"ACTION_OK of agent {ids[i]} at the new master")
+    # Exactly one master in epoch 2 (traces: BecomeMaster), epoch 2 durable on every agent.
+    masters = [i for i in range(3) if any(r["action"] == "BecomeMaster" for r in trace(tmp_path, f"agent{i + 1}"))]
+    assert masters == [0]
+    for i in range(3):
+        assert (tmp_path / f"s{i + 1}" / "ev3-agent.state").read_text().startswith("epoch=2\n")
+    # Commands acted on in epoch 2 came as EPOCH_CMD from the new master.
+    applied = [r for r in trace(tmp_path, "agent2") if r["action"] == "ApplyCommand"]
+    assert applied and all(r["args"]["msg"].split(":")[0] == str(leader) for r in applied)
+    assert time.monotonic() - t0 < 15
+
+
+def test_relay_for_an_agent_that_hears_only_a_peer(master_exe, agent_exe, programs, tmp_path):
+    # #1 and #3 do not hear each other: #3 reaches the new master (#1) only through #2.
+    ids = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1], 1: [0, 2], 2: [1]})
+    leader, relay, far = ids[0], ids[1], ids[2]
+    wait_until(lambda: any(f"following master {leader} (epoch 2) through the relay of agent {relay}" in l
+                           for l in log_lines(tmp_path, "agent3")), 14, "agent3 to follow through agent2's relay")
+    # The new master's commands reach #3 through the relay and its answers come back.
+    wait_until(lambda: any(f"master: agent {far}: ACTION_OK" in l for l in log_lines(tmp_path, "agent1")), 5,
+               f"ACTION_OK of agent {far} (relayed) at the new master")
+    assert any(f"master: agent {far}: START acknowledged" in l for l in log_lines(tmp_path, "agent1"))
+    # PINGs answered through the relay: #3 stays synced well past the master timeout.
+    time.sleep(3 * LOSS / 1000)
+    t3 = trace(tmp_path, "agent3")  # (traces are flushed every 0.2 s)
+    acts = [r["action"] for r in t3]
+    assert "RequestRelay" in acts and "AcceptRelay" in acts
+    offer = [r for r in t3 if r["action"] == "AcceptRelay"][-1]
+    assert offer["args"]["msg"].split(":")[3] == "22" and offer["changed"]["via"] == relay  # RELAY_OFFER from #2
+    k = max(j for j, r in enumerate(t3) if r["action"] == "AcceptRelay")
+    assert not any(r.get("changed", {}).get("state") == "PANIC" for r in t3[k:]), "agent3 lost its relayed master"
+    assert any(r["action"] == "RecvPong" for r in t3[k:])
+    relay_acts = [r["action"] for r in trace(tmp_path, "agent2")]
+    assert "OfferRelay" in relay_acts and "HandleAccept" in relay_acts and "Forward" in relay_acts
