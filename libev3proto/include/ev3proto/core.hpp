@@ -119,8 +119,7 @@ enum class Action : std::uint8_t {
   // Agent, internal (AgentLogic InternalNames).
   Tick, SyncTimeout, HeartbeatLost, ActionOk, ActionInterrupted, ActionFailed, SensorReport,
   DeviceUnplugged, DevicePlugged, BatteryLow,
-  // Master (Fleet.tla). MasterTick is the master's part of Fleet's Tick; MasterCommand and
-  // MasterReport are operator-side extensions the spec abstracts (docs/core.md).
+  // Master (MasterLogic.tla, same names; MasterTick is one resend period).
   MasterSync, MasterAnswer, MasterPing, MasterTick, MasterCommand, MasterReport,
   // Relay and election (spec/tla/Election.tla), agent and master side. Election's Timeout is the
   // agent's HeartbeatLost; SendCommand is MasterCommand (its EPOCH_CMD / RELAY wrapping).
@@ -140,7 +139,7 @@ constexpr std::string_view to_string(Action a) noexcept {
       "RecvResume", "RecvStandby", "RecvContinue", "RecvRestart", "RecvDuplicate", "Ignore",
       "Tick", "SyncTimeout", "HeartbeatLost", "ActionOk", "ActionInterrupted", "ActionFailed",
       "SensorReport", "DeviceUnplugged", "DevicePlugged", "BatteryLow",
-      "MasterSync", "MasterAnswer", "MasterPing", "Tick", "MasterCommand", "MasterReport",
+      "MasterSync", "MasterAnswer", "MasterPing", "MasterTick", "MasterCommand", "MasterReport",
       "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
       "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
       "Forward", "ApplyCommand", "MasterRoute", "MasterHandover"};

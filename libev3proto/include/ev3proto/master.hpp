@@ -1,12 +1,12 @@
 /// @file master.hpp
-/// @brief The master's protocol state machine of spec/tla/Fleet.tla (MasterSync, MasterAnswer,
-///        MasterPing, the master's part of Tick), with no I/O.
+/// @brief The master's protocol state machine of spec/tla/MasterLogic.tla (MasterSync, MasterAnswer,
+///        MasterPing, MasterReport, MasterCommand, MasterTick), with no I/O.
 ///
 /// Sans-I/O like the agent: datagrams, time and operator commands in; datagrams (to peer handles),
 /// operator events and the next deadline out. The master runs on a PC (or a robot acting as one),
 /// so it may allocate. Ids 2..49999 are handed out in order and never reused within a run; pass the
-/// last run's next_id / next_msgid back in (stable storage) after a restart, as Fleet.tla's crash
-/// keeps nextId and msgid.
+/// last run's next_id / next_msgid back in (stable storage) after a restart, as MasterLogic's
+/// CrashMaster keeps nextId and msgid.
 #pragma once
 
 #include <cstddef>
@@ -133,25 +133,48 @@ struct MasterTransmit {
   std::string bytes;  ///< The encoded datagram (send it 3 times, as the transport does).
 };
 
-/// One registry entry (Fleet.tla RegEntry, plus what the operator needs).
+/// The state the operator last asked an agent to be in (MasterLogic DesiredAfter): START/RESUME ->
+/// WORKING, PAUSE -> PAUSED, STOP/STANDBY -> ACTIVE; other commands keep it.
+constexpr AgentState desired_after(MsgType command, AgentState desired) noexcept {
+  switch (command) {
+    case MsgType::START:
+    case MsgType::RESUME: return AgentState::WORKING;
+    case MsgType::PAUSE: return AgentState::PAUSED;
+    case MsgType::STOP:
+    case MsgType::STANDBY: return AgentState::ACTIVE;
+    default: return desired;
+  }
+}
+
+/// True for the commands that set the desired state (START, RESUME, PAUSE, STOP, STANDBY).
+constexpr bool sets_desired(MsgType command) noexcept {
+  return desired_after(command, AgentState::IDLE) != AgentState::IDLE;
+}
+
+/// One registry entry (MasterLogic EntryType; spec field names in brackets), plus what the operator
+/// needs.
 struct RegistryEntry {
-  std::uint16_t ann = 0;        ///< Announced id (temporary, or the old id of a PANIC agent).
-  std::uint16_t id = 0;         ///< Assigned id.
-  Peer peer = 0;                ///< Where the agent is (spec ep).
-  bool synced = false;          ///< The agent acknowledged MASTER.
+  std::uint16_t ann = 0;        ///< [ann] Announced id (temporary, or the old id of a PANIC agent).
+  std::uint16_t id = 0;         ///< [id] Assigned id.
+  Peer peer = 0;                ///< [ep] Where the agent is.
+  bool synced = false;          ///< [synced] The agent acknowledged MASTER.
   bool has_state = false;       ///< A PING reported @c state.
   AgentState state = AgentState::IDLE; ///< State from the last PING.
-  Millis heard = 0;             ///< Last heard (spec quiet = now - heard).
-  std::string behaviour;        ///< Behaviour the agent acknowledged last.
-  bool pending = false;         ///< A command (or MASTER while !synced) waits for its answer.
-  std::uint32_t mid = 0;        ///< msgid of the pending command.
+  Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
+  std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
+  std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
+  AgentState desired = AgentState::ACTIVE; ///< [desired] What the operator last asked (desired_after).
+  bool desired_known = true;    ///< False for an entry adopted by an elected master (no reconcile
+                                ///< until the operator commands it; not in MasterLogic).
+  bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
+  std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
   Millis sent_at = 0;           ///< When it was last sent.
-  std::uint32_t resends = 0;    ///< Resends so far.
-  std::deque<Command> queue;    ///< Operator commands; the front one is pending once synced.
-  std::uint32_t last_msgid = 0; ///< Highest msgid heard from the agent (orders its PANICs).
+  std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
+  std::deque<Command> queue;    ///< [queue] Operator commands; the front one is pending once synced.
+  std::uint32_t last_msgid = 0; ///< [hi] Highest msgid heard from the agent (orders its PANICs).
   std::uint16_t via = 0;        ///< The relay this agent is reached through (0 = direct; RELAY_ROUTE).
 
-  /// Spec job: "MASTER", the pending command's name, or "DONE".
+  /// "MASTER" while not synced, the pending command's name, or "DONE" (for displays).
   std::string_view job() const noexcept {
     if (!synced) return "MASTER";
     if (pending && !queue.empty()) return to_string(queue.front().type);
@@ -161,8 +184,8 @@ struct RegistryEntry {
 
 /// One trace record of the master: a spec action, its message, and the master's variables.
 struct MasterTraceRecord {
-  Action action = Action::MasterTick; ///< MasterSync, MasterAnswer, MasterPing, MasterTick (Tick),
-                                      ///< MasterCommand, MasterReport.
+  Action action = Action::MasterTick; ///< MasterSync, MasterAnswer, MasterPing, MasterTick,
+                                      ///< MasterCommand, MasterReport (and the election's).
   std::string_view msg;       ///< The datagram received (receive actions).
   Millis now = 0;             ///< Time.
   std::string reg_before;     ///< Registry (spec master.reg) as JSON, before.
@@ -199,8 +222,8 @@ class Master {
   /// Time moves to @p now: resends and drops due up to then happen at their own times.
   void advance(Millis now) {
     for (Millis t = next_deadline(); t <= now && t != kNever; t = next_deadline()) {
+      Snapshot s = snap();  // before time moves: MasterTick's record shows quiet growing
       if (t > now_) now_ = t;
-      Snapshot s = snap();
       if (HeartbeatOk()) {
         Heartbeat();
         record(Action::Heartbeat, s, {});
@@ -218,7 +241,7 @@ class Master {
   /// Same as advance().
   void handle_timeout(Millis now) { advance(now); }
 
-  /// A datagram arrived from @p from at @p now (spec MasterRecv). Returns the action taken
+  /// A datagram arrived from @p from at @p now (spec Receive). Returns the action taken
   /// (Ignore when it does not decode or is not for the master).
   Action handle_datagram(std::string_view bytes, Peer from, Millis now) {
     advance(now);
@@ -284,7 +307,8 @@ class Master {
   }
 
   /// An operator command for agent @p agent (0 = every registered agent) at @p now. Queued behind
-  /// the agent's pending command; sent at once when none is pending. Unknown ids are reported.
+  /// the agent's pending command; sent at once when none is pending; the agent's desired state
+  /// follows it (desired_after). Unknown ids are reported.
   void command(std::uint16_t agent, const Command& c, Millis now) {
     advance(now);
     Snapshot s = snap();
@@ -514,6 +538,7 @@ class Master {
     e.id = id;
     e.peer = from;
     e.synced = true;
+    e.desired_known = false;  // what the fleet's earlier master wanted is not known here
     e.heard = now_;
     return reg_.emplace(id, std::move(e)).first;
   }
@@ -538,9 +563,10 @@ class Master {
     return k;
   }
 
-  /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent gets its pending
-  /// datagram again; a new one gets an id (its own if s is an assignable id, else the next free)
-  /// and MASTER. An entry with the same peer is replaced.
+  /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent is heard and gets its
+  /// pending datagram again; a PANIC from a synced entry's own id with a msgid above every msgid
+  /// heard from it re-syncs it (new MASTER naming that id, queue kept). A new one gets an id (its
+  /// own if s is an assignable id, else the next) and MASTER; an entry with the same peer is replaced.
   void MasterSync(const Message& m, Peer from) {
     const std::uint16_t s = m.sender;
     const std::vector<std::uint16_t> k = Known(s);
@@ -549,9 +575,8 @@ class Master {
         RegistryEntry& e = reg_[id];
         e.heard = now_;
         if (m.type == MsgType::PANIC && e.synced && s == e.id && m.msgid > e.last_msgid) {
-          // Deviation from Fleet.tla (docs/core.md): the agent lost us while we still hold it
-          // (its PONGs were lost); the spec's Pending(DONE) = {} would leave it in PANIC forever.
-          // Sync it again: a new MASTER, its queued commands follow once it ACKs.
+          // The agent lost us while we still hold it (its PONGs were lost): sync it again, a new
+          // MASTER; its queued commands follow once it ACKs, reconcile restores its desired state.
           e.synced = false;
           e.ann = s;  // MASTER names the id the agent holds now
           e.pending = true;
@@ -609,7 +634,10 @@ class Master {
       Command c = std::move(e.queue.front());
       e.queue.pop_front();
       if (ack) {
-        if (c.type == MsgType::BEHAVIOUR) e.behaviour = c.name;
+        if (c.type == MsgType::BEHAVIOUR) {
+          e.behaviour = c.name;
+          e.behaviour_args = c.args;
+        }
         push(OperatorEvent::Kind::acked, e.id, c.type, {});
       } else {
         push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)));
@@ -619,6 +647,8 @@ class Master {
   }
 
   /// Spec MasterPing: PONG at once to a registered agent (which is heard); others get nothing.
+  /// Reconcile: a synced agent with nothing pending or queued whose reported state is not the
+  /// desired one gets the commands that restore it (Restore), after the PONG.
   void MasterPing(const Message& m, Peer from) {
     auto it = reg_.find(m.sender);
     if (it == reg_.end()) return;
@@ -634,6 +664,28 @@ class Master {
     char num[10];
     const std::string_view p[1] = {number(m.msgid, num)};
     send(from, e.id, MsgType::PONG, p, 1);
+    if (st && e.synced && !e.pending && e.queue.empty() && e.desired_known) {
+      Restore(*st, e);
+      start_next(e);
+    }
+  }
+
+  /// Spec Restore(st, desired, beh): queues the commands that bring an agent reporting @p st back
+  /// to its desired state. PAUSED but WORKING wanted: RESUME (a lost heartbeat paused it); ACTIVE
+  /// but WORKING wanted with a behaviour acked: BEHAVIOUR, START (a resync unloaded it); WORKING
+  /// but PAUSED wanted: PAUSE; WORKING or PAUSED but ACTIVE wanted: STOP; otherwise nothing.
+  static void Restore(AgentState st, RegistryEntry& e) {
+    const AgentState d = e.desired;
+    if (d == AgentState::WORKING && st == AgentState::PAUSED) {
+      e.queue.push_back(Command::simple(MsgType::RESUME));
+    } else if (d == AgentState::WORKING && st == AgentState::ACTIVE && !e.behaviour.empty()) {
+      e.queue.push_back(Command::assign(e.behaviour, e.behaviour_args));
+      e.queue.push_back(Command::simple(MsgType::START));
+    } else if (d == AgentState::PAUSED && st == AgentState::WORKING) {
+      e.queue.push_back(Command::simple(MsgType::PAUSE));
+    } else if (d == AgentState::ACTIVE && (st == AgentState::WORKING || st == AgentState::PAUSED)) {
+      e.queue.push_back(Command::simple(MsgType::STOP));
+    }
   }
 
   /// Reports are consumed (Fleet.tla); the operator sees each once (copies are deduplicated).
@@ -647,7 +699,7 @@ class Master {
     push(OperatorEvent::Kind::report, m.sender, m.type, std::move(text));
   }
 
-  /// Operator command (not a spec action: Fleet.tla's master issues BEHAVIOUR then START itself).
+  /// Spec MasterCommand: the operator's command for agent @p agent (0 = all: not in the spec).
   void MasterCommand(std::uint16_t agent, const Command& c) {
     if (agent == kBroadcastId) {
       for (auto& kv : reg_) enqueue(kv.second, c);
@@ -661,8 +713,9 @@ class Master {
     enqueue(it->second, c);
   }
 
-  /// The master's part of Fleet's Tick at now_: drop agents quiet for the drop timeout, resend due
-  /// pending commands (an operator command fails after max_resends resends).
+  /// Spec MasterTick at now_: drop agents quiet for the drop timeout, resend due pending datagrams
+  /// (an operator command fails after max_resends resends; MASTER is resent until ACK or drop and
+  /// its resends are not counted).
   void MasterTick() {
     for (auto it = reg_.begin(); it != reg_.end();) {
       RegistryEntry& e = it->second;
@@ -679,7 +732,7 @@ class Master {
           e.pending = false;
           start_next(e);
         } else {
-          ++e.resends;
+          if (e.synced) ++e.resends;
           e.sent_at = now_;
           send_pending(e);
         }
@@ -690,6 +743,10 @@ class Master {
 
   void enqueue(RegistryEntry& e, const Command& c) {
     e.queue.push_back(c);
+    if (sets_desired(c.type)) {
+      e.desired = desired_after(c.type, e.desired);
+      e.desired_known = true;
+    }
     if (e.synced && !e.pending) start_next(e);
   }
 
@@ -782,15 +839,38 @@ class Master {
     return v + "]";
   }
 
-  /// The registry as the spec's master.reg (JSON array), for trace records.
+  /// The registry as the spec's ms.reg (JSON array of MasterLogic entries, by id), for trace
+  /// records: ann, id, ep, synced, pending, mid, resends, queue ([{type, name}], name "NONE" but
+  /// for BEHAVIOUR), desired, beh ("NONE"), quiet (now - heard, ms), hi.
   std::string reg_json() const {
+    auto str = [](std::string& s, std::string_view v) {
+      s += '"';
+      for (char ch : v) {
+        const auto c = static_cast<unsigned char>(ch);
+        if (c == '"' || c == '\\') s += '\\';
+        s += (c < 0x20 || c > 0x7E) ? '?' : ch;
+      }
+      s += '"';
+    };
     std::string s = "[";
     for (const auto& kv : reg_) {
       const RegistryEntry& e = kv.second;
       if (s.size() > 1) s += ',';
       s += "{\"ann\":" + std::to_string(e.ann) + ",\"id\":" + std::to_string(e.id) +
-           ",\"ep\":" + std::to_string(e.peer) + ",\"job\":\"" + std::string(e.job()) +
-           "\",\"mid\":" + std::to_string(e.mid) + ",\"quiet\":" + std::to_string(now_ - e.heard) + "}";
+           ",\"ep\":" + std::to_string(e.peer) + ",\"synced\":" + (e.synced ? "true" : "false") +
+           ",\"pending\":" + (e.pending ? "true" : "false") + ",\"mid\":" + std::to_string(e.mid) +
+           ",\"resends\":" + std::to_string(e.resends) + ",\"queue\":[";
+      bool first = true;
+      for (const Command& c : e.queue) {
+        if (!first) s += ',';
+        first = false;
+        s += "{\"type\":\"" + std::string(to_string(c.type)) + "\",\"name\":";
+        str(s, c.type == MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
+        s += '}';
+      }
+      s += "],\"desired\":\"" + std::string(to_string(e.desired)) + "\",\"beh\":";
+      str(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
+      s += ",\"quiet\":" + std::to_string(now_ - e.heard) + ",\"hi\":" + std::to_string(e.last_msgid) + "}";
     }
     return s + "]";
   }

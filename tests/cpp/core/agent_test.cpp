@@ -231,7 +231,8 @@ TEST(Timers, DefaultsAndSpecMapping) {
 
 TEST(Names, ActionAndEnumSpellings) {
   EXPECT_EQ(to_string(Action::RecvDuplicate), "RecvDuplicate");
-  EXPECT_EQ(to_string(Action::MasterTick), "Tick");
+  EXPECT_EQ(to_string(Action::MasterTick), "MasterTick");
+  EXPECT_EQ(to_string(Action::Tick), "Tick");
   EXPECT_EQ(to_string(static_cast<Action>(200)), "");
   EXPECT_EQ(to_string(Refusal::missing_device), "missing device");
   EXPECT_EQ(to_string(Wait::RESTART), "RESTART");

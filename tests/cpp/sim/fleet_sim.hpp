@@ -102,6 +102,9 @@ class Fleet {
     flush();
   }
 
+  /// Changes the loss probability from now on (1.0: a partition; the nodes keep running).
+  void set_loss(double loss) { net_.loss = loss; }
+
   Millis now() const { return now_; }
   Agent<>& agent(std::size_t i) { return *agents_[i]; }
   std::size_t size() const { return agents_.size(); }
