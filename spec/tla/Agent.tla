@@ -66,33 +66,39 @@ Do(name, args, r) ==
     /\ lastAction' = [name |-> name, args |-> args]
 
 -----------------------------------------------------------------------------
+(* Timeouts are urgent: while SyncTimeout or HeartbeatLost is due, the     *)
+(* agent takes no other step (no receive, no device or behaviour event, no  *)
+(* Tick); the C++ core fires due timeouts first.                           *)
+NoTimeoutDue == ~L!TimeoutDue(ag)
+
+-----------------------------------------------------------------------------
 (* Receive handlers: the environment delivers m; the agent dispatches it.   *)
-(* Exactly one of them is enabled for each m.                               *)
+(* Exactly one of them is enabled for each m while no timeout is due.       *)
 
 \* Agent (IDLE/PANIC) takes MASTER naming its id: ACK, ACTIVE with new id.
-RecvMaster(m) == L!RecvMasterOk(ag, m) /\ Do("RecvMaster", <<m>>, L!RecvMaster(ag, m))
+RecvMaster(m) == NoTimeoutDue /\ L!RecvMasterOk(ag, m) /\ Do("RecvMaster", <<m>>, L!RecvMaster(ag, m))
 \* Synced agent hears PONG: heartbeat.
-RecvPong(m) == L!RecvPongOk(ag, m) /\ Do("RecvPong", <<m>>, L!RecvPong(ag, m))
+RecvPong(m) == NoTimeoutDue /\ L!RecvPongOk(ag, m) /\ Do("RecvPong", <<m>>, L!RecvPong(ag, m))
 \* Fresh BEHAVIOUR: ACK and load, or NOT with a reason.
-RecvBehaviour(m) == L!RecvBehaviourOk(ag, m) /\ Do("RecvBehaviour", <<m>>, L!RecvBehaviour(ag, m))
+RecvBehaviour(m) == NoTimeoutDue /\ L!RecvBehaviourOk(ag, m) /\ Do("RecvBehaviour", <<m>>, L!RecvBehaviour(ag, m))
 \* Fresh START: run the behaviour from its start, or NOT.
-RecvStart(m) == L!RecvStartOk(ag, m) /\ Do("RecvStart", <<m>>, L!RecvStart(ag, m))
+RecvStart(m) == NoTimeoutDue /\ L!RecvStartOk(ag, m) /\ Do("RecvStart", <<m>>, L!RecvStart(ag, m))
 \* Fresh STOP: WORKING/PAUSED -> ACTIVE, or NOT.
-RecvStop(m) == L!RecvStopOk(ag, m) /\ Do("RecvStop", <<m>>, L!RecvStop(ag, m))
+RecvStop(m) == NoTimeoutDue /\ L!RecvStopOk(ag, m) /\ Do("RecvStop", <<m>>, L!RecvStop(ag, m))
 \* Fresh PAUSE: WORKING -> PAUSED, or NOT.
-RecvPause(m) == L!RecvPauseOk(ag, m) /\ Do("RecvPause", <<m>>, L!RecvPause(ag, m))
+RecvPause(m) == NoTimeoutDue /\ L!RecvPauseOk(ag, m) /\ Do("RecvPause", <<m>>, L!RecvPause(ag, m))
 \* Fresh RESUME: PAUSED -> WORKING, or NOT.
-RecvResume(m) == L!RecvResumeOk(ag, m) /\ Do("RecvResume", <<m>>, L!RecvResume(ag, m))
+RecvResume(m) == NoTimeoutDue /\ L!RecvResumeOk(ag, m) /\ Do("RecvResume", <<m>>, L!RecvResume(ag, m))
 \* Fresh STANDBY: WORKING -> ACTIVE, or NOT.
-RecvStandby(m) == L!RecvStandbyOk(ag, m) /\ Do("RecvStandby", <<m>>, L!RecvStandby(ag, m))
+RecvStandby(m) == NoTimeoutDue /\ L!RecvStandbyOk(ag, m) /\ Do("RecvStandby", <<m>>, L!RecvStandby(ag, m))
 \* Fresh CONTINUE: end the wait after ACTION_INTERR, or NOT.
-RecvContinue(m) == L!RecvContinueOk(ag, m) /\ Do("RecvContinue", <<m>>, L!RecvContinue(ag, m))
+RecvContinue(m) == NoTimeoutDue /\ L!RecvContinueOk(ag, m) /\ Do("RecvContinue", <<m>>, L!RecvContinue(ag, m))
 \* Fresh RESTART: rerun after ACTION_ERR, or NOT.
-RecvRestart(m) == L!RecvRestartOk(ag, m) /\ Do("RecvRestart", <<m>>, L!RecvRestart(ag, m))
+RecvRestart(m) == NoTimeoutDue /\ L!RecvRestartOk(ag, m) /\ Do("RecvRestart", <<m>>, L!RecvRestart(ag, m))
 \* A copy of an answered command or MASTER: the stored answer again.
-RecvDuplicate(m) == L!RecvDuplicateOk(ag, m) /\ Do("RecvDuplicate", <<m>>, L!RecvDuplicate(ag, m))
+RecvDuplicate(m) == NoTimeoutDue /\ L!RecvDuplicateOk(ag, m) /\ Do("RecvDuplicate", <<m>>, L!RecvDuplicate(ag, m))
 \* Anything else: dropped, nothing emitted.
-Ignore(m) == L!Handler(ag, m) = "Ignore" /\ ag.state # "OFF"
+Ignore(m) == NoTimeoutDue /\ L!Handler(ag, m) = "Ignore" /\ ag.state # "OFF"
              /\ Do("Ignore", <<m>>, L!Ignore(ag, m))
 
 Receive(m) ==
@@ -104,26 +110,27 @@ Receive(m) ==
 (* Internal actions of the agent.                                           *)
 
 \* The agent's timer fires (once per tick): maybe AGENT/PING/PANIC goes out.
+\* (TickOk includes ~TimeoutDue.)
 Tick == L!TickOk(ag) /\ Do("Tick", <<>>, L!Tick(ag))
 \* IDLE for TSync ticks without MASTER: PANIC.
 SyncTimeout == L!SyncTimeoutOk(ag) /\ Do("SyncTimeout", <<>>, L!SyncTimeout(ag))
 \* Master silent for TLoss (TPaused in PAUSED) ticks.
 HeartbeatLost == L!HeartbeatLostOk(ag) /\ Do("HeartbeatLost", <<>>, L!HeartbeatLost(ag))
 \* The behaviour finished its current action.
-ActionOk == L!ActionOkOk(ag) /\ Do("ActionOk", <<>>, L!ActionOk(ag))
+ActionOk == NoTimeoutDue /\ L!ActionOkOk(ag) /\ Do("ActionOk", <<>>, L!ActionOk(ag))
 \* A warning event the behaviour cannot resolve interrupts it.
-ActionInterrupted(e) == L!ActionInterruptedOk(ag, e)
+ActionInterrupted(e) == NoTimeoutDue /\ L!ActionInterruptedOk(ag, e)
                         /\ Do("ActionInterrupted", <<e>>, L!ActionInterrupted(ag, e))
 \* The current action failed.
-ActionFailed == L!ActionFailedOk(ag) /\ Do("ActionFailed", <<>>, L!ActionFailed(ag))
+ActionFailed == NoTimeoutDue /\ L!ActionFailedOk(ag) /\ Do("ActionFailed", <<>>, L!ActionFailed(ag))
 \* The behaviour reports a sensor reading.
-SensorReport == L!SensorReportOk(ag) /\ Do("SensorReport", <<>>, L!SensorReport(ag))
+SensorReport == NoTimeoutDue /\ L!SensorReportOk(ag) /\ Do("SensorReport", <<>>, L!SensorReport(ag))
 \* The device registry detects an unplugged device.
-DeviceUnplugged == L!DeviceUnpluggedOk(ag) /\ Do("DeviceUnplugged", <<>>, L!DeviceUnplugged(ag))
+DeviceUnplugged == NoTimeoutDue /\ L!DeviceUnpluggedOk(ag) /\ Do("DeviceUnplugged", <<>>, L!DeviceUnplugged(ag))
 \* The device is back.
-DevicePlugged == L!DevicePluggedOk(ag) /\ Do("DevicePlugged", <<>>, L!DevicePlugged(ag))
+DevicePlugged == NoTimeoutDue /\ L!DevicePluggedOk(ag) /\ Do("DevicePlugged", <<>>, L!DevicePlugged(ag))
 \* The battery watcher reports low battery.
-BatteryLow == L!BatteryLowOk(ag) /\ Do("BatteryLow", <<>>, L!BatteryLow(ag))
+BatteryLow == NoTimeoutDue /\ L!BatteryLowOk(ag) /\ Do("BatteryLow", <<>>, L!BatteryLow(ag))
 
 Next ==
     \/ \E m \in EnvMsgs : Receive(m)

@@ -104,11 +104,15 @@ Lose(e) == /\ budget.loss > 0
 (* Agents.                                                                  *)
 
 \* Agent a receives datagram e (the copy stays in flight if duplicated).
+\* Timeouts are urgent (as in Agent.tla): while one of a's timeouts is due,
+\* nothing is delivered to a -- the timeout fires first (AgentTimeout); the
+\* network may still lose the datagram or deliver others.
 AgentRecv(a, e, dup) ==
     LET r == L!Receive(ag[a], e.m)
         s == IF L!Handler(ag[a], e.m) = "RecvMaster" THEN sess[a] + 1 ELSE sess[a]
     IN
     /\ e.to = a
+    /\ ~L!TimeoutDue(ag[a])
     /\ ag' = [ag EXCEPT ![a] = r.ag]
     /\ sess' = [sess EXCEPT ![a] = s]
     /\ net' = (IF dup THEN net ELSE net \ {e}) \cup Emit(a, r.out, s, r.ag)
@@ -187,9 +191,10 @@ DeliverAny == \E e \in net : Deliver(e, FALSE)
 \* failures, drops).
 Tick ==
     LET t == [a \in Agents |-> L!Tick(ag[a])]
-        \* a running behaviour finishes one action per tick: ACTION_OK
+        \* a running behaviour finishes one action per tick: ACTION_OK, unless
+        \* the tick made a timeout due (it fires first: AgentTimeout)
         r == [a \in Agents |->
-                IF L!ActionOkOk(t[a].ag)
+                IF L!ActionOkOk(t[a].ag) /\ ~L!TimeoutDue(t[a].ag)
                 THEN [ag |-> L!ActionOk(t[a].ag).ag,
                       out |-> t[a].out \o L!ActionOk(t[a].ag).out]
                 ELSE t[a]]
