@@ -186,6 +186,17 @@ def fmt(v):
     return str(v)
 
 
+def skey(v):
+    """A deterministic sort key for a parsed TLC value."""
+    if isinstance(v, dict):
+        return '[' + ','.join('%s|->%s' % (k, skey(x)) for k, x in sorted(v.items())) + ']'
+    if isinstance(v, (set, frozenset)):
+        return '{' + ','.join(sorted(skey(x) for x in v)) + '}'
+    if isinstance(v, tuple):
+        return '<<' + ','.join(skey(x) for x in v) + '>>'
+    return fmt(v)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('trace')
@@ -224,7 +235,9 @@ def main():
         notes.append((k, ' '.join(fmt(x) for x in act)))
         net = st.get(a.net, frozenset())
         prev = states[k - 1].get(a.net, frozenset()) if k else frozenset()
-        for m in net - prev:
+        # Sorted: set order depends on Python's per-process string hashing, and the
+        # chart must be byte-identical from run to run (tools/spec.py diagram --check).
+        for m in sorted(net - prev, key=skey):
             open_msgs.setdefault(m, k)
         name = str(act[0])
         for m in list(open_msgs):

@@ -1,0 +1,112 @@
+--------------------------- MODULE MCElectionLive ---------------------------
+(***************************************************************************)
+(* Liveness of Election under stabilisation (docs/election.md, section 4). *)
+(*                                                                         *)
+(* Faults stop after a budget: MaxFaults crashes and cuts, MaxLoss lost    *)
+(* datagrams; a cut link may stay cut for ever (Heal has no fairness).     *)
+(* Every protocol action is weakly fair: a node that can act eventually   *)
+(* does, and a datagram in flight to a node that is up and linked is       *)
+(* eventually handled.  Timers are modelled by two enabling conditions   *)
+(* (with Backoff = FALSE they are dropped: the broken variant):            *)
+(*   - relay first: an agent in PANIC stands only if no peer could offer  *)
+(*     it a relay (its RELAY_REQ got no offer: on a stable network any    *)
+(*     peer that can offer does so within the timeout);                    *)
+(*   - back-off: it stands only if no weaker agent it is linked to is     *)
+(*     itself without a master it hears (the weaker one's back-off is     *)
+(*     shorter, so its ELECT arrives first); a candidate stands again only *)
+(*     when its election is stalled: nobody can still vote for it.         *)
+(* Duplication is a fault too: a late copy of a datagram whose sender has *)
+(* moved on (a LEADER of a master that is gone, an offer its relay can no  *)
+(* longer honour, a RELAY_DROP older than the relay's current table) is    *)
+(* not delivered in these models (Current); without that, an endless      *)
+(* stream of duplicates of a dead master's heartbeat keeps agents from     *)
+(* standing, which TLC shows at once.  Safety with unbounded duplication   *)
+(* is checked by the other models.                                         *)
+(* No state constraint: TLC would take a pruned state for a final one.     *)
+(***************************************************************************)
+EXTENDS MCElection
+
+CONSTANT Backoff
+
+Weaker(n) == {a \in Agents : Score[a] < Score[n]}
+
+\* Some peer following a master over a direct link in its current epoch
+\* could answer n's RELAY_REQ.
+CanOffer(n) ==
+    \E p \in Agents \ {n} :
+        /\ Linked(n, p) /\ life[p] \in Followers /\ via[p] = NoNode
+        /\ leader[p] # NoNode /\ following[p] = epoch[p] /\ epoch[n] <= epoch[p]
+
+\* Nothing can still bring candidate n a vote or make it master.
+Stalled(n) ==
+    /\ ~ENABLED BecomeMaster(n)
+    /\ ~ENABLED (\E m \in net : HandleVote(n, m))
+    /\ ~\E m \in net : m.t = "ELECT" /\ m.src = n /\ m.e = epoch[n]
+                       /\ \E v \in Agents : ENABLED HandleElect(v, m)
+
+StandOK(n) ==
+    \/ ~Backoff
+    \/ n = PC
+    \/ /\ ~CanOffer(n)
+       /\ \A a \in Weaker(n) :
+            Linked(a, n) => life[a] = "DOWN" \/ (life[a] \in Followers /\ HeartbeatOK(a))
+       /\ life[n] = "CANDIDATE" => Stalled(n)
+
+Stand(n) == StartElection(n) /\ StandOK(n)
+
+\* The datagram is not a late copy of something its sender no longer means.
+Current(m) ==
+    CASE m.t = "HB" -> life[m.src] = "MASTER" /\ epoch[m.src] = m.e
+      [] m.t = "ROFFER" -> /\ life[m.src] \in Followers /\ via[m.src] = NoNode
+                           /\ leader[m.src] = m.x /\ following[m.src] = m.e
+      [] m.t = "RDROP" -> m.dst \notin relays[m.src]
+      [] OTHER -> TRUE
+
+Deliver(a, m) ==
+    /\ Current(m)
+    /\ \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
+       \/ RelayDropped(a, m)
+       \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
+       \/ Forward(a, m) \/ ApplyCommand(a, m)
+
+LiveNext ==
+    \/ \E a \in Agents : Timeout(a) \/ RequestRelay(a)
+    \/ \E n \in Nodes : Stand(n) \/ BecomeMaster(n) \/ Heartbeat(n) \/ Crash(n) \/ Restart(n)
+    \/ \E s \in Nodes, a \in CmdAgents : SendCommand(s, a)
+    \/ \E x, y \in Nodes : ({x, y} \in CutLinks /\ Cut(x, y)) \/ Heal(x, y)
+    \/ \E m \in net :
+         \/ Lose(m)
+         \/ HandleVote(m.dst, m) \/ HandleStale(m.dst, m)
+         \/ \E a \in Agents : Deliver(a, m)
+
+\* Weak fairness per node and kind of step (grouping all agents under one WF
+\* is too weak: one agent's steps would starve another's, and TLC finds such
+\* spurious loops at once).  Commands are off in these models.
+Fairness ==
+    /\ \A a \in Agents :
+         /\ WF_vars(Timeout(a)) /\ WF_vars(RequestRelay(a))
+         /\ WF_vars(\E m \in net : Current(m) /\ OfferRelay(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ AcceptRelay(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ HandleAccept(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ RelayDropped(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ HandleElect(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ HandleHeartbeat(a, m))
+    /\ \A n \in Nodes :
+         /\ WF_vars(Stand(n)) /\ WF_vars(BecomeMaster(n)) /\ WF_vars(Heartbeat(n))
+         /\ WF_vars(\E m \in net : HandleVote(n, m))
+         /\ WF_vars(\E m \in net : HandleStale(n, m))
+
+LiveSpec == Init /\ [][LiveNext]_vars /\ Fairness
+
+\* A master exists and every agent that is up follows it, for ever after
+\* (in these models every agent that is up is linked to a majority).
+Leader(n) ==
+    /\ life[n] = "MASTER"
+    /\ \A a \in Agents \ {n} :
+         life[a] # "DOWN" => life[a] \in Followers /\ leader[a] = n /\ following[a] = epoch[n]
+MasterEventuallyProp == <>[](\E n \in Nodes : Leader(n))
+
+\* An agent in PANIC eventually follows a master again (directly or through
+\* a relay that keeps its own link), or is the master.
+LeavesPanicProp == \A a \in Agents : life[a] = "PANIC" ~> life[a] \in Followers \cup {"MASTER"}
+=============================================================================
