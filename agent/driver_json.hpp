@@ -3,6 +3,7 @@
 // integers, booleans, null. Shared by ev3-agent --driver and ev3-master --driver.
 #pragma once
 
+#include <ev3proto/trace.hpp>
 #include <cstdint>
 #include <map>
 #include <memory>
@@ -183,25 +184,9 @@ inline bool parse_json(std::string_view text, Json& out, std::string& err) {
   return true;
 }
 
-/// Appends @p s as a JSON string (bytes >= 0x7F and control bytes as \u00XX).
-inline void put_string(std::string& out, std::string_view s) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  out += '"';
-  for (char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20 || c > 0x7E) {
-      out += "\\u00";
-      out += kHex[c >> 4];
-      out += kHex[c & 0xF];
-    } else {
-      out += ch;
-    }
-  }
-  out += '"';
-}
+/// Appends @p s as a JSON string (bytes >= 0x7F and control bytes as \u00XX), exactly as the core's
+/// NDJSON trace writes strings.
+inline void put_string(std::string& out, std::string_view s) { ev3proto::trace_detail::json_string(out, s); }
 
 /// Lower-case hex of @p s.
 inline std::string hex(std::string_view s) {
