@@ -49,7 +49,7 @@ VARIABLES
     net,         \* datagrams in flight: [from, to : Endpoints, m : message]
     up,          \* the master is running
     ms,          \* the master's local state (MasterLogic)
-    sess,        \* sess[a]: MASTERs agent a has taken (its msgid stamp, below)
+    sess,        \* sess[a]: answers (ACK/NOT) agent a has sent (its msgid stamp, below)
     budget,      \* [loss, dup, crash, ops]: what the environment may still do
     lost         \* lost[a]: history, agent a was synced when the master crashed
 
@@ -74,13 +74,19 @@ Init ==
     /\ lost = [a \in Agents |-> FALSE]
 
 \* The msgid an agent's datagram carries.  Real msgids grow by one per
-\* datagram (unbounded); the master only compares them (PANIC resync guard:
-\* "above every msgid heard from that agent").  The fleet stamps the
-\* coarse, order-preserving image 2*sess + (1 if the agent is in PANIC):
-\* every datagram of a later session, and the first PANIC after PINGs and
-\* answers of the same session, compare higher, copies of one PANIC equal --
-\* exactly the comparisons the real msgids give (docs/spec.md).
-Stamp(o, s, st) == [src |-> o.src, dst |-> o.dst, msgid |-> 2 * s + (IF st = "PANIC" THEN 1 ELSE 0),
+\* datagram (unbounded); the master only compares them ("above every msgid
+\* heard from that agent": the PANIC resync guard, and reconcile, which only
+\* a PING newer than the agent's last answer may trigger).  The fleet stamps
+\* the coarse, order-preserving image 4*s + slot, s the answers the agent has
+\* sent (sess; the ACK of MASTER is one), slot 0 for an answer, 1 for a PING
+\* or report, 2 in PANIC: every answer compares above what the agent sent
+\* before it, a PING after an answer above that answer, the first PANIC
+\* above the PINGs and answers before it, copies of one PANIC equal.  Only
+\* PINGs between the same two answers compare equal (MasterPing: >=)
+\* (docs/spec.md).
+Answer(o) == o.type \in {"ACK", "NOT"}
+Stamp(o, s, st) == [src |-> o.src, dst |-> o.dst,
+                    msgid |-> 4 * s + (CASE Answer(o) -> 0 [] st = "PANIC" -> 2 [] OTHER -> 1),
                     type |-> o.type, ref |-> o.ref, args |-> o.args]
 \* Datagrams for what agent a emits (in its state b, session s).  Agents
 \* emit to the master or broadcast (AGENT, PANIC); a broadcast reaches the
@@ -109,7 +115,7 @@ Lose(e) == /\ budget.loss > 0
 \* network may still lose the datagram or deliver others.
 AgentRecv(a, e, dup) ==
     LET r == L!Receive(ag[a], e.m)
-        s == IF L!Handler(ag[a], e.m) = "RecvMaster" THEN sess[a] + 1 ELSE sess[a]
+        s == IF \E i \in 1..Len(r.out) : Answer(r.out[i]) THEN sess[a] + 1 ELSE sess[a]
     IN
     /\ e.to = a
     /\ ~L!TimeoutDue(ag[a])

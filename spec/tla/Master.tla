@@ -49,7 +49,7 @@ EnvMsgs(e) ==
   \cup {Msg(OldId, Broadcast, 1, "PANIC", 0, <<>>)}
   \cup UNION {
          {Msg(x.id, Broadcast, i, "PANIC", 0, <<>>) : i \in MsgIds}
-    \cup {Msg(x.id, MasterId, 1, "PING", 0, <<s>>) : s \in States}
+    \cup {Msg(x.id, MasterId, i, "PING", 0, <<s>>) : s \in States, i \in MsgIds}
     \cup {Msg(x.id, MasterId, 1, "ACK", r, <<>>) : r \in {x.mid, 0}}
     \cup {Msg(x.id, MasterId, 1, "NOT", x.mid, <<"wrong state">>)}
     \cup {Msg(x.id, MasterId, 1, "ACTION_OK", 0, <<>>)}
@@ -96,12 +96,26 @@ Bounds == /\ ms.msgid[0] <= MaxMsgid
 
 \* The registry never holds one id twice, nor two entries for one endpoint.
 RegistryInv == \A x, y \in ms.reg : (x.id = y.id \/ x.ep = y.ep) => x = y
-\* Ids are handed out in order, never reused: every assigned (non-resync) id is below nextId.
-IdsInv == \A x \in ms.reg : x.ann \in TempIds => x.id < ms.nextId
+\* Ids are handed out in order, never reused: every id in the registry (handed
+\* out, or adopted from an agent of an earlier session) is below nextId, so
+\* no later agent is given it.
+IdsInv == \A x \in ms.reg : x.id < ms.nextId
 \* A pending datagram's msgid was drawn: it is below the counter.
 MidInv == \A x \in ms.reg : x.pending => x.mid < ms.msgid[0]
 \* Only synced entries have commands pending.
 PendingInv == \A x \in ms.reg : x.pending /\ x.synced => x.queue # <<>>
 \* Every datagram the master sends goes to a registered agent's endpoint.
 OutInv == \A o \in out : o.to \in Eps
+\* A PING makes the master start a command (reconcile: a msgid drawn in this
+\* step) only if it is fresh: its msgid above every msgid heard from that
+\* agent before it.
+ReconcileFreshProp ==
+    [][(lastAction'.name = "MasterPing"
+        /\ \E o \in out' : o.m.type \in Commands /\ o.m.msgid >= ms.msgid[0])
+       => \A x \in ms.reg : x.id = lastAction'.args[1].src => lastAction'.args[1].msgid > x.hi]_vars
+\* A PING or an operator command sends a command only when one starts: never
+\* the datagram that was already pending (MasterTick resends that).
+NoPendingResendProp ==
+    [][lastAction'.name \in {"MasterPing", "MasterCommand"}
+       => \A o \in out' : \A x \in ms.reg : ~(x.pending /\ o.m.msgid = x.mid /\ o.to = x.ep)]_vars
 =============================================================================

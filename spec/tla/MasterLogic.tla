@@ -24,13 +24,17 @@ CONSTANTS
                   \*   core exactly; Master.tla).  FALSE: one counter per agent
                   \*   endpoint, PONG carries msgid 0 and draws none (Fleet.tla,
                   \*   keeps the state space finite; docs/spec.md)
-    BUG           \* "none"; or one broken rule (NoPanicResync, NoReconcile)
+    BUG           \* "none"; or one broken rule (NoPanicResync, NoReconcile,
+                  \*   StaleReconcile, NoBumpNextId, PendingResend, RetryRefused, ReuseIds)
 
 ASSUME TDrop \in Nat \ {0} /\ MaxResends \in Nat /\ ExactMsgids \in BOOLEAN
 
 NoBehaviour == "NONE"
 \* The states the operator can ask an agent to be in.
 DesiredStates == {"ACTIVE", "WORKING", "PAUSED"}
+\* desired after the agent refused a command and no queued command sets it:
+\* the master does not reconcile until the operator commands again.
+UnknownDesired == "UNKNOWN"
 \* An operator command: a master command type and, for BEHAVIOUR, the name.
 Cmd(t, n) == [type |-> t, name |-> n]
 Cmd0(t) == Cmd(t, NoBehaviour)
@@ -48,7 +52,8 @@ ReportTypes == {"ACTION_OK", "ACTION_INTERR", "ACTION_ERR", "SENSOR_VALUE", "EVE
 (*           queue's head; mid its msgid, resends how often it was resent  *)
 (*  queue    operator commands, head first                                 *)
 (*  desired  what the operator last asked: WORKING after START/RESUME,     *)
-(*           PAUSED after PAUSE, ACTIVE after STOP/STANDBY (initially)     *)
+(*           PAUSED after PAUSE, ACTIVE after STOP/STANDBY (initially);    *)
+(*           UNKNOWN after a refusal (NOT) no queued command overrides     *)
 (*  beh      the behaviour the agent ACKed last (C++ behaviour)            *)
 (*  quiet    ticks since the agent was last heard (C++ now - heard)        *)
 (*  hi       highest msgid heard from the agent (C++ last_msgid)           *)
@@ -56,7 +61,7 @@ ReportTypes == {"ACTION_OK", "ACTION_INTERR", "ACTION_ERR", "SENSOR_VALUE", "EVE
 EntryType(Eps, Behs) ==
     [ann : Nat, id : AssignedIds, ep : Eps, synced : BOOLEAN, pending : BOOLEAN,
      mid : Nat, resends : Nat, queue : Seq([type : Commands, name : Behs \cup {NoBehaviour}]),
-     desired : DesiredStates, beh : Behs \cup {NoBehaviour}, quiet : Nat, hi : Nat]
+     desired : DesiredStates \cup {UnknownDesired}, beh : Behs \cup {NoBehaviour}, quiet : Nat, hi : Nat]
 
 \* msgid counters: one (key 0) or one per endpoint.
 MidKeys(Eps) == IF ExactMsgids THEN {0} ELSE Eps
@@ -108,11 +113,13 @@ DesiredAfter(c, d) ==
       [] c.type = "PAUSE"                -> "PAUSED"
       [] c.type \in {"STOP", "STANDBY"}  -> "ACTIVE"
       [] OTHER                           -> d
+SetsDesired(c) == c.type \in {"START", "RESUME", "PAUSE", "STOP", "STANDBY"}
 
 \* The commands that bring an agent reporting state st back to desired d.
 \* An agent paused by master loss gets RESUME; one that resynced (ACTIVE,
 \* behaviour unloaded) gets its behaviour and START again.  ACTIVE cannot be
-\* brought to PAUSED without running, so that pair is left alone.
+\* brought to PAUSED without running, so that pair is left alone; nor is an
+\* UNKNOWN desired state (after a refusal).
 Restore(st, d, beh) ==
     CASE d = "WORKING" /\ st = "PAUSED"  -> <<Cmd0("RESUME")>>
       [] d = "WORKING" /\ st = "ACTIVE" /\ beh # NoBehaviour
@@ -130,7 +137,9 @@ Restore(st, d, beh) ==
 \* re-syncs it: a new MASTER naming that id, its queue kept (resent after
 \* the ACK).  An unknown agent gets an entry: its announced id if that is an
 \* assigned id (an agent of an earlier session), else the next id; an
-\* entry with the same endpoint is replaced; MASTER.
+\* entry with the same endpoint is replaced; MASTER.  An adopted id s
+\* raises nextId past it (nextId = max(nextId, s+1)): no later agent is
+\* given an id already in use.
 MasterSync(ms, m, from) ==
     LET s == m.src
         k == Known(ms, s)
@@ -151,13 +160,18 @@ MasterSync(ms, m, from) ==
                       desired |-> "ACTIVE", beh |-> NoBehaviour, quiet |-> 0, hi |-> m.msgid]
             IN [ms |-> [Bump(ms, from) EXCEPT
                           !.reg = {z \in @ : z.ep # from} \cup {y},
-                          !.nextId = IF s \in AssignedIds THEN @ ELSE @ + 1],
+                          !.nextId = IF s \notin AssignedIds THEN @ + 1
+                                     ELSE IF BUG = "NoBumpNextId" THEN @
+                                     ELSE Max(@, s + 1)],
                 out |-> PendingOut(y)]
 
 \* ACK or NOT carrying the pending msgid: the agent is heard; ACK of MASTER
 \* syncs it; an answer to a command ends it (ACK of BEHAVIOUR: beh); the next
-\* queued command goes out.  A NOT is no answer to MASTER.  Anything else
-\* (stale msgid, unknown sender) only raises hi.
+\* queued command goes out.  A NOT is no answer to MASTER.  A NOT of a
+\* command makes desired UNKNOWN unless a command still queued sets it: the
+\* master stops reconciling towards a state the agent refused (a refused
+\* reconcile is not re-queued on every PING) until the operator commands
+\* again.  Anything else (stale msgid, unknown sender) only raises hi.
 MasterAnswer(ms, m) ==
     LET k == ById(ms, m.src) IN
     IF k = {} THEN [ms |-> ms, out |-> {}]
@@ -170,7 +184,10 @@ MasterAnswer(ms, m) ==
                            THEN [y1 EXCEPT !.synced = TRUE, !.pending = FALSE]
                            ELSE [y1 EXCEPT !.pending = FALSE, !.queue = Tail(@),
                                    !.beh = IF m.type = "ACK" /\ Head(x.queue).type = "BEHAVIOUR"
-                                           THEN Head(x.queue).name ELSE @]
+                                           THEN Head(x.queue).name ELSE @,
+                                   !.desired = IF m.type = "NOT" /\ BUG # "RetryRefused"
+                                                  /\ ~\E i \in 2..Len(x.queue) : SetsDesired(x.queue[i])
+                                               THEN UnknownDesired ELSE @]
                      r == StartNext(ms, y2)
                  IN [ms |-> Replace(r.ms, x, r.x), out |-> PendingOut(r.x)]
 
@@ -179,6 +196,14 @@ MasterAnswer(ms, m) ==
 \* reported state differs from the desired one gets the commands that
 \* restore it (Restore).  An agent paused by a lost heartbeat would never
 \* resume without this, nor would one that resynced run its behaviour.
+\* Only a fresh PING reconciles: its msgid above every msgid heard from the
+\* agent (hi before this PING raises it).  A stale PING -- sent before the
+\* agent's last answer, delivered late -- reports a state the agent has
+\* left (PING(ACTIVE) overtaken by START's ACK would restart a WORKING
+\* behaviour).  With the fleet's coarse stamps (ExactMsgids = FALSE) PINGs
+\* between the same two answers carry equal stamps, so there it is >=.
+\* Only what reconcile started is sent; a pending datagram is resent by
+\* MasterTick (and MasterSync), not by a PING.
 \* A PING from an id the master does not know gets no answer, so an agent of
 \* a crashed master's session loses its heartbeat and resyncs through PANIC.
 MasterPing(ms, m, from) ==
@@ -191,25 +216,31 @@ MasterPing(ms, m, from) ==
                           "PONG", m.msgid, <<>>)
              ms1 == IF ExactMsgids THEN Bump(ms, from) ELSE ms
              fix == Restore(st, x.desired, x.beh)
+             fresh == IF ExactMsgids THEN m.msgid > x.hi ELSE m.msgid >= x.hi
              rec == /\ x.synced /\ ~x.pending /\ x.queue = <<>>
                     /\ fix # <<>> /\ BUG # "NoReconcile"
+                    /\ fresh \/ BUG = "StaleReconcile"
              r == IF rec THEN StartNext(ms1, [y0 EXCEPT !.queue = fix])
                   ELSE [ms |-> ms1, x |-> y0]
-         IN [ms |-> Replace(r.ms, x, r.x), out |-> {pong} \cup PendingOut(r.x)]
+             sent == IF rec \/ BUG = "PendingResend" THEN PendingOut(r.x) ELSE {}
+         IN [ms |-> Replace(r.ms, x, r.x),
+             out |-> {pong} \cup sent]
 
 \* Reports are consumed (the operator sees them; no protocol state).
 MasterReport(ms, m) == [ms |-> ms, out |-> {}]
 
 \* The operator's command c for agent id: queued; sent at once if the agent
-\* is synced and nothing is pending.  The desired state follows the command.
+\* is synced and nothing is pending (else nothing is sent: a pending
+\* datagram is resent by MasterTick).  The desired state follows the command.
 \* An unknown id changes nothing (the operator is told).
 MasterCommand(ms, id, c) ==
     LET k == ById(ms, id) IN
     IF k = {} THEN [ms |-> ms, out |-> {}]
     ELSE LET x == Entry(k)
              y == [x EXCEPT !.queue = Append(@, c), !.desired = DesiredAfter(c, @)]
-             r == IF x.synced /\ ~x.pending THEN StartNext(ms, y) ELSE [ms |-> ms, x |-> y]
-         IN [ms |-> Replace(r.ms, x, r.x), out |-> PendingOut(r.x)]
+             now == x.synced /\ ~x.pending
+             r == IF now THEN StartNext(ms, y) ELSE [ms |-> ms, x |-> y]
+         IN [ms |-> Replace(r.ms, x, r.x), out |-> IF now \/ BUG = "PendingResend" THEN PendingOut(r.x) ELSE {}]
 
 \* One resend period, every entry in order of id: quiet grows; an entry
 \* quiet for TDrop ticks is dropped; a pending datagram is resent, except an

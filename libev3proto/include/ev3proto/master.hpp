@@ -164,8 +164,9 @@ struct RegistryEntry {
   std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
   std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
   AgentState desired = AgentState::ACTIVE; ///< [desired] What the operator last asked (desired_after).
-  bool desired_known = true;    ///< False for an entry adopted by an elected master (no reconcile
-                                ///< until the operator commands it; not in MasterLogic).
+  bool desired_known = true;    ///< [desired = UNKNOWN] False after a refused command that no queued
+                                ///< command overrides, and for an entry adopted by an elected master:
+                                ///< no reconcile until the operator's next desired-setting command.
   bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
   std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
   Millis sent_at = 0;           ///< When it was last sent.
@@ -567,6 +568,7 @@ class Master {
   /// pending datagram again; a PANIC from a synced entry's own id with a msgid above every msgid
   /// heard from it re-syncs it (new MASTER naming that id, queue kept). A new one gets an id (its
   /// own if s is an assignable id, else the next) and MASTER; an entry with the same peer is replaced.
+  /// An adopted id raises next_id past it (max(next_id, s + 1)): no later agent gets an id in use.
   void MasterSync(const Message& m, Peer from) {
     const std::uint16_t s = m.sender;
     const std::vector<std::uint16_t> k = Known(s);
@@ -593,6 +595,8 @@ class Master {
     if (!is_assigned_id(s)) {
       if (next_id_ > kLastAssignedId) return;  // ids exhausted: nobody else can join this run
       nid = next_id_++;
+    } else if (next_id_ <= s) {
+      next_id_ = static_cast<std::uint16_t>(s + 1);  // adopted: never hand s out again
     }
     for (auto it = reg_.begin(); it != reg_.end();) {
       if (it->second.peer == from) {
@@ -615,7 +619,8 @@ class Master {
     send_pending(r);
   }
 
-  /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command.
+  /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command. A NOT
+  /// makes the desired state unknown (no reconcile) unless a command still queued sets it.
   void MasterAnswer(const Message& m) {
     auto it = reg_.find(m.sender);
     if (it == reg_.end()) return;
@@ -641,6 +646,9 @@ class Master {
         push(OperatorEvent::Kind::acked, e.id, c.type, {});
       } else {
         push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)));
+        bool later = false;
+        for (const Command& q : e.queue) later = later || sets_desired(q.type);
+        if (!later) e.desired_known = false;  // do not insist on a state the agent refused
       }
     }
     start_next(e);
@@ -648,15 +656,18 @@ class Master {
 
   /// Spec MasterPing: PONG at once to a registered agent (which is heard); others get nothing.
   /// Reconcile: a synced agent with nothing pending or queued whose reported state is not the
-  /// desired one gets the commands that restore it (Restore), after the PONG.
+  /// desired one gets the commands that restore it (Restore), after the PONG. Only a fresh PING
+  /// (msgid above every msgid heard from the agent) reconciles: a stale one, sent before the agent's
+  /// last answer, reports a state it has left.
   void MasterPing(const Message& m, Peer from) {
     auto it = reg_.find(m.sender);
     if (it == reg_.end()) return;
     RegistryEntry& e = it->second;
     e.heard = now_;
-    if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
+    const bool fresh = m.msgid > e.last_msgid;
+    if (fresh) e.last_msgid = m.msgid;
     const auto st = m.param_state(0);
-    if (st && (!e.has_state || *st != e.state)) {
+    if (st && fresh && (!e.has_state || *st != e.state)) {  // a stale PING's state is old news
       e.state = *st;
       e.has_state = true;
       push(OperatorEvent::Kind::state, e.id, MsgType::PING, std::string(to_string(*st)));
@@ -664,7 +675,7 @@ class Master {
     char num[10];
     const std::string_view p[1] = {number(m.msgid, num)};
     send(from, e.id, MsgType::PONG, p, 1);
-    if (st && e.synced && !e.pending && e.queue.empty() && e.desired_known) {
+    if (st && fresh && e.synced && !e.pending && e.queue.empty() && e.desired_known) {
       Restore(*st, e);
       start_next(e);
     }
@@ -868,7 +879,9 @@ class Master {
         str(s, c.type == MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
         s += '}';
       }
-      s += "],\"desired\":\"" + std::string(to_string(e.desired)) + "\",\"beh\":";
+      s += "],\"desired\":\"" +
+           std::string(e.desired_known ? to_string(e.desired) : std::string_view("UNKNOWN")) +
+           "\",\"beh\":";
       str(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
       s += ",\"quiet\":" + std::to_string(now_ - e.heard) + ",\"hi\":" + std::to_string(e.last_msgid) + "}";
     }
