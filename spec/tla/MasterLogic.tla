@@ -113,7 +113,6 @@ DesiredAfter(c, d) ==
       [] c.type = "PAUSE"                -> "PAUSED"
       [] c.type \in {"STOP", "STANDBY"}  -> "ACTIVE"
       [] OTHER                           -> d
-SetsDesired(c) == c.type \in {"START", "RESUME", "PAUSE", "STOP", "STANDBY"}
 
 \* The commands that bring an agent reporting state st back to desired d.
 \* An agent paused by master loss gets RESUME; one that resynced (ACTIVE,
@@ -165,13 +164,21 @@ MasterSync(ms, m, from) ==
                                      ELSE Max(@, s + 1)],
                 out |-> PendingOut(y)]
 
+\* Refusals that retrying cannot cure: the robot lacks the behaviour or a
+\* device.  "wrong state" and "no behaviour" pass (the agent may resync or
+\* be paused in between), so reconciling goes on after them.
+PermanentRefusals == {"unknown behaviour", "missing device"}
+
 \* ACK or NOT carrying the pending msgid: the agent is heard; ACK of MASTER
 \* syncs it; an answer to a command ends it (ACK of BEHAVIOUR: beh); the next
 \* queued command goes out.  A NOT is no answer to MASTER.  A NOT of a
-\* command makes desired UNKNOWN unless a command still queued sets it: the
-\* master stops reconciling towards a state the agent refused (a refused
-\* reconcile is not re-queued on every PING) until the operator commands
-\* again.  Anything else (stale msgid, unknown sender) only raises hi.
+\* command for a permanent reason makes desired UNKNOWN (commands still
+\* queued go out as queued): the master stops reconciling towards a state
+\* the robot cannot reach (a refused reconcile is not re-queued on every
+\* PING) until the operator commands again.  A transient refusal leaves desired
+\* as it is (giving up there loses liveness: TLC found an agent left ACTIVE
+\* for good after a "no behaviour" during a resync).  Anything else (stale
+\* msgid, unknown sender) only raises hi.
 MasterAnswer(ms, m) ==
     LET k == ById(ms, m.src) IN
     IF k = {} THEN [ms |-> ms, out |-> {}]
@@ -186,7 +193,7 @@ MasterAnswer(ms, m) ==
                                    !.beh = IF m.type = "ACK" /\ Head(x.queue).type = "BEHAVIOUR"
                                            THEN Head(x.queue).name ELSE @,
                                    !.desired = IF m.type = "NOT" /\ BUG # "RetryRefused"
-                                                  /\ ~\E i \in 2..Len(x.queue) : SetsDesired(x.queue[i])
+                                                  /\ m.args[1] \in PermanentRefusals
                                                THEN UnknownDesired ELSE @]
                      r == StartNext(ms, y2)
                  IN [ms |-> Replace(r.ms, x, r.x), out |-> PendingOut(r.x)]

@@ -646,9 +646,11 @@ class Master {
         push(OperatorEvent::Kind::acked, e.id, c.type, {});
       } else {
         push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)));
-        bool later = false;
-        for (const Command& q : e.queue) later = later || sets_desired(q.type);
-        if (!later) e.desired_known = false;  // do not insist on a state the agent refused
+        // Do not insist on a state the robot cannot reach (spec PermanentRefusals); a transient
+        // refusal ("wrong state", "no behaviour") leaves the desired state for reconcile.
+        const std::string_view why = m.param(1);
+        if (why == to_string(Refusal::unknown_behaviour) || why == to_string(Refusal::missing_device))
+          e.desired_known = false;
       }
     }
     start_next(e);
