@@ -169,8 +169,12 @@ def _path_text(g: gr.Graph, path: list[int]) -> str:
 
 
 class AgentReplay:
-    def __init__(self, g: gr.Graph, consts: dict, argv: list[str], name: str = "agent") -> None:
+    def __init__(self, g: gr.Graph, consts: dict, argv: list[str], name: str = "agent",
+                 cache: dict | None = None) -> None:
+        """cache: a dict kept across runs on the same graph (mutation testing): the path set and
+        the driver inputs are computed once."""
         self.g, self.c, self.argv, self.name = g, consts, argv, name
+        self.cache = cache if cache is not None else {}
         self.fig = Figures(states=len(g.states), edges=len(g.edges))
 
     def replayable(self, ei: int) -> bool:
@@ -207,7 +211,9 @@ class AgentReplay:
     def run(self) -> Figures:
         g, c = self.g, self.c
         t0 = time.monotonic()
-        ps = gr.cover(g, self.replayable)
+        if "ps" not in self.cache:
+            self.cache["ps"] = gr.cover(g, self.replayable)
+        ps = self.cache["ps"]
         self.fig.paths, self.fig.max_path = ps.paths, ps.max_len
         self.fig.unreachable = ps.unreachable_edges
         self.fig.excluded_urgent = sum(1 for ei in range(len(g.edges)) if not self.replayable(ei)
@@ -242,8 +248,10 @@ class AgentReplay:
             raise Mismatch(f"driver refused the configuration: {first['error']}")
         init = g.init[0]
         self._check_vars(g.states[init]["ag"], first["vars"], [], "Init")
-        tagged = list(self._inputs(self.ops(ps)))
-        lines = [inp for _, inp in tagged if inp is not None]
+        if "tagged" not in self.cache:
+            self.cache["tagged"] = list(self._inputs(self.ops(ps)))
+            self.cache["lines"] = [inp for _, inp in self.cache["tagged"] if inp is not None]
+        tagged, lines = self.cache["tagged"], self.cache["lines"]
         outs = d.stream(lines)
         pending: list[tuple[dict, list]] = []
         saved: dict[int, list] = {}

@@ -230,3 +230,116 @@ def validate_many(paths: list[Path], consts: dict | None = None, jobs: int = 2) 
 
 def jobs_default() -> int:
     return max(1, min(2, os.cpu_count() or 1))
+
+
+# --- the master (MasterLogic, ExactMsgids = TRUE) ------------------------------------------------
+
+MASTER_RECV = ["MasterSync", "MasterAnswer", "MasterPing", "MasterReport"]
+COMMANDS = ["BEHAVIOUR", "START", "STOP", "PAUSE", "RESUME", "STANDBY", "CONTINUE", "RESTART"]
+
+
+def _reg_tla(reg: list) -> str:
+    keys = ("ann", "id", "ep", "synced", "pending", "mid", "resends", "desired", "beh", "quiet", "hi")
+    out = []
+    for x in reg:
+        e = {k: x[k] for k in keys}
+        e["queue"] = tuple({"type": q["type"], "name": q["name"]} for q in x["queue"])
+        out.append(tla.to_tla(e))
+    return "{" + ", ".join(out) + "}"
+
+
+def master_module(name: str, recs: list[dict], consts: dict) -> str:
+    """MasterTraceCheck: one step per record; between records, the spec MasterTicks the core did not
+    record (nothing due: no datagram, nobody dropped) are silent steps. 1 tick = 1 ms (the driver's
+    resend period must be 1 ms); quiet is in ticks = ms."""
+    items = []
+    for r in recs:
+        ch = r.get("changed", {})
+        parts = []
+        if "reg" in ch:
+            parts.append(f"reg |-> {_reg_tla(ch['reg'])}")
+        for k in ("nextId", "msgid"):
+            if k in ch:
+                parts.append(f"{k} |-> {int(ch[k])}")
+        m = r.get("args", {}).get("msg")
+        mrec = _msg(m) if m else {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
+        chs = "[" + ", ".join(parts) + "]" if parts else "[x \\in {} |-> 0]"
+        items.append(f'[a |-> "{r["action"]}", m |-> {tla.to_tla(mrec)}, now |-> {int(r.get("now", 0))}, ch |-> {chs}]')
+    behs = "{" + ", ".join(tla.to_tla(b) for b in consts.get("Behaviours", ["wait"])) + "}"
+    return f"""---- MODULE {name} ----
+EXTENDS Naturals, Sequences, FiniteSets, TLC
+VARIABLES ms, cursor, clock, failed
+M == INSTANCE MasterLogic WITH TDrop <- {consts["TDrop"]}, MaxResends <- {consts["MaxResends"]},
+       ExactMsgids <- TRUE, BUG <- "none"
+Behs == {behs}
+Trace == <<
+  {(","+chr(10)+"  ").join(items)}
+>>
+Vars == {{"reg", "nextId", "msgid"}}
+Val(v, s) == IF v = "msgid" THEN s.msgid[0] ELSE s[v]
+Fits(r, after) == \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN Val(v, after) = r.ch[v] ELSE after[v] = ms[v]
+Eps(r) == {{x.ep : x \\in ms.reg}} \\cup (IF "reg" \\in DOMAIN r.ch THEN {{x.ep : x \\in r.ch.reg}} ELSE {{}})
+Cmds == {{M!Cmd(t, M!NoBehaviour) : t \\in {tla.to_tla(set(COMMANDS) - {"BEHAVIOUR"})}}}
+        \\cup {{M!Cmd("BEHAVIOUR", b) : b \\in Behs}}
+Init == ms = M!InitMaster({{1}}) /\\ cursor = 1 /\\ clock = 0 /\\ failed = 0
+Silent ==
+    /\\ cursor <= Len(Trace)
+    /\\ clock + (IF Trace[cursor].a = "MasterTick" THEN 1 ELSE 0) < Trace[cursor].now
+    /\\ LET t == M!MasterTick(ms) IN
+         /\\ t.out = {{}} /\\ {{x.id : x \\in t.ms.reg}} = {{x.id : x \\in ms.reg}}
+         /\\ ms' = t.ms
+    /\\ clock' = clock + 1 /\\ UNCHANGED cursor
+Match ==
+    /\\ cursor <= Len(Trace)
+    /\\ LET r == Trace[cursor] IN
+       IF r.a = "MasterTick" THEN
+          /\\ clock + 1 = r.now
+          /\\ LET t == M!MasterTick(ms) IN Fits(r, t.ms) /\\ ms' = t.ms
+          /\\ clock' = r.now
+       ELSE IF r.a = "MasterCommand" THEN
+          /\\ clock = r.now
+          /\\ \\E id \\in {{x.id : x \\in ms.reg}} \\cup {{1}}, c \\in Cmds :  \\* 1: an unknown id
+                LET t == M!MasterCommand(ms, id, c) IN Fits(r, t.ms) /\\ ms' = t.ms
+          /\\ UNCHANGED clock
+       ELSE
+          /\\ clock = r.now
+          /\\ M!Handler(r.m) = r.a
+          /\\ \\E from \\in Eps(r) \\cup {{0}} :
+                LET t == M!Receive(ms, r.m, from) IN Fits(r, t.ms) /\\ ms' = t.ms
+          /\\ UNCHANGED clock
+    /\\ cursor' = cursor + 1
+Step == failed = 0 /\\ (Silent \\/ Match) /\\ UNCHANGED failed
+Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED (Silent \\/ Match)
+         /\\ failed' = cursor /\\ UNCHANGED <<ms, cursor, clock>>
+Next == Step \\/ Stuck
+Matched == cursor <= Len(Trace)
+NotStuck == failed = 0
+====
+"""
+
+
+def validate_master(path: Path, consts: dict, workdir: Path | None = None) -> Result:
+    """A master trace (`ev3-master --driver --trace`, resend 1 ms) against MasterLogic (exact
+    msgids): consts TDrop (= the driver's drop ms), MaxResends, Behaviours."""
+    path = Path(path)
+    recs = [r for r in load(path, None) if r.get("node", "").startswith("master")]
+    if not recs:
+        return Result(str(path), True, 0, "no master records; nothing to check", skipped=True)
+    wd = Path(workdir or (gr.BUILD / "traces"))
+    wd.mkdir(parents=True, exist_ok=True)
+    d = Path(tempfile.mkdtemp(prefix="mtrace-", dir=wd))
+    name = "MasterTraceCheck"
+    (d / f"{name}.tla").write_text(master_module(name, recs, consts))
+    (d / f"{name}.cfg").write_text("INIT Init\nNEXT Next\nINVARIANTS Matched NotStuck\nCHECK_DEADLOCK FALSE\n")
+    for f in ("MasterLogic.tla", "Messages.tla"):
+        (d / f).write_text((gr.SPEC / f).read_text())
+    rc, out = gr.tlc(f"{name}.tla", f"{name}.cfg", [], cwd=d)
+    if rc == 12 and "Invariant Matched is violated" in out:
+        return Result(str(path), True, len(recs), f"{len(recs)} master records matched")
+    if rc == 12 and "Invariant NotStuck is violated" in out:
+        fails = re.findall(r"failed = (\d+)", out)
+        k = int(fails[-1]) - 1 if fails else -1
+        return Result(str(path), False, len(recs),
+                      f"record {k + 1} of {len(recs)} could not be matched by MasterLogic "
+                      f"(module kept in {d}):\n{_describe_record(recs, k)}")
+    return Result(str(path), False, len(recs), f"TLC failed (exit {rc}); module in {d}:\n{out[-2500:]}")

@@ -105,3 +105,20 @@ def test_validate_rejects_a_corrupted_trace(tmp_path):
     r = tracecheck.validate(trace, CHECK)
     assert not r.ok
     assert f"record {k + 1} of" in r.message
+
+
+def test_master_driver_registers_an_agent_like_the_spec():
+    from ev3conformance import driver as drv, master_replay as mr
+    d = drv.Driver([str(BIN / "ev3-master"), "--driver"])
+    try:
+        assert "error" not in d.ask(mr.master_config({"TDrop": 2, "MaxResends": 1}))
+        agent = {"src": 50001, "dst": 0, "msgid": 1, "type": "AGENT", "ref": 0, "args": ("A",)}
+        out = d.ask(mr.master_input({"name": "MasterSync", "args": (agent, 1)}))
+        assert [a["action"] for a in out["actions"]] == ["MasterSync"]
+        assert mr.impl_out(out["sent"]) == {(1, 1, 2, 1, "MASTER", 50001, ())}
+        e = out["vars"]["reg"][0]
+        assert (e["ann"], e["id"], e["ep"], e["synced"], e["pending"], e["mid"]) == (50001, 2, 1, False, True, 1)
+        assert "error" in d.ask({"type": "command", "agent": 2, "command": "JUMP"})
+    finally:
+        d.kill()
+        d.close()
