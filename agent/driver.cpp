@@ -188,26 +188,11 @@ class Driver {
   explicit Driver(std::FILE* trace) { sink_.trace = trace; }
 
   int run() {
-    std::string line;
-    while (std::getline(std::cin, line)) {
-      if (line.empty()) continue;
-      ++seq_;
-      std::string out = handle(line);
-      std::fwrite(out.data(), 1, out.size(), stdout);
-      std::fputc('\n', stdout);
-      std::fflush(stdout);
-      if (sink_.trace != nullptr) std::fflush(sink_.trace);
-    }
-    return 0;
+    return ev3driver::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
   }
 
  private:
-  std::string error(const std::string& msg) {
-    std::fprintf(stderr, "ev3-agent --driver: input %llu: %s\n", seq_, msg.c_str());
-    std::string s = "{\"in\":" + std::to_string(seq_) + ",\"error\":";
-    put_string(s, msg);
-    return s + "}";
-  }
+  std::string error(const std::string& msg) { return ev3driver::driver_error("ev3-agent --driver", seq_, msg); }
 
   bool configure(const Json& in, std::string& err) {
     ev3proto::AgentConfig c;

@@ -5,6 +5,8 @@
 
 #include <ev3proto/trace.hpp>
 #include <cstdint>
+#include <cstdio>
+#include <iostream>
 #include <map>
 #include <memory>
 #include <string>
@@ -184,9 +186,36 @@ inline bool parse_json(std::string_view text, Json& out, std::string& err) {
   return true;
 }
 
+/// The loop both drivers run (docs/driver.md): one NDJSON input line from stdin (blank lines
+/// skipped), one output line from @p handle to stdout, flushed after each, and the trace file flushed
+/// with it. @p seq counts the inputs (the "in" field of the outputs). Returns 0 at the end of input.
+template <typename Handle>
+int run_driver_lines(std::FILE* trace, unsigned long long& seq, Handle&& handle) {
+  std::string line;
+  while (std::getline(std::cin, line)) {
+    if (line.empty()) continue;
+    ++seq;
+    const std::string out = handle(line);
+    std::fwrite(out.data(), 1, out.size(), stdout);
+    std::fputc('\n', stdout);
+    std::fflush(stdout);
+    if (trace != nullptr) std::fflush(trace);
+  }
+  return 0;
+}
+
 /// Appends @p s as a JSON string (bytes >= 0x7F and control bytes as \u00XX), exactly as the core's
 /// NDJSON trace writes strings.
 inline void put_string(std::string& out, std::string_view s) { ev3proto::trace_detail::json_string(out, s); }
+
+/// The output line for input @p seq that could not be handled; also logged on stderr as
+/// "@p program: input N: @p msg".
+inline std::string driver_error(const char* program, unsigned long long seq, const std::string& msg) {
+  std::fprintf(stderr, "%s: input %llu: %s\n", program, seq, msg.c_str());
+  std::string s = "{\"in\":" + std::to_string(seq) + ",\"error\":";
+  put_string(s, msg);
+  return s + "}";
+}
 
 /// Lower-case hex of @p s.
 inline std::string hex(std::string_view s) {
