@@ -268,9 +268,7 @@ class Driver {
     const Millis now = core_->now();
     if (type == "advance") {
       Millis to = now;
-      if (in.has("ms")) to = now + static_cast<Millis>(in["ms"].num());
-      else if (in.has("to")) to = static_cast<Millis>(in["to"].num());
-      else return error("advance needs \"ms\" or \"to\"");
+      if (!ev3driver::advance_target(in, now, to, err)) return error(err);
       core_->advance(to);
       return output(true);
     }

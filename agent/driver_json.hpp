@@ -208,6 +208,18 @@ int run_driver_lines(std::FILE* trace, unsigned long long& seq, Handle&& handle)
 /// NDJSON trace writes strings.
 inline void put_string(std::string& out, std::string_view s) { ev3proto::trace_detail::json_string(out, s); }
 
+/// Where an "advance" input moves the clock: `now + ms`, or `to`. False, with @p err, if the input has
+/// neither.
+inline bool advance_target(const Json& in, std::uint64_t now, std::uint64_t& to, std::string& err) {
+  if (in.has("ms")) to = now + static_cast<std::uint64_t>(in["ms"].num());
+  else if (in.has("to")) to = static_cast<std::uint64_t>(in["to"].num());
+  else {
+    err = "advance needs \"ms\" or \"to\"";
+    return false;
+  }
+  return true;
+}
+
 /// The output line for input @p seq that could not be handled; also logged on stderr as
 /// "@p program: input N: @p msg".
 inline std::string driver_error(const char* program, unsigned long long seq, const std::string& msg) {
