@@ -259,21 +259,29 @@ def test_leds_written_to_sysfs(start_agent, tm, tmp_path):
         (root / "class" / "leds" / n / "max_brightness").write_text("255\n")
     start_agent("--sysfs-root", str(root))
     led = root / "class" / "leds"
-    wait_until(lambda: (led / names[1] / "trigger").exists(), 2, "LED files")
-    # IDLE: yellow blinking = red and green on, timer trigger.
-    assert (led / names[0] / "trigger").read_text() == "timer"
-    assert (led / names[1] / "brightness").read_text() == "255"
+
+    def value(name, attr):
+        """The LED file's text, or None while the agent has not written it yet."""
+        try:
+            return (led / name / attr).read_text()
+        except FileNotFoundError:
+            return None
+
+    # IDLE: yellow blinking = red and green on, timer trigger. The agent writes the files one after
+    # another, so wait for the whole pattern rather than for the first file.
+    wait_until(lambda: value(names[0], "trigger") == "timer" and value(names[1], "brightness") == "255",
+               2, "IDLE pattern (red timer trigger, green at 255)")
     tm.sync(ID)
     # ACTIVE: green blinking, red off.
-    wait_until(lambda: (led / names[0] / "brightness").read_text() == "0", 2, "red LED off")
+    wait_until(lambda: value(names[0], "brightness") == "0", 2, "red LED off")
     assert (led / names[1] / "trigger").read_text() == "timer"
     tm.ack(ID, "BEHAVIOUR", "wait", "seconds=30")
     tm.ack(ID, "START")
     # WORKING: solid green.
-    wait_until(lambda: (led / names[1] / "trigger").read_text() == "none", 2, "solid green")
+    wait_until(lambda: value(names[1], "trigger") == "none", 2, "solid green")
     tm.ack(ID, "PAUSE")
     # PAUSED: orange = red full, green half.
-    wait_until(lambda: (led / names[3] / "brightness").read_text() == "128", 2, "orange")
+    wait_until(lambda: value(names[3], "brightness") == "128", 2, "orange")
 
 
 def test_missing_sysfs_is_logged_not_fatal(start_agent, tm, tmp_path):
