@@ -193,6 +193,18 @@ constexpr std::array<std::uint8_t, 256> make_type_index() noexcept {
 /// Type number -> index into kMessageTable, or kNoRow.
 inline constexpr std::array<std::uint8_t, 256> kTypeIndex = make_type_index();
 
+/// Bit i set where param i of row r has a kind other than text (i < kMaxParams = 32), built at
+/// compile time so decode() checks kinds without reading the row per param.
+constexpr std::array<std::uint32_t, kMessageTableSize> make_checked_masks() noexcept {
+  std::array<std::uint32_t, kMessageTableSize> masks{};
+  for (std::size_t r = 0; r < kMessageTableSize; ++r)
+    for (std::size_t i = 0; i < kMaxParams; ++i)
+      if (kMessageTable[r].kind(i) != ParamKind::text) masks[r] |= std::uint32_t{1} << i;
+  return masks;
+}
+/// Row index -> params that need a kind check (see make_checked_masks()).
+inline constexpr std::array<std::uint32_t, kMessageTableSize> kCheckedParams = make_checked_masks();
+
 /// Checks the table's invariants at compile time.
 constexpr bool table_is_sane() noexcept {
   for (std::size_t r = 0; r < kMessageTableSize; ++r) {

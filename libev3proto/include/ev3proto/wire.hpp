@@ -15,6 +15,12 @@
 #if defined(__SSE2__)
 #include <emmintrin.h>
 #endif
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(EV3PROTO_NO_AVX2)
+#include <immintrin.h>
+/// Defined where decode() may pick an AVX2 classifier at run time (x86-64 with GCC or Clang; define
+/// EV3PROTO_NO_AVX2 to build without it).
+#define EV3PROTO_AVX2_DISPATCH 1
+#endif
 
 #include "messages.hpp"
 
@@ -345,6 +351,54 @@ inline void classify_block(const unsigned char* b, std::size_t len, std::uint64_
 #endif
 }
 
+/// classify_block() over the @p padded bytes at @p d (a multiple of 16, at most 4096): one pair of
+/// 64-bit masks per 64-byte block into @p colons and @p specials. Portable version.
+inline void classify_region_generic(const unsigned char* d, std::size_t padded, std::uint64_t* colons,
+                                    std::uint64_t* specials) noexcept {
+  for (std::size_t base = 0; base < padded; base += kBlock)
+    classify_block(d + base, padded - base < kBlock ? padded - base : kBlock, *colons++, *specials++);
+}
+
+#if defined(EV3PROTO_AVX2_DISPATCH)
+/// classify_region_generic() 32 bytes at a time with AVX2 (only called where the CPU has it).
+__attribute__((target("avx2"))) inline void classify_region_avx2(const unsigned char* d, std::size_t padded,
+                                                                 std::uint64_t* colons,
+                                                                 std::uint64_t* specials) noexcept {
+  const __m256i k_colon = _mm256_set1_epi8(':');
+  const __m256i k_percent = _mm256_set1_epi8('%');
+  // As in classify_sse2(): adding 0x60 maps 0x20..0x7E onto -128..-34, every other byte above -34.
+  const __m256i k_shift = _mm256_set1_epi8(0x60);
+  const __m256i k_limit = _mm256_set1_epi8(-34);
+  std::size_t base = 0;
+  for (; padded - base >= kBlock; base += kBlock) {
+    const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(d + base));
+    const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(d + base + 32u));
+    const __m256i slo = _mm256_or_si256(_mm256_cmpeq_epi8(lo, k_percent),
+                                        _mm256_cmpgt_epi8(_mm256_add_epi8(lo, k_shift), k_limit));
+    const __m256i shi = _mm256_or_si256(_mm256_cmpeq_epi8(hi, k_percent),
+                                        _mm256_cmpgt_epi8(_mm256_add_epi8(hi, k_shift), k_limit));
+    auto bits = [](__m256i m) __attribute__((target("avx2"))) {
+      return std::uint64_t{static_cast<std::uint32_t>(_mm256_movemask_epi8(m))};
+    };
+    *colons++ = bits(_mm256_cmpeq_epi8(lo, k_colon)) | bits(_mm256_cmpeq_epi8(hi, k_colon)) << 32;
+    *specials++ = bits(slo) | bits(shi) << 32;
+  }
+  if (base != padded) classify_block(d + base, padded - base, *colons, *specials);  // 16, 32 or 48 bytes
+}
+
+/// True when the CPU running this has AVX2 (asked on every call: a load and a test).
+inline bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2"); }
+#endif
+
+/// classify_region_generic(), with AVX2 where the CPU has it.
+inline void classify_region(const unsigned char* d, std::size_t padded, std::uint64_t* colons,
+                            std::uint64_t* specials) noexcept {
+#if defined(EV3PROTO_AVX2_DISPATCH)
+  if (cpu_has_avx2()) return classify_region_avx2(d, padded, colons, specials);
+#endif
+  classify_region_generic(d, padded, colons, specials);
+}
+
 /// Bit i set where p[i] must be escaped in a param (':' '%' and bytes outside 0x20..0x7E), for the
 /// 16 bytes at @p p.
 inline std::uint32_t escape_mask16(const char* p) noexcept {
@@ -362,6 +416,24 @@ inline std::size_t escaped_size(std::string_view v) noexcept {
     n += 2u * static_cast<std::size_t>(__builtin_popcount(escape_mask16(p)));
   for (; p != e; ++p) n += must_escape(static_cast<unsigned char>(*p)) ? 2u : 0u;
   return n;
+}
+
+/// Moves the @p len bytes at @p src to @p dst <= @p src (they may overlap), like memmove but
+/// inline and 8 bytes at a time: the short moves of unescaping do not pay for a call. Every 8-byte
+/// store lands at or before the source bytes still to be read; the last 8 bytes are read first.
+inline void move_left(unsigned char* dst, const unsigned char* src, std::size_t len) noexcept {
+  if (len < 8) {
+    for (std::size_t k = 0; k < len; ++k) dst[k] = src[k];
+    return;
+  }
+  std::uint64_t last;
+  std::memcpy(&last, src + len - 8u, 8);
+  for (std::size_t k = 0; k + 8u <= len; k += 8) {
+    std::uint64_t x;
+    std::memcpy(&x, src + k, 8);
+    std::memcpy(dst + k, &x, 8);
+  }
+  std::memcpy(dst + len - 8u, &last, 8);
 }
 
 /// Index of the lowest set bit of a non-zero @p m.
@@ -423,13 +495,18 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   //
   // The whole param region is copied into the message's buffer once, separators included, and padded
   // to a multiple of 16 bytes with a plain byte (the header takes at least 8 bytes, so the region is at
-  // most 4088 bytes and the padding stays within the 4096-byte buffer). Each block of up to 64 bytes is
-  // classified once (':' and bytes that may not stand raw); the params are then found by walking the
-  // set bits. A param without a special byte is its raw bytes, in place. A param with one is checked
-  // and unescaped in place from that byte on (unescaping only shrinks), byte by byte.
+  // most 4088 bytes and the padding stays within the 4096-byte buffer), then classified once into two
+  // bit masks per 64 bytes: ':' and bytes that may not stand raw ("specials"). Three passes follow,
+  // and the first problem in left-to-right order is reported (docs/protocol.md):
+  //  1. the ':' bits give every param's bounds (a param without escapes is then done, in place,
+  //     whatever its length); a ':' that would open param max_params is a too_many_params there;
+  //  2. the special bits, in order: each must be a canonical %XX escape; a param that has one is
+  //     unescaped in place (it only shrinks; its bytes between escapes move left once);
+  //  3. params of a typed kind (numbers, states) are checked, only before the first problem so far.
   std::size_t count = 0;
   if (has_params) {
     const std::size_t max_params = spec->max_params < kMaxParams ? spec->max_params : kMaxParams;
+    if (max_params == 0) return fail(Reason::too_many_params, kFieldParam0);
     const std::size_t n = static_cast<std::size_t>(e - p);
     const std::size_t padded = (n + detail::kChunk - 1u) & ~(detail::kChunk - 1u);
     unsigned char* const d = reinterpret_cast<unsigned char*>(out.data_);
@@ -438,67 +515,108 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     // exact length.
     if (n + detail::kChunk <= Message::kCapacity) std::memset(d + n, 'A', detail::kChunk);
     else std::memset(d + n, 'A', padded - n);
+    std::uint64_t colons[Message::kCapacity / detail::kBlock];
+    std::uint64_t specials[Message::kCapacity / detail::kBlock];
+    detail::classify_region(d, padded, colons, specials);
+    const std::size_t blocks = (padded + detail::kBlock - 1u) / detail::kBlock;
 
-    std::size_t block = ~std::size_t{0};  // start of the block whose masks are cached
-    std::uint64_t events = 0, specials = 0;
-    std::size_t s = 0;  // first byte of the current param
-    for (;;) {
-      if (count >= max_params) return fail(Reason::too_many_params, kFieldParam0 + count);
-      // The first ':' or special byte at or after s (n when there is none).
-      std::size_t i = n;
-      bool special = false;
-      for (std::size_t base = s & ~(detail::kBlock - 1u); base < padded; base += detail::kBlock) {
-        if (base != block) {
-          std::uint64_t colons = 0;
-          const std::size_t span = padded - base < detail::kBlock ? padded - base : detail::kBlock;
-          detail::classify_block(d + base, span, colons, specials);
-          events = colons | specials;
-          block = base;
+    // Pass 1: bounds. The region examined ends at `limit`: n, or the ':' that opens param max_params.
+    // Each block's first four ':' positions are written unconditionally (a fixed trip count: no
+    // mispredicted loop exit per block), the count advanced by the block's popcount.
+    std::uint16_t at[kMaxParams + 4];  // positions of the ':'s, in order
+    std::size_t colons_seen = 0;
+    std::size_t limit = n;
+    bool too_many = false;
+    for (std::size_t k = 0; k < blocks; ++k) {
+      std::uint64_t m = colons[k];
+      const std::size_t cnt = static_cast<std::size_t>(__builtin_popcountll(m));
+      const std::size_t base = k * detail::kBlock;
+      if (colons_seen + cnt >= max_params) {  // this block holds the ':' that opens param max_params
+        for (std::size_t j = colons_seen; j + 1u < max_params; ++j, m &= m - 1u)
+          at[j] = static_cast<std::uint16_t>(base + detail::lowest_bit(m));
+        limit = base + detail::lowest_bit(m);
+        colons_seen = max_params - 1u;
+        too_many = true;
+        break;
+      }
+      for (std::size_t j = 0; j < 4; ++j, m &= m - 1u)  // bit 63 stands in for "none left"
+        at[colons_seen + j] = static_cast<std::uint16_t>(base + detail::lowest_bit(m | (std::uint64_t{1} << 63)));
+      for (std::size_t j = 4; j < cnt; ++j, m &= m - 1u)
+        at[colons_seen + j] = static_cast<std::uint16_t>(base + detail::lowest_bit(m));
+      colons_seen += cnt;
+    }
+    out.begins_[0] = 0;
+    for (std::size_t j = 0; j < colons_seen; ++j) {
+      out.ends_[j] = at[j];
+      out.begins_[j + 1u] = static_cast<std::uint16_t>(at[j] + 1u);
+    }
+    out.ends_[colons_seen] = static_cast<std::uint16_t>(limit);
+    count = colons_seen + 1u;
+
+    // Pass 2: escapes. `bad` is the first param with a bad byte (count if none).
+    std::size_t bad = count;
+    Reason bad_reason = Reason::ok;
+    std::size_t cur = 0;              // the param of the special being looked at
+    std::size_t r = 0, w = 0;         // in param cur: next byte to move, and where it goes
+    bool open = false;                // param cur has had an escape: its tail still has to move
+    for (std::size_t k = 0; k < blocks && bad == count; ++k) {
+      for (std::uint64_t m = specials[k]; m != 0; m &= m - 1u) {
+        const std::size_t i = k * detail::kBlock + detail::lowest_bit(m);
+        if (i >= limit) break;
+        if (out.ends_[cur] < i) {
+          if (open) {  // finish the previous param with escapes
+            detail::move_left(d + w, d + r, out.ends_[cur] - r);
+            out.ends_[cur] = static_cast<std::uint16_t>(w + (out.ends_[cur] - r));
+            open = false;
+          }
+          while (out.ends_[cur] < i) ++cur;
         }
-        std::uint64_t m = events;
-        if (base < s) m &= ~std::uint64_t{0} << (s - base);
-        if (m != 0) {
-          const unsigned bit = detail::lowest_bit(m);
-          i = base + bit;
-          special = ((specials >> bit) & 1u) != 0;
+        const unsigned char c = d[i];
+        Reason why = Reason::ok;
+        unsigned char b = 0;
+        if (c != '%') {
+          why = Reason::non_printable_byte;
+        } else if (n - i < 3) {
+          why = Reason::bad_escape;
+        } else {
+          const int hi = detail::upper_hex_value(d[i + 1]);
+          const int lo = detail::upper_hex_value(d[i + 2]);
+          b = static_cast<unsigned char>(hi * 16 + lo);
+          if (hi < 0 || lo < 0 || !detail::must_escape(b)) why = Reason::bad_escape;
+        }
+        if (why != Reason::ok) {
+          bad = cur;
+          bad_reason = why;
           break;
         }
-      }
-      std::size_t end = i;
-      if (special) {
-        std::size_t r = i;
-        std::size_t w = i;
-        while (r < n && d[r] != ':') {
-          const unsigned char c = d[r];
-          if (c < 0x20 || c > 0x7E) return fail(Reason::non_printable_byte, kFieldParam0 + count);
-          if (c == '%') {
-            if (n - r < 3) return fail(Reason::bad_escape, kFieldParam0 + count);
-            const int hi = detail::upper_hex_value(d[r + 1]);
-            const int lo = detail::upper_hex_value(d[r + 2]);
-            if (hi < 0 || lo < 0) return fail(Reason::bad_escape, kFieldParam0 + count);
-            const unsigned char b = static_cast<unsigned char>(hi * 16 + lo);
-            if (!detail::must_escape(b)) return fail(Reason::bad_escape, kFieldParam0 + count);
-            d[w++] = b;
-            r += 3;
-          } else {
-            d[w++] = c;
-            ++r;
-          }
+        if (!open) {
+          open = true;
+          r = w = i;
         }
-        end = w;
-        i = r;  // the ':' that ends the param, or n
+        detail::move_left(d + w, d + r, i - r);
+        w += i - r;
+        d[w++] = b;
+        r = i + 3u;  // the hex digits are neither ':' nor special: no bit of theirs is set
       }
-      out.begins_[count] = static_cast<std::uint16_t>(s);
-      out.ends_[count] = static_cast<std::uint16_t>(end);
-      const ParamKind kind = spec->kind(count);
-      if (kind != ParamKind::text) {
-        const Reason r = detail::check_kind(kind, std::string_view(out.data_ + s, end - s));
-        if (r != Reason::ok) return fail(r, kFieldParam0 + count);
-      }
-      ++count;
-      if (i >= n) break;
-      s = i + 1;
     }
+    if (open && bad == count) {
+      detail::move_left(d + w, d + r, out.ends_[cur] - r);
+      out.ends_[cur] = static_cast<std::uint16_t>(w + (out.ends_[cur] - r));
+    }
+
+    // Pass 3: kinds, of the params before the first bad one.
+    const std::uint32_t checked = detail::kCheckedParams[static_cast<std::size_t>(spec - kMessageTable)];
+    for (std::uint32_t m = bad >= 32u ? checked : checked & ((std::uint32_t{1} << bad) - 1u); m != 0;
+         m &= m - 1u) {
+      const std::size_t k = static_cast<std::size_t>(__builtin_ctz(m));
+      if (k >= count) break;
+      const Reason kr = detail::check_kind(
+          spec->kind(k), std::string_view(out.data_ + out.begins_[k],
+                                          static_cast<std::size_t>(out.ends_[k] - out.begins_[k])));
+      if (kr != Reason::ok) return fail(kr, kFieldParam0 + k);
+    }
+    if (bad != count) return fail(bad_reason, kFieldParam0 + bad);
+    if (too_many) return fail(Reason::too_many_params, kFieldParam0 + count);
   }
   out.count_ = static_cast<std::uint8_t>(count);
   if (count < spec->min_params) return fail(Reason::too_few_fields, kFieldParam0 + count);

@@ -568,3 +568,48 @@ TEST(Classify, VariantsAgreeWithScalarReference) {
     }
   }
 }
+
+// decode() classifies the whole param region at once: AVX2 where the CPU has it (x86-64), else block
+// by block. Both must give the per-block masks of classify_scalar() for every padded length.
+TEST(Classify, RegionVariantsAgreeWithScalarReference) {
+  std::mt19937 rng(20261122);
+  alignas(64) unsigned char region[ev3proto::kMaxDatagram];
+  std::uint64_t gc[64], gs[64];
+  for (int iter = 0; iter < 400; ++iter) {
+    for (auto& b : region) b = static_cast<unsigned char>((rng() % 4u == 0) ? ':' : rng());
+    const std::size_t padded = 16u * (1u + rng() % 256u);
+    ev3proto::detail::classify_region_generic(region, padded, gc, gs);
+    const std::size_t blocks = (padded + 63u) / 64u;
+    for (std::size_t k = 0; k < blocks; ++k) {
+      std::uint64_t rc = 0, rs = 0;
+      const std::size_t span = padded - 64u * k < 64u ? padded - 64u * k : 64u;
+      ev3proto::detail::classify_scalar(region + 64u * k, span, rc, rs);
+      ASSERT_EQ(gc[k], rc) << "generic colons, block " << k << " of " << padded;
+      ASSERT_EQ(gs[k], rs) << "generic specials, block " << k << " of " << padded;
+    }
+#if defined(EV3PROTO_AVX2_DISPATCH)
+    if (ev3proto::detail::cpu_has_avx2()) {
+      std::uint64_t ac[64], as[64];
+      ev3proto::detail::classify_region_avx2(region, padded, ac, as);
+      for (std::size_t k = 0; k < blocks; ++k) {
+        ASSERT_EQ(ac[k], gc[k]) << "avx2 colons, block " << k << " of " << padded;
+        ASSERT_EQ(as[k], gs[k]) << "avx2 specials, block " << k << " of " << padded;
+      }
+    }
+#endif
+  }
+}
+
+// Unescaping moves bytes left inside the message buffer with move_left(): it must equal memmove for
+// every length and every distance, including the overlapping ones, and write nothing past the end.
+TEST(Classify, MoveLeftIsMemmoveForLeftMoves) {
+  for (std::size_t len = 0; len < 40; ++len) {
+    for (std::size_t gap = 0; gap < 20; ++gap) {
+      unsigned char a[80], b[80];
+      for (std::size_t i = 0; i < sizeof a; ++i) a[i] = b[i] = static_cast<unsigned char>(i * 7u + 1u);
+      ev3proto::detail::move_left(a + 3, a + 3 + gap, len);
+      std::memmove(b + 3, b + 3 + gap, len);
+      ASSERT_EQ(0, std::memcmp(a, b, sizeof a)) << "len " << len << " gap " << gap;
+    }
+  }
+}
