@@ -56,11 +56,14 @@ test-blackbox: build arm
 demo: build
 	@$(PY) tools/demo.py --bin $(BIN)
 
-# Spec -> implementation: every edge of MCAgent's state graph replayed against `ev3-agent --driver`
-# (docs/driver.md, docs/spec.md "Conformance").
+# Spec -> implementation: every edge of MCAgent's state graph replayed against `ev3-agent --driver`,
+# every edge of MCMaster's against `ev3-master --driver`, and 40 seeded TLC -simulate traces of the
+# fleet (MCFleetSim: 3 agents, losses, duplicates, crashes) against one master and three agent
+# drivers talking to each other (docs/driver.md, docs/spec.md "Conformance"; the fleet ~25-60 s).
 conformance: build
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model agent
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model master
+	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model fleet --seed 1 --num 40 --depth 300
 
 # Mutation score of the conformance checks (not part of make test; ~20-40 min on 2 loaded cores):
 # seeded faults in a copy of the core, each rebuilt in build/mutate and checked (docs/spec.md

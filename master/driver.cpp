@@ -26,8 +26,8 @@ using ev3proto::Millis;
 struct MasterSink;
 using Core = ev3proto::Master<MasterSink>;
 
-/// The master's variables (MasterLogic ms: reg, nextId, msgid) plus what the spec abstracts from
-/// (heard, state, via): JSON.
+/// The master's variables (MasterLogic ms: reg, nextId, msgid; desired as the spec names it,
+/// UNKNOWN when not known) plus what the spec abstracts from (heard, state, via): JSON.
 std::string vars_json(const Core& m) {
   std::string s = "{\"nextId\":" + std::to_string(m.next_id()) + ",\"msgid\":" + std::to_string(m.next_msgid()) +
                   ",\"reg\":[";
@@ -50,6 +50,8 @@ std::string vars_json(const Core& m) {
     }
     s += "],\"beh\":";
     put_string(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
+    s += ",\"desired\":\"" +
+         (e.desired_known ? std::string(to_string(e.desired)) : std::string("UNKNOWN")) + "\"";
     s += ",\"heard\":" + std::to_string(e.heard) + ",\"quiet_ms\":" + std::to_string(m.now() - e.heard) +
          ",\"hi\":" + std::to_string(e.last_msgid) + ",\"state\":\"" +
          (e.has_state ? std::string(to_string(e.state)) : std::string("NONE")) + "\",\"via\":" +

@@ -9,10 +9,14 @@
     ev3-conformance graph [--model agent]         TLC's state graph of the model: states, edges, paths
     ev3-conformance replay [--model agent|master] [--driver CMD] [--known CLASS]
                                                   replay every edge against the driver (docs/driver.md)
+    ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D]
+                                                  TLC -simulate traces of the fleet replayed against
+                                                  one master and one agent driver per agent
     ev3-conformance validate TRACE... [--heartbeat MS ...]
                                                   check NDJSON traces (--trace) against the spec with TLC
-    ev3-conformance validate --master TRACE... [--drop MS --max-resends N]
-                                                  master driver traces (resend 1 ms) against MasterLogic
+    ev3-conformance validate --master TRACE... [--drop MS --resend MS --max-resends N]
+                                                  master traces (ev3-master --driver, or the program
+                                                  over UDP with its timers) against MasterLogic
     ev3-conformance mutate [--only NAME ...] [--list]
                                                   mutation score: seeded core faults vs these checks
 
@@ -136,11 +140,35 @@ def _cmd_replay_master(args: argparse.Namespace) -> int:
     return 1 if f.classes else 0
 
 
+def _cmd_replay_fleet(args: argparse.Namespace) -> int:
+    import shlex
+    from ev3conformance import driver, fleet_replay
+    agent = shlex.split(args.agent_driver or args.driver or "") or [str(driver.default_bin() / "ev3-agent"), "--driver"]
+    master = shlex.split(args.master_driver or "") or [str(driver.default_bin() / "ev3-master"), "--driver"]
+    try:
+        f = fleet_replay.replay_simulation(args.seed, args.num, args.depth, agent, master, args.cfg)
+    except driver.DriverError as e:
+        print(f"driver failed: {e}")
+        return 2
+    except RuntimeError as e:
+        print(e)
+        return 2
+    for (act, flds), (n, rep) in sorted(f.classes.items(), key=lambda kv: -kv[1][0]):
+        print(f"MISMATCH (fleet): {act} differs in [{', '.join(flds)}] in {n} traces; first one:")
+        print(rep)
+    print(f"seed {args.seed}, {args.num} traces of depth <= {args.depth} ({args.cfg})")
+    print(f.summary())
+    print("replay: conforms" if not f.classes else "replay: FAIL")
+    return 1 if f.classes else 0
+
+
 def _cmd_replay(args: argparse.Namespace) -> int:
     import shlex
     from ev3conformance import driver, graph, replay
     if args.model == "master":
         return _cmd_replay_master(args)
+    if args.model == "fleet":
+        return _cmd_replay_fleet(args)
     module, cfg = MODELS[args.model]
     argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-agent"), "--driver"]
     g, figs = graph.dump_graph(module, cfg, args.model)
@@ -164,7 +192,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
 def _cmd_validate(args: argparse.Namespace) -> int:
     from ev3conformance import tracecheck
     if args.master:
-        mc = {"TDrop": args.drop, "MaxResends": args.max_resends, "Behaviours": args.behaviour or ["wait"]}
+        mc = {"TDrop": args.drop, "TResend": args.resend, "MaxResends": args.max_resends,
+              "Behaviours": args.behaviour or ["wait"], "NextId": args.next_id, "FirstMsgid": args.first_msgid}
         rs = [tracecheck.validate_master(p, mc) for p in args.traces]
         bad = sum(not r.ok for r in rs)
         for r in rs:
@@ -237,8 +266,14 @@ def _parser() -> argparse.ArgumentParser:
     gp.set_defaults(run=_cmd_graph)
 
     rp = sub.add_parser("replay", help="replay every edge of the model's state graph against a driver")
-    rp.add_argument("--model", choices=sorted(MODELS), default="agent")
+    rp.add_argument("--model", choices=sorted(MODELS) + ["fleet"], default="agent")
     rp.add_argument("--driver", help="driver command line (default: $EV3_BIN/ev3-agent --driver, ev3-master --driver)")
+    rp.add_argument("--seed", type=int, default=1, help="fleet: TLC -seed of the simulation (default 1)")
+    rp.add_argument("--num", type=int, default=30, help="fleet: traces to simulate and replay (default 30)")
+    rp.add_argument("--depth", type=int, default=300, help="fleet: states per trace (TLC -depth, default 300)")
+    rp.add_argument("--cfg", default="MCFleetSim.cfg", help="fleet: the simulation's cfg (spec/tla/ or a path)")
+    rp.add_argument("--agent-driver", help="fleet: agent driver command line (default: --driver, else ev3-agent --driver)")
+    rp.add_argument("--master-driver", help="fleet: master driver command line (default: ev3-master --driver)")
     rp.add_argument("--known", action="append", choices=["pending-resend"],
                     help="master: let a known, reported spec/core difference pass (counted and printed)")
     rp.set_defaults(run=_cmd_replay)
@@ -252,9 +287,16 @@ def _parser() -> argparse.ArgumentParser:
     vp.add_argument("--window", type=int, default=0, help="dedupe window entries (default 50)")
     vp.add_argument("--jobs", type=int, default=2, help="TLC runs in parallel (default 2)")
     vp.add_argument("--master", action="store_true",
-                    help="master traces (ev3-master --driver --trace, resend 1 ms) against MasterLogic")
+                    help="master traces against MasterLogic: ev3-master --driver --trace, or ev3-master "
+                         "--trace over UDP (give its --agent-timeout-ms as --drop, --resend-ms as --resend)")
     vp.add_argument("--drop", type=int, default=4, help="--master: the run's drop timeout in ms (TDrop)")
+    vp.add_argument("--resend", type=int, default=1,
+                    help="--master: the run's resend period in ms (default 1: the driver's; ev3-master: 500)")
     vp.add_argument("--max-resends", type=int, default=10, help="--master: the run's max resends")
+    vp.add_argument("--next-id", type=int, default=2,
+                    help="--master: the first id the master hands out (a restart from --state-file: its next_id)")
+    vp.add_argument("--first-msgid", type=int, default=1,
+                    help="--master: the master's first msgid (a restart from --state-file: its next_msgid)")
     vp.add_argument("--behaviour", action="append", help="--master: behaviour names (default wait)")
     vp.set_defaults(run=_cmd_validate)
 

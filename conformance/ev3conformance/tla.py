@@ -41,10 +41,18 @@ def _unquote(tok: str) -> str:
     return re.sub(r'\\(.)', lambda m: {"n": "\n", "t": "\t"}.get(m.group(1), m.group(1)), body)
 
 
+class ModelValue(str):
+    """A TLC model value (a bare name such as a1 in `Agents = {a1, a2}`), read with model_values=True."""
+
+    def __repr__(self) -> str:
+        return str(self)
+
+
 class _Parser:
-    def __init__(self, toks: list[str]) -> None:
+    def __init__(self, toks: list[str], model_values: bool = False) -> None:
         self.t = toks
         self.i = 0
+        self.model_values = model_values
 
     def peek(self) -> str | None:
         return self.t[self.i] if self.i < len(self.t) else None
@@ -109,11 +117,14 @@ class _Parser:
             return False
         if re.fullmatch(r"-?\d+", tok):
             return int(tok)
+        if self.model_values and re.fullmatch(r"[A-Za-z_][A-Za-z_0-9]*", tok):
+            return ModelValue(tok)
         raise TlaParseError(f"unexpected {tok!r}")
 
 
-def parse_value(text: str):
-    p = _Parser(_tokens(text))
+def parse_value(text: str, model_values: bool = False):
+    """model_values: a bare name is a ModelValue (TLC prints model values unquoted); else an error."""
+    p = _Parser(_tokens(text), model_values)
     v = p.value()
     if p.peek() is not None:
         raise TlaParseError(f"trailing {p.peek()!r}")
@@ -123,7 +134,7 @@ def parse_value(text: str):
 _ASSIGN = re.compile(r"^/\\ (\w+) = ", re.M)
 
 
-def parse_state(text: str) -> dict:
+def parse_state(text: str, model_values: bool = False) -> dict:
     """A TLC state printout ("/\\ x = ...\\n/\\ y = ...") -> {x: value, y: value}."""
     marks = list(_ASSIGN.finditer(text))
     if not marks:
@@ -131,11 +142,11 @@ def parse_state(text: str) -> dict:
         m = re.match(r"\s*(\w+) = (.*)$", text, re.S)
         if not m:
             raise TlaParseError(f"not a state: {text[:80]!r}")
-        return {m.group(1): parse_value(m.group(2))}
+        return {m.group(1): parse_value(m.group(2), model_values)}
     out = {}
     for k, m in enumerate(marks):
         end = marks[k + 1].start() if k + 1 < len(marks) else len(text)
-        out[m.group(1)] = parse_value(text[m.end():end])
+        out[m.group(1)] = parse_value(text[m.end():end], model_values)
     return out
 
 
