@@ -233,9 +233,34 @@ def jobs_default() -> int:
 
 
 # --- the master (MasterLogic, ExactMsgids = TRUE) ------------------------------------------------
+#
+# Time. MasterLogic's MasterTick is one abstract resend period for every entry at once: each entry's
+# quiet grows by one, an entry quiet for TDrop ticks is dropped, every pending datagram is resent
+# (or its command fails). The C++ core counts milliseconds and keeps a resend deadline per entry
+# (sent_at + resend) and a drop deadline per entry (heard + drop); `advance` runs one MasterTick at
+# each deadline, acting on the entries due then. The check maps this as follows (the same map for
+# `ev3-master --driver` traces, resend 1 ms, and for the real program over UDP):
+#   - 1 tick = 1 ms for quiet and drops: quiet is ms since heard (the trace's quiet), TDrop the drop
+#     timeout in ms; an entry is dropped at the tick where quiet reaches TDrop, as in TickEntries.
+#   - the resend period is per entry: an entry's pending datagram is due TResend ms after it was
+#     sent (when its msgid was drawn, or last resent by a tick; a re-announcement's resend
+#     does not move it, as in the core). The check keeps this time itself (variable `sent`),
+#     it is not read from the trace.
+#   - a MasterTick record at time t is MasterLogic's TickEntries over exactly the entries due at t
+#     (quiet reaching TDrop, or the resend period over): they are dropped / resent / failed by the
+#     spec's own per-entry rule, in id order; every other entry only ages by the tick. The record
+#     must come at the first ms anything is due (nothing due at t - 1) and something must be due.
+#   - between records time passes with nothing due (else the core would have ticked first): every
+#     entry ages by the elapsed ms (closed form, one TLC step per record).
+# With TResend = 1 every pending datagram is due every ms: the spec's MasterTick exactly (driver).
+# Times are rebased to the first record (real traces carry the monotonic clock).
 
 MASTER_RECV = ["MasterSync", "MasterAnswer", "MasterPing", "MasterReport"]
 COMMANDS = ["BEHAVIOUR", "START", "STOP", "PAUSE", "RESUME", "STANDBY", "CONTINUE", "RESTART"]
+ELECTION_MASTER_ACTIONS = {"Heartbeat", "StartElection", "HandleVote", "BecomeMaster", "HandleElect",
+                           "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover"}
+# TDrop has no default (the driver's and the program's differ); TResend 1 is the driver's.
+MASTER_DEFAULTS = {"TResend": 1, "MaxResends": 10, "Behaviours": ["wait"], "NextId": 2, "FirstMsgid": 1}
 
 
 def _reg_tla(reg: list) -> str:
@@ -248,10 +273,25 @@ def _reg_tla(reg: list) -> str:
     return "{" + ", ".join(out) + "}"
 
 
+def _behaviour_names(recs: list[dict], given) -> list[str]:
+    """The behaviour names the operator may have used: the given ones and every one a trace record's
+    registry shows (queued BEHAVIOUR, or ACKed)."""
+    names = list(given or ["wait"])
+    for r in recs:
+        for x in r.get("changed", {}).get("reg", []):
+            for n in [x.get("beh")] + [q.get("name") for q in x.get("queue", []) if q.get("type") == "BEHAVIOUR"]:
+                if n and n != "NONE" and n not in names:
+                    names.append(n)
+    return names
+
+
 def master_module(name: str, recs: list[dict], consts: dict) -> str:
-    """MasterTraceCheck: one step per record; between records, the spec MasterTicks the core did not
-    record (nothing due: no datagram, nobody dropped) are silent steps. 1 tick = 1 ms (the driver's
-    resend period must be 1 ms); quiet is in ticks = ms."""
+    """MasterTraceCheck: one TLC step per record, with the time map above. consts: TDrop and TResend
+    (ms), MaxResends, Behaviours, NextId / FirstMsgid (the master's first id and msgid: 2 and 1 unless
+    it was restarted from a state file)."""
+    c = dict(MASTER_DEFAULTS)
+    c.update(consts)
+    base = int(recs[0].get("now", 0)) if recs else 0
     items = []
     for r in recs:
         ch = r.get("changed", {})
@@ -264,54 +304,83 @@ def master_module(name: str, recs: list[dict], consts: dict) -> str:
         m = r.get("args", {}).get("msg")
         mrec = _msg(m) if m else {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
         chs = "[" + ", ".join(parts) + "]" if parts else "[x \\in {} |-> 0]"
-        items.append(f'[a |-> "{r["action"]}", m |-> {tla.to_tla(mrec)}, now |-> {int(r.get("now", 0))}, ch |-> {chs}]')
-    behs = "{" + ", ".join(tla.to_tla(b) for b in consts.get("Behaviours", ["wait"])) + "}"
+        now = int(r.get("now", 0)) - base
+        items.append(f'[a |-> "{r["action"]}", m |-> {tla.to_tla(mrec)}, now |-> {now}, ch |-> {chs}]')
+    behs = "{" + ", ".join(tla.to_tla(b) for b in _behaviour_names(recs, c.get("Behaviours"))) + "}"
     return f"""---- MODULE {name} ----
 EXTENDS Naturals, Sequences, FiniteSets, TLC
-VARIABLES ms, cursor, clock, failed
-M == INSTANCE MasterLogic WITH TDrop <- {consts["TDrop"]}, MaxResends <- {consts["MaxResends"]},
+VARIABLES ms, cursor, clock, sent, failed
+TDrop == {int(c["TDrop"])}
+M == INSTANCE MasterLogic WITH TDrop <- TDrop, MaxResends <- {int(c["MaxResends"])},
        ExactMsgids <- TRUE, BUG <- "none"
+TResend == {int(c["TResend"])}
 Behs == {behs}
 Trace == <<
   {(","+chr(10)+"  ").join(items)}
 >>
 Vars == {{"reg", "nextId", "msgid"}}
 Val(v, s) == IF v = "msgid" THEN s.msgid[0] ELSE s[v]
-Fits(r, after) == \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN Val(v, after) = r.ch[v] ELSE after[v] = ms[v]
+\\* The record's changed variables have its values; the others are as before the action.
+Fits(r, before, after) ==
+    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN Val(v, after) = r.ch[v] ELSE after[v] = before[v]
 Eps(r) == {{x.ep : x \\in ms.reg}} \\cup (IF "reg" \\in DOMAIN r.ch THEN {{x.ep : x \\in r.ch.reg}} ELSE {{}})
 Cmds == {{M!Cmd(t, M!NoBehaviour) : t \\in {tla.to_tla(set(COMMANDS) - {"BEHAVIOUR"})}}}
         \\cup {{M!Cmd("BEHAVIOUR", b) : b \\in Behs}}
-Init == ms = M!InitMaster({{1}}) /\\ cursor = 1 /\\ clock = 0 /\\ failed = 0
-Silent ==
-    /\\ cursor <= Len(Trace)
-    /\\ clock + (IF Trace[cursor].a = "MasterTick" THEN 1 ELSE 0) < Trace[cursor].now
-    /\\ LET t == M!MasterTick(ms) IN
-         /\\ t.out = {{}} /\\ {{x.id : x \\in t.ms.reg}} = {{x.id : x \\in ms.reg}}
-         /\\ ms' = t.ms
-    /\\ clock' = clock + 1 /\\ UNCHANGED cursor
+Ids(s) == {{x.id : x \\in s.reg}}
+EntryOf(s, i) == CHOOSE x \\in s.reg : x.id = i
+\\* Time passes k ms with nothing due: every entry's quiet grows by k.
+Age(s, k) == [s EXCEPT !.reg = {{[x EXCEPT !.quiet = x.quiet + k] : x \\in s.reg}}]
+\\* The entries due at time t >= clock: quiet reaches TDrop, or the pending datagram was sent
+\\* TResend ms ago (sent: the check's own record of when, see NewSent).
+DueAt(y, t) == y.quiet + (t - clock) >= TDrop \\/ (y.pending /\\ t - sent[y.id] >= TResend)
+Due(t) == {{y.id : y \\in {{x \\in ms.reg : DueAt(x, t)}}}}
+\\* When each entry's pending datagram was last sent, after a step at time t that produced s2:
+\\* now if its msgid was drawn in the step (new entry, next command, resync) or a tick resent it
+\\* (ids D), else as before (a re-announcement resends it without moving its deadline).
+NewSent(s2, D, t) ==
+    [i \\in Ids(s2) |-> IF i \\in D \\/ ~\\E y \\in ms.reg : y.id = i /\\ y.pending /\\ y.mid = EntryOf(s2, i).mid
+                       THEN t ELSE sent[i]]
+\\* The operator's command: MasterCommand for one id (or an unknown one: 1), or for every
+\\* registered id in id order (the console's `all`: one core call, one record).
+RECURSIVE ForAll(_, _, _)
+ForAll(s, ids, c) ==
+    IF ids = {{}} THEN s
+    ELSE LET i == CHOOSE i \\in ids : \\A j \\in ids : i <= j
+         IN ForAll(M!MasterCommand(s, i, c).ms, ids \\ {{i}}, c)
+CmdResults(s) == {{M!MasterCommand(s, id, c).ms : id \\in Ids(s) \\cup {{1}}, c \\in Cmds}}
+                 \\cup {{ForAll(s, Ids(s), c) : c \\in Cmds}}
+Init == /\\ ms = [reg |-> {{}}, nextId |-> {int(c["NextId"])}, msgid |-> [k \\in {{0}} |-> {int(c["FirstMsgid"])}]]
+        /\\ cursor = 1 /\\ clock = 0 /\\ sent = [i \\in {{}} |-> 0] /\\ failed = 0
 Match ==
-    /\\ cursor <= Len(Trace)
-    /\\ LET r == Trace[cursor] IN
-       IF r.a = "MasterTick" THEN
-          /\\ clock + 1 = r.now
-          /\\ LET t == M!MasterTick(ms) IN Fits(r, t.ms) /\\ ms' = t.ms
-          /\\ clock' = r.now
-       ELSE IF r.a = "MasterCommand" THEN
-          /\\ clock = r.now
-          /\\ \\E id \\in {{x.id : x \\in ms.reg}} \\cup {{1}}, c \\in Cmds :  \\* 1: an unknown id
-                LET t == M!MasterCommand(ms, id, c) IN Fits(r, t.ms) /\\ ms' = t.ms
-          /\\ UNCHANGED clock
-       ELSE
-          /\\ clock = r.now
-          /\\ M!Handler(r.m) = r.a
-          /\\ \\E from \\in Eps(r) \\cup {{0}} :
-                LET t == M!Receive(ms, r.m, from) IN Fits(r, t.ms) /\\ ms' = t.ms
-          /\\ UNCHANGED clock
+    /\\ failed = 0 /\\ cursor <= Len(Trace)
+    /\\ LET r == Trace[cursor]
+           t == r.now
+       IN /\\ IF r.a = "MasterTick" THEN
+                \\* the first ms anything is due: the spec's per-entry tick for the due entries
+                /\\ t > clock /\\ Due(t - 1) = {{}} /\\ Due(t) # {{}}
+                /\\ LET D == Due(t)
+                       s1 == Age(ms, t - 1 - clock)
+                       tk == M!TickEntries(s1, D, {{}})
+                       s2 == [tk.ms EXCEPT !.reg = {{IF x.id \\in D THEN x ELSE [x EXCEPT !.quiet = x.quiet + 1]
+                                                     : x \\in tk.ms.reg}}]
+                   IN /\\ Fits(r, s1, s2) /\\ ms' = s2 /\\ sent' = NewSent(s2, D, t)
+             ELSE
+                /\\ t >= clock /\\ Due(t) = {{}}
+                /\\ LET s1 == Age(ms, t - clock) IN
+                   IF r.a = "MasterCommand" THEN
+                      \\E s2 \\in CmdResults(s1) :
+                         /\\ Fits(r, s1, s2) /\\ ms' = s2 /\\ sent' = NewSent(s2, {{}}, t)
+                   ELSE
+                      /\\ r.a \\in {tla.to_tla(set(MASTER_RECV))} /\\ M!Handler(r.m) = r.a
+                      /\\ \\E from \\in Eps(r) \\cup {{0}} :
+                            LET s2 == M!Receive(s1, r.m, from).ms IN
+                            /\\ Fits(r, s1, s2) /\\ ms' = s2 /\\ sent' = NewSent(s2, {{}}, t)
+          /\\ clock' = t
     /\\ cursor' = cursor + 1
-Step == failed = 0 /\\ (Silent \\/ Match) /\\ UNCHANGED failed
-Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED (Silent \\/ Match)
-         /\\ failed' = cursor /\\ UNCHANGED <<ms, cursor, clock>>
-Next == Step \\/ Stuck
+    /\\ UNCHANGED failed
+Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
+         /\\ failed' = cursor /\\ UNCHANGED <<ms, cursor, clock, sent>>
+Next == Match \\/ Stuck
 Matched == cursor <= Len(Trace)
 NotStuck == failed = 0
 ====
@@ -319,8 +388,11 @@ NotStuck == failed = 0
 
 
 def validate_master(path: Path, consts: dict, workdir: Path | None = None) -> Result:
-    """A master trace (`ev3-master --driver --trace`, resend 1 ms) against MasterLogic (exact
-    msgids): consts TDrop (= the driver's drop ms), MaxResends, Behaviours."""
+    """A master trace against MasterLogic (exact msgids): `ev3-master --driver --trace` (TResend 1,
+    the default) or the real program's `--trace` over UDP (TResend = its --resend-ms). consts: TDrop
+    (--agent-timeout-ms / the driver's drop), TResend, MaxResends, Behaviours, NextId, FirstMsgid.
+    A trace with Election.tla actions (ev3-master --election) fails at the first one: only
+    MasterLogic is checked."""
     path = Path(path)
     recs = [r for r in load(path, None) if r.get("node", "").startswith("master")]
     if not recs:
@@ -339,7 +411,10 @@ def validate_master(path: Path, consts: dict, workdir: Path | None = None) -> Re
     if rc == 12 and "Invariant NotStuck is violated" in out:
         fails = re.findall(r"failed = (\d+)", out)
         k = int(fails[-1]) - 1 if fails else -1
+        why = ""
+        if 0 <= k < len(recs) and recs[k].get("action") in ELECTION_MASTER_ACTIONS:
+            why = " (an Election.tla action: validate --master checks MasterLogic only)"
         return Result(str(path), False, len(recs),
-                      f"record {k + 1} of {len(recs)} could not be matched by MasterLogic "
+                      f"record {k + 1} of {len(recs)} could not be matched by MasterLogic{why} "
                       f"(module kept in {d}):\n{_describe_record(recs, k)}")
     return Result(str(path), False, len(recs), f"TLC failed (exit {rc}); module in {d}:\n{out[-2500:]}")

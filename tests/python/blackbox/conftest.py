@@ -77,20 +77,30 @@ def start_agent(agent_exe, programs, tmp_path, tm):
 # --- trace validation (issue 7; docs/spec.md "Conformance") -----------------------------------------
 # Every ev3-agent / ev3-master started by a scenario runs with `--trace FILE`; when the test ends the
 # trace is checked by TLC against the spec (ev3conformance.tracecheck) in a background pool of 2 TLC
-# runs, so the checks overlap the following scenarios. At the end of the session every failed check
-# is reported as an error at teardown of its test, with the first record the spec cannot match.
+# runs, so the checks overlap the following scenarios: agent traces against AgentLogic (validate),
+# master traces against MasterLogic (validate --master, with the run's --agent-timeout-ms,
+# --resend-ms and --max-resends). At the end of the session every failed check is reported as an
+# error at teardown of its test, with the first record the spec cannot match.
 # EV3_TRACE_VALIDATE=0 turns it off; =sync checks at each teardown (slower, fails the test at once).
+# Not checked: programs started with --election (test_election.py: a master and three agents per
+# scenario, with their own --trace=FILE): their traces hold Election.tla actions (master: Heartbeat,
+# HandleVote, MasterRoute, ...; agent: HandleHeartbeat, StartElection, Forward, ...) that neither
+# MasterLogic nor AgentLogic has; the summary line counts them as "not checked (--election)".
 
 import concurrent.futures as _cf  # noqa: E402
+import threading as _threading  # noqa: E402
 import time as _time  # noqa: E402
 
 import ev3net as _ev3net  # noqa: E402
 
 _MODE = os.environ.get("EV3_TRACE_VALIDATE", "1")
 _POOL: _cf.ThreadPoolExecutor | None = None
-_PENDING: list[tuple[str, str, _cf.Future]] = []   # (nodeid, program name, future of Result)
+_PENDING: list[tuple[str, str, bool, _cf.Future]] = []  # (nodeid, program name, master?, future of Result)
 _CURRENT: list = []                                 # the running test's item
-_STATS = {"traces": 0, "records": 0, "skipped": 0, "seconds": 0.0}
+_STATS = {"traces": 0, "records": 0, "skipped": 0, "master_traces": 0, "master_records": 0,
+          "master_skipped": 0, "election_masters": 0, "election_agents": 0, "seconds": 0.0,
+          "master_seconds": 0.0}
+_STATS_LOCK = _threading.Lock()
 _orig_init = _ev3net.Program.__init__
 
 _TIMER_FLAGS = {"--heartbeat-ms": "TPing", "--master-timeout-ms": "TLoss", "--paused-timeout-ms": "TPaused",
@@ -106,10 +116,13 @@ def _traced_init(self, exe, args, tmp, name, *a, **kw):
             and any(x.startswith("--") for x in args)):
         self.trace_path = Path(tmp) / f"{name}.trace.ndjson"
         args += ["--trace", str(self.trace_path)]
-    elif "--trace" in args:
+    elif "--trace" in args[:-1]:
         self.trace_path = Path(args[args.index("--trace") + 1])
+    else:  # the scenario's own --trace=FILE
+        self.trace_path = next((Path(x.split("=", 1)[1]) for x in args if x.startswith("--trace=")), None)
     self.trace_args = args
     self.trace_prog = prog
+    self.trace_state = _state_file(args) if prog == "ev3-master" else {}
     if self.trace_path is not None and _CURRENT:
         _CURRENT[0].__dict__.setdefault("_ev3_started", []).append(self)
     _orig_init(self, exe, args, tmp, name, *a, **kw)
@@ -127,11 +140,39 @@ def _consts(args: list[str]) -> dict:
     return c
 
 
-def _validate(path: Path, consts: dict):
+_MASTER_FLAGS = {"--agent-timeout-ms": "TDrop", "--resend-ms": "TResend", "--max-resends": "MaxResends"}
+
+
+def _master_consts(args: list[str], state: dict) -> dict:
+    """MasterLogic's constants for a run of ev3-master: its timers (ms) and max resends as given on
+    the command line, else the program's defaults (docs/programs.md); its first id and msgid from
+    the --state-file it was started with (else 2 and 1)."""
+    c = {"TDrop": 10000, "TResend": 500, "MaxResends": 10}
+    for i, x in enumerate(args[:-1]):
+        if x in _MASTER_FLAGS:
+            c[_MASTER_FLAGS[x]] = int(args[i + 1])
+    if "next_id" in state and "next_msgid" in state:
+        c["NextId"], c["FirstMsgid"] = int(state["next_id"]), int(state["next_msgid"])
+    return c
+
+
+def _state_file(args: list[str]) -> dict:
+    """The key=value lines of the --state-file the master starts from (empty: none yet)."""
+    if "--state-file" not in args[:-1]:
+        return {}
+    f = Path(args[args.index("--state-file") + 1])
+    try:
+        return dict(line.split("=", 1) for line in f.read_text().splitlines() if "=" in line)
+    except OSError:
+        return {}
+
+
+def _validate(path: Path, consts: dict, master: bool):
     from ev3conformance import tracecheck
     t0 = _time.monotonic()
-    r = tracecheck.validate(path, consts)
-    _STATS["seconds"] += _time.monotonic() - t0
+    r = tracecheck.validate_master(path, consts) if master else tracecheck.validate(path, consts)
+    with _STATS_LOCK:
+        _STATS["master_seconds" if master else "seconds"] += _time.monotonic() - t0
     return r
 
 
@@ -140,23 +181,28 @@ def _submit(nodeid: str, p) -> None:
     path = getattr(p, "trace_path", None)
     if path is None or _MODE == "0":
         return
-    if p.trace_prog != "ev3-agent":
-        return  # master traces: validated once the master trace check exists (tracecheck node "master")
+    master = p.trace_prog == "ev3-master"
+    if "--election" in p.trace_args:
+        # Election.tla actions: neither AgentLogic nor MasterLogic (see the comment above).
+        _STATS["election_masters" if master else "election_agents"] += 1
+        return
     if _POOL is None:
         _POOL = _cf.ThreadPoolExecutor(max_workers=2)
-    fut = _POOL.submit(_validate, path, _consts(p.trace_args))
+    consts = _master_consts(p.trace_args, p.trace_state) if master else _consts(p.trace_args)
+    fut = _POOL.submit(_validate, path, consts, master)
     if _MODE == "sync":
         r = fut.result()
-        _count(r)
+        _count(r, master)
         assert r.ok, f"trace of {p.name} does not conform to the spec: {r.message}"
         return
-    _PENDING.append((nodeid, p.name, fut))
+    _PENDING.append((nodeid, p.name, master, fut))
 
 
-def _count(r) -> None:
-    _STATS["traces"] += 1
-    _STATS["records"] += r.records
-    _STATS["skipped"] += r.skipped
+def _count(r, master: bool) -> None:
+    k = "master_" if master else ""
+    _STATS[k + "traces"] += 1
+    _STATS[k + "records"] += r.records
+    _STATS[k + "skipped"] += r.skipped
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -173,14 +219,14 @@ def _trace_check(request):
 
 
 def pytest_sessionfinish(session, exitstatus):
-    if not _PENDING:
+    if not _PENDING and not (_MODE == "sync" and _STATS["traces"] + _STATS["master_traces"]):
         return
     from _pytest.reports import TestReport
     t0 = _time.monotonic()
     bad = 0
-    for nodeid, name, fut in _PENDING:
+    for nodeid, name, master, fut in _PENDING:
         r = fut.result()
-        _count(r)
+        _count(r, master)
         if r.ok:
             continue
         bad += 1
@@ -192,8 +238,12 @@ def pytest_sessionfinish(session, exitstatus):
     tr = session.config.pluginmanager.get_plugin("terminalreporter")
     if tr is not None:
         tr.ensure_newline()
-        tr.write_line(f"trace validation: {_STATS['traces']} traces ({_STATS['records']} records, "
-                      f"{_STATS['skipped']} skipped), {bad} not conforming; TLC {_STATS['seconds']:.0f} s "
-                      f"in 2 parallel runs, {waited:.0f} s waited at the end")
+        tr.write_line(f"trace validation: {_STATS['traces']} agent traces ({_STATS['records']} records, "
+                      f"{_STATS['skipped']} skipped), {_STATS['master_traces']} master traces "
+                      f"({_STATS['master_records']} records, {_STATS['master_skipped']} skipped), "
+                      f"{bad} not conforming; not checked (--election): {_STATS['election_masters']} masters, "
+                      f"{_STATS['election_agents']} agents; "
+                      f"TLC {_STATS['seconds'] + _STATS['master_seconds']:.0f} s (masters "
+                      f"{_STATS['master_seconds']:.0f} s) in 2 parallel runs, {waited:.0f} s waited at the end")
     if bad:
         session.exitstatus = pytest.ExitCode.TESTS_FAILED
