@@ -175,7 +175,7 @@ _TABLE: tuple[MessageType, ...] = (
     _type(19, "PANIC", "agent->0", 0, 0),
     _type(20, "EVENT", "agent->master", 1, 32, "text:event", "text:detail..."),
     # Relay and election (spec/tla/Election.tla, docs/election.md).
-    _type(21, "RELAY_REQ", "agent->0", 1, 1, "u32:epoch"),
+    _type(21, "RELAY_REQ", "agent->0", 1, 2, "u32:epoch", "u32:score"),
     _type(22, "RELAY_OFFER", "agent->agent", 2, 2, "u32:epoch", "u16:master"),
     _type(23, "RELAY_ACCEPT", "agent->agent", 2, 2, "u32:epoch", "u16:master"),
     _type(24, "RELAY_ROUTE", "agent->master", 2, 2, "u32:epoch", "u16:relayed"),
@@ -187,6 +187,7 @@ _TABLE: tuple[MessageType, ...] = (
     _type(30, "EPOCH_STALE", "both", 1, 1, "u32:epoch"),
     _type(31, "EPOCH_CMD", "master->agent", 2, 2, "u32:epoch", "text:datagram"),
     _type(32, "HANDOVER", "master->master", 2, 32, "u32:epoch", "text:registry..."),
+    _type(33, "PREVOTE_OK", "agent->agent", 1, 1, "u32:epoch"),
 )
 
 MESSAGE_TYPES: dict[int, MessageType] = {t.number: t for t in _TABLE}

@@ -419,6 +419,11 @@ class Agent {
   std::size_t vote_count() const noexcept { return vote_count_; }
   /// The i-th vote.
   std::uint16_t vote(std::size_t i) const noexcept { return i < vote_count_ ? votes_[i] : 0; }
+  /// PREVOTE_OKs counted for standing in the next epoch (Election prevotes; those of an older
+  /// epoch no longer count).
+  std::size_t prevote_count() const noexcept { return prevote_epoch_ == epoch_ ? prevote_count_ : 0; }
+  /// The i-th pre-vote's sender.
+  std::uint16_t prevote(std::size_t i) const noexcept { return i < prevote_count() ? prevotes_[i] : 0; }
   /// The fleet membership last published by the followed master (LEADER), quorums count against it.
   std::size_t member_count() const noexcept { return member_count_; }
   /// The i-th member id.
@@ -813,10 +818,12 @@ class Agent {
   Action Dispatch(const Message& m, Peer from) noexcept {
     cur_master_ = leader_ != 0 ? leader_ : kMasterId;
     cmd_epoch_ = 1;
-    if (m.type >= MsgType::RELAY_REQ && m.type <= MsgType::HANDOVER) {
+    if (m.type >= MsgType::RELAY_REQ && m.type <= MsgType::PREVOTE_OK) {
       const Action e = cfg_.election.enabled && m.sender != id_ ? ElectionHandler(m) : Action::Ignore;
       switch (e) {
         case Action::OfferRelay: OfferRelay(m, from); break;
+        case Action::GrantPreVote: GrantPreVote(m, from); break;
+        case Action::HandlePreVote: HandlePreVote(m); break;
         case Action::AcceptRelay: AcceptRelay(m, from); break;
         case Action::HandleAccept: HandleAccept(m, from); break;
         case Action::Forward: Forward(m); break;
@@ -867,7 +874,10 @@ class Agent {
   /// Which Election handler takes relay / election datagram @p m (Ignore when none is enabled).
   Action ElectionHandler(const Message& m) noexcept {
     switch (m.type) {
-      case MsgType::RELAY_REQ: return OfferRelayOk(m) ? Action::OfferRelay : Action::Ignore;
+      case MsgType::RELAY_REQ:
+        if (OfferRelayOk(m)) return Action::OfferRelay;
+        return GrantPreVoteOk(m) ? Action::GrantPreVote : Action::Ignore;
+      case MsgType::PREVOTE_OK: return HandlePreVoteOk(m) ? Action::HandlePreVote : Action::Ignore;
       case MsgType::RELAY_OFFER: return AcceptRelayOk(m) ? Action::AcceptRelay : Action::Ignore;
       case MsgType::RELAY_ACCEPT: return HandleAcceptOk(m) ? Action::HandleAccept : Action::Ignore;
       case MsgType::RELAY: return ForwardOk(m) ? Action::Forward : Action::Ignore;
@@ -893,16 +903,54 @@ class Agent {
   /// Election: p follows a master in its current epoch over a direct link (may offer / relay).
   bool DirectFollower() const noexcept { return Following() && following_ == epoch_ && via_ == 0; }
 
-  /// Spec RequestRelay's enabling condition: PANIC, not standing, the retry period is due.
+  /// Spec RequestRelay's enabling condition: PANIC (or a candidate), the retry period is due.
   bool RequestRelayOk() const noexcept {
-    return cfg_.election.enabled && state_ == State::PANIC && role_ == Role::none && relay_at_ <= now_;
+    return cfg_.election.enabled && state_ == State::PANIC && role_ != Role::master && relay_at_ <= now_;
   }
-  /// Spec RequestRelay: RELAY_REQ(epoch) broadcast, again after relay_retry.
+  /// Spec RequestRelay: RELAY_REQ(epoch, score) broadcast, again after relay_retry. It is also the
+  /// pre-vote request: peers without a master answer PREVOTE_OK.
   void RequestRelay() noexcept {
     relay_at_ = now_ + cfg_.timers[Timer::relay_retry];
-    char num[10];
-    const std::string_view p[1] = {number(epoch_, num)};
-    emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 1);
+    char num[10], sc[10];
+    const std::string_view p[2] = {number(epoch_, num), number(score(), sc)};
+    emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 2);
+  }
+
+  /// Spec GrantPreVote's enabling condition: no master here (PANIC or candidate), the asker's epoch
+  /// not older than ours and its score (RELAY_REQ's second param) not higher than ours.
+  bool GrantPreVoteOk(const Message& m) const noexcept {
+    const auto e = m.param_u32(0);
+    const auto sc = m.param_u32(1);
+    return m.receiver == kBroadcastId && is_assigned_id(m.sender) && is_assigned_id(id_) &&
+           state_ == State::PANIC && role_ != Role::master && e && sc && *e >= epoch_ && *sc <= score();
+  }
+  /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else changes.
+  void GrantPreVote(const Message& m, Peer from) noexcept {
+    const std::string_view p[1] = {m.param(0)};
+    emit_to(from, m.sender, MsgType::PREVOTE_OK, p, 1);
+  }
+
+  /// Spec HandlePreVote's enabling condition: still without a master, for our current epoch, from a
+  /// member not counted yet.
+  bool HandlePreVoteOk(const Message& m) const noexcept {
+    const auto e = m.param_u32(0);
+    if (!ToMe(m) || state_ != State::PANIC || role_ == Role::master || !e || *e != epoch_) return false;
+    for (std::size_t i = 0; i < prevote_count(); ++i)
+      if (prevotes_[i] == m.sender) return false;
+    return is_member(m.sender);
+  }
+  /// Spec HandlePreVote: one more pre-vote for standing in the next epoch.
+  void HandlePreVote(const Message& m) noexcept {
+    if (prevote_epoch_ != epoch_) {
+      prevote_epoch_ = epoch_;
+      prevote_count_ = 0;
+    }
+    if (prevote_count_ < kMaxMembers) prevotes_[prevote_count_++] = m.sender;
+    ++relay_rev_;
+  }
+  void clear_prevotes() noexcept {
+    if (prevote_count_ != 0) ++relay_rev_;
+    prevote_count_ = 0;
   }
 
   /// Spec OfferRelay's enabling condition (one hop: only a direct follower offers).
@@ -938,6 +986,7 @@ class Agent {
     heard_ = now_;
     reset_clk();
     relay_at_ = stand_at_ = kNever;
+    clear_prevotes();
     const std::string_view p[2] = {m.param(0), m.param(1)};
     emit_to(from, m.sender, MsgType::RELAY_ACCEPT, p, 2);
   }
@@ -994,10 +1043,16 @@ class Agent {
   }
 
   /// Spec StartElection's enabling condition: PANIC (or a candidate whose timeout passed), an
-  /// assigned id, a known membership, the back-off over.
+  /// assigned id, a known membership, the back-off over, and pre-votes of a majority of the
+  /// membership (itself included).
   bool StartElectionOk() const noexcept {
     return cfg_.election.enabled && state_ == State::PANIC && role_ != Role::master &&
-           stand_at_ <= now_ && member_count_ > 0 && is_assigned_id(id_) && epoch_ < 0xFFFFFFFFu;
+           stand_at_ <= now_ && member_count_ > 0 && is_assigned_id(id_) && epoch_ < 0xFFFFFFFFu &&
+           prevote_quorum();
+  }
+  /// The pre-votes of the current epoch and our own make a strict majority of the membership.
+  bool prevote_quorum() const noexcept {
+    return 2 * (prevote_count() + (is_member(id_) ? 1u : 0u)) > member_count_;
   }
   /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, records) broadcast.
   void StartElection() noexcept {
@@ -1009,7 +1064,9 @@ class Agent {
     ++relay_rev_;
     records_ = 0;
     set_role(Role::candidate);
-    relay_at_ = kNever;
+    clear_prevotes();
+    // If this candidacy stalls, ask again (pre-votes for the next epoch) before standing again.
+    relay_at_ = now_ + cfg_.timers[Timer::candidate];
     stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
     char e[10], sc[10], rc[10];
     const std::string_view p[3] = {number(epoch_, e), number(score(), sc), number(records_, rc)};
@@ -1038,6 +1095,7 @@ class Agent {
     if (newer) {
       StepDown(Action::HandleElect);
       epoch_ = e;
+      clear_prevotes();
       voted_for_ = 0;
       records_ = 0;
     }
@@ -1124,6 +1182,7 @@ class Agent {
     master_peer_ = from;
     heard_ = now_;
     relay_at_ = stand_at_ = kNever;
+    clear_prevotes();
     member_count_ = 0;
     for (std::size_t i = 2; i < m.param_count() && member_count_ < kMaxMembers; ++i) {
       const auto id = m.param_u16(i);
@@ -1141,6 +1200,7 @@ class Agent {
   void HandleStale(const Message& m) noexcept {
     StepDown(Action::HandleStale);
     epoch_ = *m.param_u32(0);
+    clear_prevotes();
     voted_for_ = 0;
     durable_changed();
   }
@@ -1205,6 +1265,7 @@ class Agent {
   }
   /// PANIC without a master: relay requests at once, standing after the back-off.
   void enter_panic() noexcept {
+    clear_prevotes();
     if (!cfg_.election.enabled) return;
     relay_at_ = now_;
     stand_at_ = member_count_ > 0 && is_assigned_id(id_) ? now_ + backoff() : kNever;
@@ -1217,13 +1278,16 @@ class Agent {
   }
   Millis election_due() const noexcept {
     if (!cfg_.election.enabled || state_ != State::PANIC) return kNever;
-    const Millis r = role_ == Role::none ? relay_at_ : kNever;
-    const Millis st = role_ != Role::master && member_count_ > 0 ? stand_at_ : kNever;
+    const Millis r = role_ != Role::master ? relay_at_ : kNever;
+    // Standing waits for the pre-votes too: without them the next event is a relay request's retry
+    // or a PREVOTE_OK arriving, not the back-off's end.
+    const Millis st = role_ != Role::master && member_count_ > 0 && prevote_quorum() ? stand_at_ : kNever;
     return r < st ? r : st;
   }
   void adopt_epoch(std::uint32_t e) noexcept {
     if (e > epoch_) {
       epoch_ = e;
+      clear_prevotes();
       voted_for_ = 0;
       durable_changed();
     }
@@ -1525,6 +1589,9 @@ class Agent {
   std::size_t member_count_ = 0;
   std::uint16_t votes_[kMaxMembers] = {};
   std::size_t vote_count_ = 0;
+  std::uint16_t prevotes_[kMaxMembers] = {};  // PREVOTE_OK senders, for standing in prevote_epoch_ + 1
+  std::size_t prevote_count_ = 0;
+  std::uint32_t prevote_epoch_ = 0;
   std::uint16_t records_ = 0;
   std::uint32_t relay_rev_ = 0;
   Millis relay_at_ = kNever, stand_at_ = kNever;

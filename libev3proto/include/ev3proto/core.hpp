@@ -125,6 +125,7 @@ enum class Action : std::uint8_t {
   // agent's HeartbeatLost; SendCommand is MasterCommand (its EPOCH_CMD / RELAY wrapping).
   RequestRelay, OfferRelay, HandleAccept, AcceptRelay, RelayDropped, StartElection, HandleElect,
   HandleVote, BecomeMaster, Heartbeat, HandleHeartbeat, HandleStale, Forward, ApplyCommand,
+  GrantPreVote, HandlePreVote,
   // Master-side extensions the spec abstracts (docs/core.md): the route and the handover.
   MasterRoute, MasterHandover,
 };
@@ -142,7 +143,7 @@ constexpr std::string_view to_string(Action a) noexcept {
       "MasterSync", "MasterAnswer", "MasterPing", "MasterTick", "MasterCommand", "MasterReport",
       "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
       "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
-      "Forward", "ApplyCommand", "MasterRoute", "MasterHandover"};
+      "Forward", "ApplyCommand", "GrantPreVote", "HandlePreVote", "MasterRoute", "MasterHandover"};
   const auto i = static_cast<std::size_t>(a);
   return i < kActionCount ? kNames[i] : std::string_view{};
 }

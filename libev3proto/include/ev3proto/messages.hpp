@@ -50,6 +50,7 @@ enum class MsgType : std::uint8_t {
   EPOCH_STALE = 30,   ///< both: the receiver is behind; the epoch seen.
   EPOCH_CMD = 31,     ///< master -> agent: a command fenced by the master's epoch.
   HANDOVER = 32,      ///< master -> master: the registry handed to the new master.
+  PREVOTE_OK = 33,    ///< agent -> agent: no master here; would vote for the RELAY_REQ's sender.
 };
 
 /// Kind of a param value (column `params` of docs/messages.tsv).
@@ -149,8 +150,8 @@ inline constexpr MessageSpec kMessageTable[] = {
     {20, "EVENT", Direction::agent_to_master, 1, 32, 2, true,
      {detail::P(ParamKind::text, "event"), detail::P(ParamKind::text, "detail"), detail::kNoParam,
       detail::kNoParam}},
-    {21, "RELAY_REQ", Direction::agent_to_broadcast, 1, 1, 1, false,
-     {detail::P(ParamKind::u32, "epoch"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
+    {21, "RELAY_REQ", Direction::agent_to_broadcast, 1, 2, 2, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u32, "score"), detail::kNoParam, detail::kNoParam}},
     {22, "RELAY_OFFER", Direction::agent_to_agent, 2, 2, 2, false,
      {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::u16, "master"), detail::kNoParam, detail::kNoParam}},
     {23, "RELAY_ACCEPT", Direction::agent_to_agent, 2, 2, 2, false,
@@ -173,6 +174,8 @@ inline constexpr MessageSpec kMessageTable[] = {
      {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::text, "datagram"), detail::kNoParam, detail::kNoParam}},
     {32, "HANDOVER", Direction::master_to_master, 2, 32, 2, true,
      {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::text, "registry"), detail::kNoParam, detail::kNoParam}},
+    {33, "PREVOTE_OK", Direction::agent_to_agent, 1, 1, 1, false,
+     {detail::P(ParamKind::u32, "epoch"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
 };
 
 /// Number of rows of kMessageTable.

@@ -161,6 +161,7 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
       ids("relays", agent.relay_count(), [&](std::size_t i) { return agent.relayed(i); });
       ids("offered", agent.offered_count(), [&](std::size_t i) { return agent.offered(i); });
       ids("votes", agent.vote_count(), [&](std::size_t i) { return agent.vote(i); });
+      ids("prevotes", agent.prevote_count(), [&](std::size_t i) { return agent.prevote(i); });
     }
   }
   s += "}}";

@@ -181,6 +181,7 @@ class AgentDriver {
            " relays=" + list(a.relay_count(), [&](std::size_t i) { return a.relayed(i); }) +
            " offered=" + list(a.offered_count(), [&](std::size_t i) { return a.offered(i); }) +
            " votes=" + list(a.vote_count(), [&](std::size_t i) { return a.vote(i); }) +
+           " prevotes=" + list(a.prevote_count(), [&](std::size_t i) { return a.prevote(i); }) +
            " members=" + list(a.member_count(), [&](std::size_t i) { return a.member(i); }) +
            " master_epoch=" + std::to_string(a.master_epoch());
   }

@@ -186,4 +186,40 @@ TEST(ElectionSim, RelayedAgentLeavesPanic) {
   }
 }
 
+/// The pre-vote (Election GrantPreVote / HandlePreVote): an agent cut off from a PC that the rest
+/// of the fleet still hears must not stand, even when no relay offer reaches it until long past its
+/// back-off. Here agent 0 loses every link for 15 s, then gets its peers back (not the PC). Its
+/// peers refuse the pre-vote (they have a master), so its epoch stays the PC's and it takes a
+/// relay once its peers hear it. Without the pre-vote it stands in epoch 2 while alone, which the
+/// healthy followers ignore and never relay for: PANIC for as long as the PC lives.
+TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    SCOPED_TRACE("seed " + std::to_string(seed));
+    NetConfig net;
+    net.loss = 0.1;
+    // The PC keeps the lonely agent registered meanwhile (drop 60 s): this test is about its epoch.
+    ElectionFleet f(kAgents, seed, net, Timers{}.set(Timer::drop, 60000));
+    f.run_until(30000, check);
+    const Peer lonely = ElectionFleet::agent_peer(0);
+    f.cut(lonely, ElectionFleet::kPcPeer);
+    for (std::size_t b = 1; b < kAgents; ++b) f.cut(lonely, ElectionFleet::agent_peer(b));
+    std::uint32_t highest = 1;
+    auto watch = [&](ElectionFleet& x) {
+      check(x);
+      for (std::size_t a = 0; a < x.size(); ++a)
+        if (x.agent(a).epoch() > highest) highest = x.agent(a).epoch();
+    };
+    f.run_until(f.now() + 15000, watch);
+    for (std::size_t b = 1; b < kAgents; ++b) f.heal(lonely, ElectionFleet::agent_peer(b));
+    f.run_until(f.now() + 30000, watch);
+    ASSERT_TRUE(f.failure.empty()) << f.failure;
+    EXPECT_EQ(highest, 1u) << "an agent stood although a majority hears the PC";
+    EXPECT_EQ(f.pc()->role(), MasterRole::master);
+    EXPECT_TRUE(is_synced(f.agent(0).state())) << to_string(f.agent(0).state());
+    EXPECT_NE(f.agent(0).via(), 0);
+    EXPECT_EQ(f.agent(0).leader(), kMasterId);
+    if (::testing::Test::HasFailure()) break;
+  }
+}
+
 }  // namespace
