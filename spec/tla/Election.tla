@@ -41,6 +41,7 @@ CONSTANTS
     MaxLoss,         \* bound on datagrams lost (model checking)
     SpuriousTimeout, \* TRUE: a heartbeat may time out although the master lives
     CmdAgents,       \* the agents masters send commands to (model checking)
+    PreVote,         \* TRUE: an agent stands only with a majority of pre-votes
     BUG              \* "None" or the name of a broken variant
 
 PC == 1
@@ -51,7 +52,7 @@ Quorum(S) == 2 * Cardinality(S) > Cardinality(Agents)
 Followers == {"ACTIVE", "WORKING", "PAUSED"}
 Lives == Followers \cup {"PANIC", "CANDIDATE", "MASTER", "DOWN"}
 MsgTypes == {"ELECT", "VOTE", "HB", "STALE", "RREQ", "ROFFER", "RACCEPT", "RDROP", "CMD",
-             "RELAY"}
+             "RELAY", "PREOK"}
 Msgs == [t : MsgTypes, src : Nodes, dst : Nodes \cup {NoNode}, e : 0..MaxEpoch,
          x : Nodes \cup {NoNode}]
 
@@ -65,6 +66,7 @@ VARIABLES
     via,        \* via[a]: the peer relaying for a, or NoNode (direct link)
     relays,     \* relays[a]: the agents a relays for
     offered,    \* offered[a]: agents a offered to relay for since it last changed master
+    prevotes,   \* prevotes[a]: peers that answered a's RELAY_REQ of epoch[a] with PREVOTE_OK
     net,        \* datagrams in flight
     down,       \* cut links, each a set {x, y}
     faults,     \* crashes and cuts so far
@@ -73,8 +75,8 @@ VARIABLES
     applied,    \* history: [a, src, e, seen] when a command took effect
     lastAction  \* the last action and its arguments
 
-vars == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, net, down,
-          faults, lost, elected, applied, lastAction>>
+vars == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
+          down, faults, lost, elected, applied, lastAction>>
 
 TypeOK ==
     /\ life \in [Nodes -> Lives]
@@ -86,6 +88,7 @@ TypeOK ==
     /\ via \in [Agents -> Agents \cup {NoNode}]
     /\ relays \in [Agents -> SUBSET Agents]
     /\ offered \in [Agents -> SUBSET Agents]
+    /\ prevotes \in [Agents -> SUBSET Agents]
     /\ net \subseteq Msgs
     /\ down \subseteq SUBSET Nodes
     /\ faults \in 0..MaxFaults
@@ -114,6 +117,7 @@ Init ==
     /\ via = [a \in Agents |-> NoNode]
     /\ relays = [a \in Agents |-> {}]
     /\ offered = [a \in Agents |-> {}]
+    /\ prevotes = [a \in Agents |-> {}]
     /\ net = {}
     /\ down = {}
     /\ faults = 0
@@ -156,19 +160,22 @@ Timeout(a) ==
                     /\ offered' = [offered EXCEPT ![a] = {}]
                     /\ net' = net \cup Drops(a)
     /\ lastAction' = <<"Timeout", a>>
-    /\ UNCHANGED <<epoch, votedFor, votes, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<epoch, votedFor, votes, prevotes, down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Relay.                                                                  *)
 
 \* An agent a in PANIC broadcasts a relay request (RELAY_REQ) with its epoch.
+\* The request is also a pre-vote: a peer with a master offers a relay, a
+\* peer without one answers PREVOTE_OK (GrantPreVote).  A candidate whose
+\* election stalled asks again before it stands in the next epoch.
 RequestRelay(a) ==
-    /\ life[a] = "PANIC"
+    /\ life[a] \in {"PANIC", "CANDIDATE"}
     /\ M("RREQ", a, NoNode, epoch[a], NoNode) \notin net
     /\ net' = net \cup {M("RREQ", a, NoNode, epoch[a], NoNode)}
     /\ lastAction' = <<"RequestRelay", a>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, lost, elected, applied>>
 
 \* A peer p that follows a master over a direct link receives a's request
 \* and offers to relay (RELAY_OFFER with its epoch and master).  Never if p
@@ -182,7 +189,7 @@ OfferRelay(p, m) ==
     /\ net' = net \cup {M("ROFFER", p, m.src, epoch[p], leader[p])}
     /\ offered' = [offered EXCEPT ![p] = @ \cup {m.src}]
     /\ lastAction' = <<"OfferRelay", p, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, down,
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, prevotes, down,
                    faults, lost, elected, applied>>
 
 \* Relay p gets a's RELAY_ACCEPT: if it answers an offer p made since p
@@ -198,7 +205,7 @@ HandleAccept(p, m) ==
     /\ relays' = [relays EXCEPT ![p] = @ \cup {m.src}]
     /\ offered' = [offered EXCEPT ![p] = @ \ {m.src}]
     /\ lastAction' = <<"HandleAccept", p, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, net, down,
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, prevotes, net, down,
                    faults, lost, elected, applied>>
 
 \* Agent a in PANIC takes an offer from p (RELAY_ACCEPT to p): it follows
@@ -213,6 +220,7 @@ AcceptRelay(a, m) ==
     /\ leader' = [leader EXCEPT ![a] = m.x]
     /\ following' = [following EXCEPT ![a] = m.e]
     /\ via' = [via EXCEPT ![a] = m.src]
+    /\ prevotes' = [prevotes EXCEPT ![a] = {}]
     /\ net' = net \cup {M("RACCEPT", a, m.src, m.e, m.x)}
     /\ lastAction' = <<"AcceptRelay", a, m>>
     /\ UNCHANGED <<votes, relays, offered, down, faults, lost, elected, applied>>
@@ -225,22 +233,60 @@ RelayDropped(a, m) ==
     /\ following' = [following EXCEPT ![a] = 0]
     /\ via' = [via EXCEPT ![a] = NoNode]
     /\ lastAction' = <<"RelayDropped", a, m>>
-    /\ UNCHANGED <<epoch, votedFor, votes, relays, offered, net, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<epoch, votedFor, votes, relays, offered, prevotes, net, down, faults, lost, elected,
+                   applied>>
+
+-----------------------------------------------------------------------------
+(* Pre-vote.  An agent stands only when a majority of the fleet (itself    *)
+(* included) has no master: a peer that still hears its master never       *)
+(* grants one, so an agent cut off from a live master keeps its epoch and  *)
+(* takes a relay offer instead of raising an epoch nobody will follow.     *)
+(* Pre-votes change nothing but the asker's count: safety never rests on   *)
+(* them (PreVote = FALSE drops the requirement; the safety models pass    *)
+(* either way, the relay liveness model fails without it).                 *)
+
+\* Agent v, without a master (PANIC or CANDIDATE), receives a's RELAY_REQ of
+\* epoch e >= its own and would vote for a in the next epoch (a is not
+\* stronger than v): it answers PREVOTE_OK.
+GrantPreVote(v, m) ==
+    /\ m.t = "RREQ" /\ m.src # v /\ Linked(m.src, v)
+    /\ life[v] \in {"PANIC", "CANDIDATE"}
+    /\ m.e >= epoch[v] /\ Score[m.src] <= Score[v]
+    /\ M("PREOK", v, m.src, m.e, NoNode) \notin net
+    /\ net' = net \cup {M("PREOK", v, m.src, m.e, NoNode)}
+    /\ lastAction' = <<"GrantPreVote", v, m>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, lost, elected, applied>>
+
+\* Agent a, still without a master in the epoch it asked in, counts a
+\* PREVOTE_OK.
+HandlePreVote(a, m) ==
+    /\ m.t = "PREOK" /\ m.dst = a /\ Linked(m.src, a)
+    /\ life[a] \in {"PANIC", "CANDIDATE"} /\ m.e = epoch[a]
+    /\ m.src \notin prevotes[a]
+    /\ prevotes' = [prevotes EXCEPT ![a] = @ \cup {m.src}]
+    /\ lastAction' = <<"HandlePreVote", a, m>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, net,
+                   down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Election.                                                               *)
 
 \* An agent in PANIC (no master, no relay) or a candidate whose election
-\* failed stands in the next epoch: it votes for itself and broadcasts
-\* ELECT with its score.  The PC, once back (CANDIDATE), does the same.
+\* failed stands in the next epoch once a majority of the fleet, itself
+\* included, granted it a pre-vote: it votes for itself and broadcasts
+\* ELECT with its score.  The PC, once back (CANDIDATE), does the same
+\* without pre-vote (it always may take the fleet back).
 StartElection(n) ==
     /\ life[n] \in IF n = PC THEN {"CANDIDATE"} ELSE {"PANIC", "CANDIDATE"}
+    /\ IF n = PC \/ ~PreVote THEN TRUE ELSE Quorum(prevotes[n] \cup {n})
     /\ epoch[n] < MaxEpoch
     /\ epoch' = [epoch EXCEPT ![n] = @ + 1]
     /\ votedFor' = IF n = PC THEN votedFor ELSE [votedFor EXCEPT ![n] = n]
     /\ votes' = [votes EXCEPT ![n] = IF n = PC THEN {} ELSE {n}]
     /\ life' = [life EXCEPT ![n] = "CANDIDATE"]
     /\ net' = net \cup {M("ELECT", n, NoNode, epoch[n] + 1, NoNode)}
+    /\ prevotes' = IF n = PC THEN prevotes ELSE [prevotes EXCEPT ![n] = {}]
     /\ lastAction' = <<"StartElection", n, epoch[n] + 1>>
     /\ UNCHANGED <<leader, following, via, relays, offered, down, faults, lost, elected, applied>>
 
@@ -261,7 +307,7 @@ HandleElect(v, m) ==
     /\ IF m.e < epoch[v]
        THEN /\ M("STALE", v, c, epoch[v], NoNode) \notin net
             /\ net' = net \cup {M("STALE", v, c, epoch[v], NoNode)}
-            /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered>>
+            /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, prevotes>>
        ELSE /\ ~(life[v] \in Followers /\ HeartbeatOK(v) /\ c # PC)
             /\ newer \/ (grant /\ votedFor[v] # c)
             /\ epoch' = [epoch EXCEPT ![v] = m.e]
@@ -274,7 +320,8 @@ HandleElect(v, m) ==
                     /\ via' = [via EXCEPT ![v] = NoNode]
                     /\ relays' = [relays EXCEPT ![v] = {}]
                     /\ offered' = [offered EXCEPT ![v] = {}]
-               ELSE UNCHANGED <<life, leader, following, via, relays, offered>>
+                    /\ prevotes' = [prevotes EXCEPT ![v] = {}]
+               ELSE UNCHANGED <<life, leader, following, via, relays, offered, prevotes>>
             /\ net' = net \cup (IF newer THEN Drops(v) ELSE {})
                           \cup (IF grant THEN {M("VOTE", v, c, m.e, NoNode)} ELSE {})
     /\ lastAction' = <<"HandleElect", v, m>>
@@ -287,8 +334,8 @@ HandleVote(n, m) ==
     /\ m.src \notin votes[n]
     /\ votes' = [votes EXCEPT ![n] = @ \cup {m.src}]
     /\ lastAction' = <<"HandleVote", n, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, net, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, prevotes, net,
+                   down, faults, lost, elected, applied>>
 
 \* A candidate with the votes of a majority of the fleet becomes master of
 \* its epoch and announces itself (LEADER, also its heartbeat).
@@ -299,8 +346,8 @@ BecomeMaster(n) ==
     /\ elected' = elected \cup {<<epoch[n], n>>}
     /\ net' = net \cup {M("HB", n, NoNode, epoch[n], NoNode)}
     /\ lastAction' = <<"BecomeMaster", n, epoch[n]>>
-    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, down, faults,
-                   lost, applied>>
+    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, down,
+                   faults, lost, applied>>
 
 \* A master re-sends its heartbeat (LEADER) when the last one was lost.
 Heartbeat(n) ==
@@ -308,8 +355,8 @@ Heartbeat(n) ==
     /\ M("HB", n, NoNode, epoch[n], NoNode) \notin net
     /\ net' = net \cup {M("HB", n, NoNode, epoch[n], NoNode)}
     /\ lastAction' = <<"Heartbeat", n>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, lost, elected, applied>>
 
 \* Agent v hears the heartbeat of master s in epoch e over a direct link.
 \*  - e older than v's epoch: v answers EPOCH_STALE (the old master steps
@@ -326,7 +373,7 @@ HandleHeartbeat(v, m) ==
     /\ IF m.e < epoch[v] /\ BUG # "NoEpochCheck"
        THEN /\ M("STALE", v, s, epoch[v], NoNode) \notin net
             /\ net' = net \cup {M("STALE", v, s, epoch[v], NoNode)}
-            /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered>>
+            /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, prevotes>>
        ELSE /\ change \/ via[v] # NoNode \/ life[v] \notin Followers
             /\ life[v] = "MASTER" => m.e > epoch[v]
             /\ life' = [life EXCEPT ![v] =
@@ -338,6 +385,7 @@ HandleHeartbeat(v, m) ==
             /\ leader' = [leader EXCEPT ![v] = s]
             /\ following' = [following EXCEPT ![v] = m.e]
             /\ via' = [via EXCEPT ![v] = NoNode]
+            /\ prevotes' = [prevotes EXCEPT ![v] = {}]
             /\ IF change
                THEN /\ relays' = [relays EXCEPT ![v] = {}]
                     /\ offered' = [offered EXCEPT ![v] = {}]
@@ -355,8 +403,9 @@ HandleStale(n, m) ==
     /\ epoch' = [epoch EXCEPT ![n] = m.e]
     /\ life' = [life EXCEPT ![n] = SteppedDown(n)]
     /\ IF n = PC
-       THEN UNCHANGED <<votedFor, leader, following, via, relays, offered, net>>
+       THEN UNCHANGED <<votedFor, leader, following, via, relays, offered, prevotes, net>>
        ELSE /\ votedFor' = [votedFor EXCEPT ![n] = NoNode]
+            /\ prevotes' = [prevotes EXCEPT ![n] = {}]
             /\ leader' = [leader EXCEPT ![n] = NoNode]
             /\ following' = [following EXCEPT ![n] = 0]
             /\ via' = [via EXCEPT ![n] = NoNode]
@@ -381,8 +430,8 @@ SendCommand(s, a) ==
             /\ M("RELAY", s, p, epoch[s], a) \notin net
             /\ net' = net \cup {M("RELAY", s, p, epoch[s], a)}
     /\ lastAction' = <<"SendCommand", s, a>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, lost, elected, applied>>
 
 \* Relay p forwards the inner datagram of a RELAY to the agent it relays
 \* for, unchanged (same sender, msgid: the receiver dedupes end to end).
@@ -392,8 +441,8 @@ Forward(p, m) ==
     /\ M("CMD", m.src, m.x, m.e, p) \notin net
     /\ net' = net \cup {M("CMD", m.src, m.x, m.e, p)}
     /\ lastAction' = <<"Forward", p, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, lost, elected, applied>>
 
 \* Agent a receives a command of master s in epoch e (directly, or from its
 \* relay).  It takes effect only if a follows s in e and e is the highest
@@ -406,8 +455,8 @@ ApplyCommand(a, m) ==
     /\ life' = [life EXCEPT ![a] = "WORKING"]
     /\ applied' = applied \cup {[a |-> a, src |-> m.src, e |-> m.e, seen |-> epoch[a]]}
     /\ lastAction' = <<"ApplyCommand", a, m>>
-    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, net, down,
-                   faults, lost, elected>>
+    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
+                   down, faults, lost, elected>>
 
 -----------------------------------------------------------------------------
 (* Faults.                                                                 *)
@@ -421,8 +470,9 @@ Crash(n) ==
     /\ faults' = faults + 1
     /\ votes' = [votes EXCEPT ![n] = {}]
     /\ IF n = PC
-       THEN UNCHANGED <<votedFor, leader, following, via, relays, offered>>
-       ELSE /\ votedFor' = IF BUG = "ForgetVote" THEN [votedFor EXCEPT ![n] = NoNode]
+       THEN UNCHANGED <<votedFor, leader, following, via, relays, offered, prevotes>>
+       ELSE /\ prevotes' = [prevotes EXCEPT ![n] = {}]
+            /\ votedFor' = IF BUG = "ForgetVote" THEN [votedFor EXCEPT ![n] = NoNode]
                            ELSE votedFor
             /\ leader' = [leader EXCEPT ![n] = NoNode]
             /\ following' = [following EXCEPT ![n] = 0]
@@ -439,8 +489,8 @@ Restart(n) ==
     /\ n = PC => PCReturns
     /\ life' = [life EXCEPT ![n] = IF n = PC THEN "CANDIDATE" ELSE "PANIC"]
     /\ lastAction' = <<"Restart", n>>
-    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, net, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
+                   down, faults, lost, elected, applied>>
 
 \* The link between x and y breaks (partition) or comes back.
 Cut(x, y) ==
@@ -448,15 +498,15 @@ Cut(x, y) ==
     /\ down' = down \cup {{x, y}}
     /\ faults' = faults + 1
     /\ lastAction' = <<"Cut", x, y>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, net,
-                   lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   net, lost, elected, applied>>
 
 Heal(x, y) ==
     /\ {x, y} \in down
     /\ down' = down \ {{x, y}}
     /\ lastAction' = <<"Heal", x, y>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, net,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   net, faults, lost, elected, applied>>
 
 \* The network loses datagram m.
 Lose(m) ==
@@ -464,8 +514,8 @@ Lose(m) ==
     /\ net' = net \ {m}
     /\ lost' = lost + 1
     /\ lastAction' = <<"Lose", m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, down,
-                   faults, elected, applied>>
+    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, elected, applied>>
 
 -----------------------------------------------------------------------------
 Next ==
@@ -479,7 +529,7 @@ Next ==
          \/ HandleVote(m.dst, m) \/ HandleStale(m.dst, m)
          \/ \E a \in Agents :
               \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
-              \/ RelayDropped(a, m)
+              \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
               \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
               \/ Forward(a, m) \/ ApplyCommand(a, m)
 

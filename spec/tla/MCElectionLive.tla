@@ -6,18 +6,20 @@
 (* datagrams; a cut link may stay cut for ever (Heal has no fairness).     *)
 (* Every protocol action is weakly fair: a node that can act eventually   *)
 (* does, and a datagram in flight to a node that is up and linked is       *)
-(* eventually handled.  Timers are modelled by two enabling conditions   *)
-(* (with Backoff = FALSE they are dropped: the broken variant):            *)
-(*   - relay first: an agent in PANIC stands only if no peer could offer  *)
-(*     it a relay (its RELAY_REQ got no offer: on a stable network any    *)
-(*     peer that can offer does so within the timeout);                    *)
-(*   - back-off: it stands only if no weaker agent it is linked to is     *)
+(* eventually handled.  An agent in PANIC may stand as soon as the        *)
+(* protocol lets it (a majority granted it a pre-vote), before or after   *)
+(* any relay offer: no "relay first" timing is assumed (it was, before    *)
+(* the pre-vote; PreVote = FALSE in MCElectionLiveBugNoPreVote.cfg shows *)
+(* what goes wrong without it).  Timers are modelled by one enabling      *)
+(* condition (with Backoff = FALSE it is dropped: the broken variant):     *)
+(*   - back-off: an agent stands only if no weaker agent it is linked to is *)
 (*     itself without a master it hears (the weaker one's back-off is     *)
 (*     shorter, so its ELECT arrives first); a candidate stands again only *)
 (*     when its election is stalled: nobody can still vote for it.         *)
 (* Duplication is a fault too: a late copy of a datagram whose sender has *)
 (* moved on (a LEADER of a master that is gone, an offer its relay can no  *)
-(* longer honour, a RELAY_DROP older than the relay's current table) is    *)
+(* longer honour, a RELAY_DROP older than the relay's current table, a     *)
+(* PREVOTE_OK of a peer that has found a master since) is                  *)
 (* not delivered in these models (Current); without that, an endless      *)
 (* stream of duplicates of a dead master's heartbeat keeps agents from     *)
 (* standing, which TLC shows at once.  Safety with unbounded duplication   *)
@@ -30,13 +32,6 @@ CONSTANT Backoff
 
 Weaker(n) == {a \in Agents : Score[a] < Score[n]}
 
-\* Some peer following a master over a direct link in its current epoch
-\* could answer n's RELAY_REQ.
-CanOffer(n) ==
-    \E p \in Agents \ {n} :
-        /\ Linked(n, p) /\ life[p] \in Followers /\ via[p] = NoNode
-        /\ leader[p] # NoNode /\ following[p] = epoch[p] /\ epoch[n] <= epoch[p]
-
 \* Nothing can still bring candidate n a vote or make it master.
 Stalled(n) ==
     /\ ~ENABLED BecomeMaster(n)
@@ -47,8 +42,7 @@ Stalled(n) ==
 StandOK(n) ==
     \/ ~Backoff
     \/ n = PC
-    \/ /\ ~CanOffer(n)
-       /\ \A a \in Weaker(n) :
+    \/ /\ \A a \in Weaker(n) :
             Linked(a, n) => life[a] = "DOWN" \/ (life[a] \in Followers /\ HeartbeatOK(a))
        /\ life[n] = "CANDIDATE" => Stalled(n)
 
@@ -60,12 +54,13 @@ Current(m) ==
       [] m.t = "ROFFER" -> /\ life[m.src] \in Followers /\ via[m.src] = NoNode
                            /\ leader[m.src] = m.x /\ following[m.src] = m.e
       [] m.t = "RDROP" -> m.dst \notin relays[m.src]
+      [] m.t = "PREOK" -> life[m.src] \in {"PANIC", "CANDIDATE"} /\ epoch[m.src] <= m.e
       [] OTHER -> TRUE
 
 Deliver(a, m) ==
     /\ Current(m)
     /\ \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
-       \/ RelayDropped(a, m)
+       \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
        \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
        \/ Forward(a, m) \/ ApplyCommand(a, m)
 
@@ -89,6 +84,8 @@ Fairness ==
          /\ WF_vars(\E m \in net : Current(m) /\ AcceptRelay(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ HandleAccept(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ RelayDropped(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ GrantPreVote(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ HandlePreVote(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ HandleElect(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ HandleHeartbeat(a, m))
     /\ \A n \in Nodes :
