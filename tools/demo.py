@@ -16,8 +16,11 @@ Phases (each a function):
                 all`; both followers (#3 through the relay) go WORKING and report ACTION_OK
   6. handover   the PC master comes back with its --state-file: it stands in epoch 3 (score 0),
                 the agent-master steps down and hands the fleet over (HANDOVER)
-Then a summary: the timeline with times. Logs, traces and the status JSON stay in build/demo/.
-Only the standard library: runs wherever `make deps` has run.
+Then a summary: the timeline with times, and the three agents' NDJSON traces validated by TLC against
+the spec (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
+docs/spec.md "Election traces"); a trace that does not conform fails the demo. Logs, traces and the
+status JSON stay in build/demo/. The standard library, and for the validation the ev3conformance
+package (conformance/) with TLC: runs wherever `make deps` has run.
 """
 
 from __future__ import annotations
@@ -430,6 +433,41 @@ class Demo:
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
 
 
+def validate_traces(d: Demo) -> bool:
+    """The agents' traces checked by TLC (two runs at a time): AgentLogic + Election (per agent)."""
+    repo = Path(__file__).resolve().parents[1]
+    sys.path.insert(0, str(repo / "conformance"))
+    try:
+        from concurrent.futures import ThreadPoolExecutor
+
+        from ev3conformance import tracecheck
+    except ImportError as e:  # pragma: no cover - make deps installs it
+        print(f"\n  trace validation skipped: {e}", flush=True)
+        return False
+    d.heading("trace validation (TLC: AgentLogic + Election, per agent)")
+    paths = [d.dir / f"agent{i + 1}.ndjson" for i in range(len(d.agents))]
+
+    def one(i: int):
+        consts = {"TPing": HB, "TLoss": LOSS, "TPaused": PAUSED, "Election": True, "Score": SCORES[i],
+                  "Epoch": 1, "VotedFor": 0}  # fresh --state-dir: epoch 1, no vote
+        t = time.monotonic()
+        return tracecheck.validate(paths[i], consts), time.monotonic() - t
+
+    t0 = time.monotonic()
+    with ThreadPoolExecutor(max_workers=tracecheck.jobs_default()) as ex:
+        results = list(ex.map(one, range(len(paths))))
+    ok = True
+    for i, (r, secs) in enumerate(results):
+        ok &= r.ok
+        first = r.message.splitlines()[0] if r.message else ""
+        print(f"  agent #{i + 1}: {'conforms' if r.ok else 'DOES NOT CONFORM'}: {first} ({secs:.1f} s)", flush=True)
+        if not r.ok:
+            print("\n".join("    " + line for line in r.message.splitlines()[1:]), flush=True)
+    print(f"  {sum(r.records for r, _ in results)} records in {len(results)} traces, "
+          f"{time.monotonic() - t0:.1f} s of wall time", flush=True)
+    return ok
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", type=Path, default=Path(__file__).resolve().parents[1] / "build" / "bin")
@@ -458,6 +496,8 @@ def main() -> int:
     finally:
         d.stop_all()
     d.summary()
+    if not validate_traces(d):
+        ok = False
     return 0 if ok else 1
 
 

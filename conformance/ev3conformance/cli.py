@@ -12,8 +12,9 @@
     ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D]
                                                   TLC -simulate traces of the fleet replayed against
                                                   one master and one agent driver per agent
-    ev3-conformance validate TRACE... [--heartbeat MS ...]
-                                                  check NDJSON traces (--trace) against the spec with TLC
+    ev3-conformance validate TRACE... [--heartbeat MS ...] [--score N --epoch E --voted-for V]
+                                                  check NDJSON traces (--trace) against the spec with TLC;
+                                                  an --election agent's against AgentLogic + Election
     ev3-conformance validate --master TRACE... [--drop MS --resend MS --max-resends N]
                                                   master traces (ev3-master --driver, or the program
                                                   over UDP with its timers) against MasterLogic
@@ -204,6 +205,9 @@ def _cmd_validate(args: argparse.Namespace) -> int:
               "TPaused": args.paused if args.paused else 2 * args.loss}
     if args.window:
         consts["Window"] = args.window
+    if args.election is not None:
+        consts["Election"] = args.election
+    consts.update({"Score": args.score, "Epoch": args.epoch, "VotedFor": args.voted_for})
     rs = tracecheck.validate_many(args.traces, consts, jobs=args.jobs)
     bad = 0
     for r in rs:
@@ -286,6 +290,13 @@ def _parser() -> argparse.ArgumentParser:
     vp.add_argument("--sync", type=int, default=10000, help="the run's --sync-timeout-ms (TSync)")
     vp.add_argument("--window", type=int, default=0, help="dedupe window entries (default 50)")
     vp.add_argument("--jobs", type=int, default=2, help="TLC runs in parallel (default 2)")
+    vp.add_argument("--election", action=argparse.BooleanOptionalAction, default=None,
+                    help="check as an --election agent (AgentLogic + Election.tla, per agent); default: "
+                         "when the trace has Election actions or variables")
+    vp.add_argument("--score", type=int, default=None,
+                    help="election: the agent's --score (default unknown: both outcomes of a comparison)")
+    vp.add_argument("--epoch", type=int, default=1, help="election: the epoch its --state-dir started from")
+    vp.add_argument("--voted-for", type=int, default=0, help="election: the vote its --state-dir started from")
     vp.add_argument("--master", action="store_true",
                     help="master traces against MasterLogic: ev3-master --driver --trace, or ev3-master "
                          "--trace over UDP (give its --agent-timeout-ms as --drop, --resend-ms as --resend)")

@@ -204,19 +204,28 @@ def validate(path: Path, consts: dict | None = None, node: str = "agent", temp_i
     wd = Path(workdir or (gr.BUILD / "traces"))
     wd.mkdir(parents=True, exist_ok=True)
     d = Path(tempfile.mkdtemp(prefix="trace-", dir=wd))
-    name = "TraceCheck"
-    (d / f"{name}.tla").write_text(agent_module(name, mine, c, tid))
+    election = c.get("Election")
+    if election is None:
+        election = is_election_trace(mine)
+    if election:
+        name, specs, what = "ElectionTraceCheck", ("AgentLogic.tla", "Messages.tla", "Election.tla"), \
+            "AgentLogic + Election (per-agent projection)"
+        (d / f"{name}.tla").write_text(election_module(name, mine, c, tid))
+    else:
+        name, specs, what = "TraceCheck", ("AgentLogic.tla", "Messages.tla"), "the spec"
+        (d / f"{name}.tla").write_text(agent_module(name, mine, c, tid))
     (d / f"{name}.cfg").write_text("INIT Init\nNEXT Next\nINVARIANTS Matched NotStuck\nCHECK_DEADLOCK FALSE\n")
-    for f in ("AgentLogic.tla", "Messages.tla"):
+    for f in specs:
         (d / f).write_text((gr.SPEC / f).read_text())
     rc, out = gr.tlc(f"{name}.tla", f"{name}.cfg", [], cwd=d)
+    tag = ", election" if election else ""
     if rc == 12 and "Invariant Matched is violated" in out:
-        return Result(str(path), True, len(mine), f"{len(mine)} records matched (temporary id {tid})")
+        return Result(str(path), True, len(mine), f"{len(mine)} records matched (temporary id {tid}{tag})")
     if rc == 12 and "Invariant NotStuck is violated" in out:
         fails = re.findall(r"failed = (\d+)", out)
         k = int(fails[-1]) - 1 if fails else -1
         return Result(str(path), False, len(mine),
-                      f"record {k + 1} of {len(mine)} could not be matched by the spec "
+                      f"record {k + 1} of {len(mine)} could not be matched by {what} "
                       f"(temporary id {tid}; module kept in {d}):\n{_describe_record(mine, k)}")
     if rc == 0:
         return Result(str(path), False, len(mine), f"TLC ended without matching the trace (module in {d})")
@@ -418,3 +427,282 @@ def validate_master(path: Path, consts: dict, workdir: Path | None = None) -> Re
                       f"record {k + 1} of {len(recs)} could not be matched by MasterLogic{why} "
                       f"(module kept in {d}):\n{_describe_record(recs, k)}")
     return Result(str(path), False, len(recs), f"TLC failed (exit {rc}); module in {d}:\n{out[-2500:]}")
+
+
+# --- agents with --election (Election.tla + AgentLogic) ------------------------------------------
+#
+# A per-agent projection (docs/spec.md "Election traces"). The agent's own Election variables (life,
+# epoch, votedFor, votes, leader, following, via, relays, offered, prevotes) are checked with
+# Election.tla's own per-node operators (XOk: the enabling condition on the node's own state, XNext:
+# its new local state); the environment (links, the network, the other nodes) is not observed, so
+# its guards are taken as satisfiable and a received datagram is the record's. The lifecycle
+# variables are checked with AgentLogic as for any agent; the two compose as docs/election.md
+# section 5 maps them (life CANDIDATE / MASTER = state PANIC; the followed master is AgentLogic's
+# MasterId).
+
+ELECTION_ACTIONS = {"RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped",
+                    "GrantPreVote", "HandlePreVote", "StartElection", "HandleElect", "HandleVote",
+                    "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand"}
+ELECTION_VARS = ["life", "epoch", "votedFor", "votes", "leader", "following", "via", "relays", "offered",
+                 "prevotes"]
+_EL_TYPES = {"RELAY_REQ": "RREQ", "RELAY_OFFER": "ROFFER", "RELAY_ACCEPT": "RACCEPT", "RELAY_ROUTE": "ROUTE",
+             "RELAY": "RELAY", "RELAY_DROP": "RDROP", "ELECT": "ELECT", "VOTE": "VOTE", "LEADER": "HB",
+             "EPOCH_STALE": "STALE", "EPOCH_CMD": "CMD", "HANDOVER": "HANDOVER", "PREVOTE_OK": "PREOK"}
+_NONE_MSG = {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
+_NONE_EL = {"t": "NONE", "src": 0, "dst": 0, "e": 0, "x": 0, "sc": 0, "tgt": 0}
+# The largest number TLC's integers hold: the epoch bound of the check (MaxEpoch).
+_TLC_MAXINT = 2147483647
+
+
+def is_election_trace(recs: list[dict]) -> bool:
+    """True when the agent ran with --election: Election actions or Election variables in the trace."""
+    return any(r.get("action") in ELECTION_ACTIONS or "life" in r.get("changed", {}) for r in recs)
+
+
+def _num(ps: list[bytes], i: int) -> int:
+    try:
+        return int(ps[i])
+    except (IndexError, ValueError):
+        return 0
+
+
+def _el_msg(text: str) -> tuple[dict, dict | None, list[int]]:
+    """An Election datagram as Election.tla's [t, src, dst, e, x] (+ sc: the score it carries, tgt: RELAY's
+    target), the inner datagram of EPOCH_CMD (AgentLogic's record, or None) and LEADER's members."""
+    m = wire.decode(text.encode("latin-1"))
+    t = _EL_TYPES.get(m.type_name or "")
+    if t is None:
+        return dict(_NONE_EL), None, []
+    ps = list(m.params)
+    d = {"t": t, "src": m.sender, "dst": m.receiver, "e": 0, "x": 0, "sc": 0, "tgt": 0}
+    inner, members = None, []
+    if t == "RELAY":
+        d["tgt"] = _num(ps, 0)
+    else:
+        d["e"] = _num(ps, 0)
+    if t in ("RREQ", "ELECT"):
+        d["sc"] = _num(ps, 1)
+    if t in ("ROFFER", "RACCEPT"):
+        d["x"] = _num(ps, 1)
+    if t == "HB":
+        members = [_num(ps, i) for i in range(2, len(ps))]
+    if t == "CMD" and len(ps) > 1:
+        try:
+            inner = _msg(ps[1].decode("latin-1"))
+        except wire.DecodeError:
+            inner = None
+    return d, inner, members
+
+
+def _el_changed(ch: dict) -> dict:
+    out = {}
+    for k in ELECTION_VARS:
+        if k in ch:
+            v = ch[k]
+            out[k] = frozenset(v) if isinstance(v, list) else v
+    return out
+
+
+def election_module(name: str, recs: list[dict], consts: dict, temp_id: int) -> str:
+    """ElectionTraceCheck: one TLC step per record; variables ag (AgentLogic's local state) and el (the
+    agent's Election variables, Election.tla's Loc record). consts: the timers as for agent_module, and
+    Score (the agent's --score; None: unknown, both outcomes of a score comparison are allowed), Epoch and
+    VotedFor (what the agent started with from its --state-dir; 1 and 0)."""
+    items = []
+    fleet: set[int] = set()
+    for r in recs:
+        ch = dict(r.get("changed", {}))
+        ch.pop("dupActed", None)
+        lch = {k: v for k, v in ch.items() if k in AGENT_VARS}
+        if "win" in lch:
+            lch["win"] = _win(lch["win"])
+        ech = _el_changed(ch)
+        a = r["action"]
+        args = r.get("args", {})
+        text = args.get("msg")
+        m, em, im = dict(_NONE_MSG), dict(_NONE_EL), dict(_NONE_MSG)
+        if text:
+            dm = wire.decode(text.encode("latin-1"))
+            if (dm.type_name or "") in _EL_TYPES:
+                em, inner, members = _el_msg(text)
+                fleet.update(x for x in members if x)
+                if inner is not None:
+                    im = inner
+            else:
+                m = _msg(text)
+        chs = tla.to_tla(lch) if lch else "[x \\in {} |-> 0]"
+        echs = tla.to_tla(ech) if ech else "[x \\in {} |-> 0]"
+        items.append(f'[a |-> "{a}", m |-> {tla.to_tla(m)}, em |-> {tla.to_tla(em)}, im |-> {tla.to_tla(im)},'
+                     f' cmd |-> {tla.to_tla(args.get("cmd", "Ignore"))}, e |-> {tla.to_tla(args.get("e", ""))},'
+                     f' n |-> {int(args.get("ticks", 1))}, ch |-> {chs}, ech |-> {echs}]')
+    c = consts
+    behs = "{" + ", ".join(tla.to_tla(b) for b in c["Behaviours"]) + "}"
+    score = c.get("Score")
+    scores = "{%d}" % int(score) if score is not None else "{0, %d}" % _TLC_MAXINT
+    apply = "\n      [] ".join(f'h = "{h}" -> L!{h}(a, m)' for h in RECV)
+    epoch0, voted0 = int(c.get("Epoch", 1) or 1), int(c.get("VotedFor", 0) or 0)
+    return f"""---- MODULE {name} ----
+EXTENDS Naturals, Sequences, FiniteSets, TLC
+VARIABLES ag, el, cursor, failed
+L == INSTANCE AgentLogic WITH Behaviours <- {behs}, UnknownBehaviour <- "?unknown",
+       ModelName <- {tla.to_tla(c["ModelName"])}, TSync <- {c["TSync"]}, TPing <- {c["TPing"]},
+       TLoss <- {c["TLoss"]}, TPaused <- {c["TPaused"]}, Window <- {c["Window"]},
+       Steps <- {c["Steps"]}, BUG <- "none"
+\\* The fleet: the members the LEADERs in the trace list (quorums count against it).
+Fleet == {tla.to_tla(set(fleet)) if fleet else "{}"}
+\\* Only Election's per-node operators are used: its variables are never read.
+E == INSTANCE Election WITH Agents <- Fleet, Score <- [n \\in {{}} |-> 0], MaxEpoch <- {_TLC_MAXINT},
+       MaxFaults <- 0, Crashes <- FALSE, PCCrash <- FALSE, PCReturns <- FALSE, Partitions <- FALSE,
+       MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {{}}, PreVote <- TRUE, BUG <- "None",
+       life <- {{}}, epoch <- {{}}, votedFor <- {{}}, votes <- {{}}, leader <- {{}}, following <- {{}},
+       via <- {{}}, relays <- {{}}, offered <- {{}}, prevotes <- {{}}, net <- {{}}, down <- {{}}, faults <- 0,
+       lost <- 0, elected <- {{}}, applied <- {{}}, lastAction <- <<>>
+\\* The agent's own score (its --score), or both outcomes of every comparison when unknown.
+MyScores == {scores}
+Trace == <<
+  {(","+chr(10)+"  ").join(items)}
+>>
+Vars == {tla.to_tla(set(AGENT_VARS))}
+ElVars == {tla.to_tla(set(ELECTION_VARS))}
+Fits(r, before, after) ==
+    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN after[v] = r.ch[v] ELSE after[v] = before[v]
+\\* votes is compared while the agent is a candidate: the core clears it when the candidacy ends
+\\* (BecomeMaster, a LEADER heard), Election.tla keeps the last set, read only by a CANDIDATE.
+FitsEl(r, before, after) ==
+    \\A v \\in ElVars :
+        IF v = "votes" /\\ after.life # "CANDIDATE" THEN TRUE
+        ELSE IF v \\in DOMAIN r.ech THEN after[v] = r.ech[v] ELSE after[v] = before[v]
+Adv(a, k) == IF k = 0 THEN a
+             ELSE [a EXCEPT !.clk = (a.clk + k) % {c["TPing"]},
+                            !.silence = IF a.state = "PANIC" THEN 0 ELSE a.silence + k]
+Recv(h, a, m) ==
+    CASE {apply}
+IntOk(r, a) ==
+    CASE r.a = "SyncTimeout" -> L!SyncTimeoutOk(a)
+      [] r.a = "HeartbeatLost" -> L!HeartbeatLostOk(a)
+      [] r.a = "ActionOk" -> L!ActionOkOk(a)
+      [] r.a = "ActionInterrupted" -> L!ActionInterruptedOk(a, r.e)
+      [] r.a = "ActionFailed" -> L!ActionFailedOk(a)
+      [] r.a = "SensorReport" -> L!SensorReportOk(a)
+      [] r.a = "DeviceUnplugged" -> L!DeviceUnpluggedOk(a)
+      [] r.a = "DevicePlugged" -> L!DevicePluggedOk(a)
+      [] r.a = "BatteryLow" -> L!BatteryLowOk(a)
+      [] OTHER -> FALSE
+Internal(r, a) ==
+    CASE r.a = "SyncTimeout" -> L!SyncTimeout(a)
+      [] r.a = "HeartbeatLost" -> L!HeartbeatLost(a)
+      [] r.a = "ActionOk" -> L!ActionOk(a)
+      [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
+      [] r.a = "ActionFailed" -> L!ActionFailed(a)
+      [] r.a = "SensorReport" -> L!SensorReport(a)
+      [] r.a = "DeviceUnplugged" -> L!DeviceUnplugged(a)
+      [] r.a = "DevicePlugged" -> L!DevicePlugged(a)
+      [] r.a = "BatteryLow" -> L!BatteryLow(a)
+
+\\* --- composition (docs/spec.md "Election traces") ---
+\\* life CANDIDATE / MASTER are the lifecycle's PANIC; otherwise life is the lifecycle state.
+StateOf(life) == IF life \\in {{"CANDIDATE", "MASTER"}} THEN "PANIC" ELSE life
+LifeOf(st, old) == IF old \\in {{"CANDIDATE", "MASTER"}} /\\ st = "PANIC" THEN old ELSE st
+\\* AgentLogic's master is MasterId; the agent follows master c (el.leader, else the PC; the sender of an
+\\* EPOCH_CMD): the lifecycle sees c as MasterId and MasterId as c (a swap: dedupe keys stay distinct).
+Cur(s) == IF s.leader # 0 THEN s.leader ELSE L!MasterId
+Swap(x, c) == IF x = c THEN L!MasterId ELSE IF x = L!MasterId THEN c ELSE x
+SwapMsg(m, c) == [m EXCEPT !.src = Swap(@, c)]
+SwapAg(a, c) == [a EXCEPT !.win = [i \\in 1..Len(a.win) |-> [a.win[i] EXCEPT !.src = Swap(@, c)]]]
+Handled(a, m, c) == L!Handler(SwapAg(a, c), SwapMsg(m, c))
+Received(h, a, m, c) == SwapAg(Recv(h, SwapAg(a, c), SwapMsg(m, c)).ag, c)
+\\* A bare command or MASTER counts as epoch 1: past epoch 1 it is fenced (ignored, EPOCH_STALE).
+BareFenced(s, a, m) == s.epoch > 1 /\\ L!Answered(m) /\\ L!AddressedTo(a, m)
+\\* The lifecycle after Election step s -> s2 of agent a: the state follows life; a WORKING agent paused
+\\* (master changed, newer epoch) stops its motors; PANIC -> ACTIVE (a LEADER, a relay taken) restarts the
+\\* periodic phase; -> PANIC (RELAY_DROP) is HeartbeatLost's; hearing a master resets the silence.
+Follow(a, s2, heard) ==
+    LET st == StateOf(s2.life)
+        b == CASE st = a.state -> a
+               [] st = "PAUSED" /\\ a.state = "WORKING" -> [L!Goto(a, "PAUSED") EXCEPT !.motors = "OFF"]
+               [] st = "ACTIVE" /\\ a.state = "PANIC" -> [L!Goto(a, "ACTIVE") EXCEPT !.clk = 0]
+               [] st = "PANIC" -> [L!Goto(L!Stopped(a), "PANIC") EXCEPT !.silence = 0, !.clk = 0]
+               [] OTHER -> [a EXCEPT !.state = "none"]
+    IN IF heard THEN [b EXCEPT !.silence = 0] ELSE b
+\\* RELAY's x: the relayed agent (the target, or the sender when it goes to the master).
+FwdMsg(m, s) == IF m.tgt = s.leader THEN [m EXCEPT !.x = m.src] ELSE [m EXCEPT !.x = m.tgt]
+\\* The agent's Election step for record r from s (its id me, its score sv): the set of new local
+\\* states, empty when the action is not enabled on the agent's own state.
+IfOk(ok, s2) == IF ok THEN {{s2}} ELSE {{}}
+ElSteps(r, s, me, sv) ==
+    LET m == r.em IN
+    CASE r.a = "RequestRelay" -> IfOk(E!RequestRelayOk(s), s)
+      [] r.a = "StartElection" -> IfOk(E!StartElectionOk(me, s), E!StartElectionNext(me, s))
+      [] r.a = "BecomeMaster" -> IfOk(E!BecomeMasterOk(s), E!BecomeMasterNext(s))
+      [] r.a = "GrantPreVote" -> IfOk(E!GrantPreVoteOk(me, s, m, m.sc, sv), s)
+      [] r.a = "Forward" -> IfOk(E!ForwardOk(me, s, FwdMsg(m, s)), s)
+      [] r.a = "OfferRelay" -> {{IF E!OfferRelayOk(me, s, m) THEN E!OfferRelayNext(s, m) ELSE s}}
+      [] r.a = "HandleAccept" -> {{IF E!HandleAcceptOk(me, s, m) THEN E!HandleAcceptNext(s, m) ELSE s}}
+      [] r.a = "AcceptRelay" -> {{IF E!AcceptRelayOk(me, s, m) THEN E!AcceptRelayNext(s, m) ELSE s}}
+      [] r.a = "RelayDropped" -> {{IF E!RelayDroppedOk(me, s, m) THEN E!RelayDroppedNext(s) ELSE s}}
+      [] r.a = "HandlePreVote" -> {{IF E!HandlePreVoteOk(me, s, m) THEN E!HandlePreVoteNext(s, m) ELSE s}}
+      [] r.a = "HandleElect" ->
+           {{IF E!HandleElectOk(me, s, m, m.sc, sv) THEN E!HandleElectNext(me, s, m, m.sc, sv) ELSE s}}
+      [] r.a = "HandleVote" -> {{IF E!HandleVoteOk(me, s, m) THEN E!HandleVoteNext(s, m) ELSE s}}
+      [] r.a = "HandleHeartbeat" ->
+           {{IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(s, m) ELSE s}}
+      [] r.a = "HandleStale" -> {{IF E!HandleStaleOk(me, s, m) THEN E!HandleStaleNext(me, s, m) ELSE s}}
+      [] OTHER -> {{}}
+\\* Following master c in epoch e after a MASTER (bare: the PC, epoch 1; inside EPOCH_CMD: its sender
+\\* and epoch): Election's rule for hearing c's heartbeat; the lifecycle gives the state.
+Synced(s, c, e, st) == [E!HandleHeartbeatNext(s, E!M("HB", c, 0, e, 0)) EXCEPT !.life = LifeOf(st, s.life)]
+InitEl == [life |-> "IDLE", epoch |-> {epoch0}, votedFor |-> {voted0}, votes |-> {{}}, leader |-> 0,
+           following |-> 0, via |-> 0, relays |-> {{}}, offered |-> {{}}, prevotes |-> {{}}]
+Init == /\\ ag = L!InitAgent({temp_id}) /\\ el = InitEl /\\ cursor = 1 /\\ failed = 0
+Step(r, a2, s2) == /\\ Fits(r, ag, a2) /\\ FitsEl(r, el, s2) /\\ ag' = a2 /\\ el' = s2
+Match ==
+    /\\ failed = 0 /\\ cursor <= Len(Trace)
+    /\\ LET r == Trace[cursor] IN
+       IF r.a = "Tick" THEN
+          /\\ L!TickOk(ag) /\\ L!TickOk(Adv(ag, r.n - 1))
+          /\\ Step(r, L!Tick(Adv(ag, r.n - 1)).ag, el)
+       ELSE IF r.a = "ApplyCommand" THEN
+          \\* EPOCH_CMD of master c in epoch e: the inner datagram goes to AgentLogic's handler r.cmd
+          \\* (c seen as the master); a MASTER syncs a masterless agent in e, anything else passes the
+          \\* fence (Election's Obeys: c is the master it follows in e, its highest epoch).
+          LET c == r.em.src
+              a2 == Received(r.cmd, ag, r.im, c)
+          IN /\\ ag.state # "OFF" /\\ r.em.t = "CMD" /\\ r.im.type # "NONE" /\\ r.im.src = c
+             /\\ Handled(ag, r.im, c) = r.cmd
+             /\\ IF r.im.type = "MASTER"
+                THEN /\\ r.em.e >= el.epoch
+                     /\\ Step(r, a2, IF r.cmd = "RecvMaster" THEN Synced(el, c, r.em.e, a2.state) ELSE el)
+                ELSE /\\ E!Obeys(el, r.em)
+                     /\\ Step(r, a2, [el EXCEPT !.life = LifeOf(a2.state, el.life)])
+       ELSE IF r.a \\in {tla.to_tla(ELECTION_ACTIONS)} THEN
+          \\* An Election action: its rule on the agent's own state (environment guards satisfiable). A
+          \\* receive handler not enabled on the agent's own state must be a stutter (the core answering
+          \\* a copy again: a VOTE re-sent, a LEADER of the master it follows).
+          \\E sv \\in MyScores : \\E s2 \\in ElSteps(r, el, ag.id, sv) :
+             Step(r, Follow(ag, s2, r.a \\in {{"HandleHeartbeat", "AcceptRelay"}} /\\ r.em.e >= el.epoch), s2)
+       ELSE IF r.em.t # "NONE" THEN
+          \\* an Election datagram no Election handler took: the environment's guards may all fail
+          /\\ r.a = "Ignore" /\\ Step(r, ag, el)
+       ELSE IF r.m.type # "NONE" THEN
+          /\\ ag.state # "OFF"
+          /\\ IF BareFenced(el, ag, r.m)
+             THEN r.a = "Ignore" /\\ Step(r, ag, el)
+             ELSE /\\ Handled(ag, r.m, Cur(el)) = r.a
+                  /\\ LET a2 == Received(r.a, ag, r.m, Cur(el)) IN
+                     Step(r, a2, IF r.a = "RecvMaster" THEN Synced(el, Cur(el), 1, a2.state)
+                                 ELSE [el EXCEPT !.life = LifeOf(a2.state, el.life)])
+       ELSE
+          /\\ IntOk(r, ag)
+          /\\ LET a2 == Internal(r, ag).ag IN
+             IF r.a = "HeartbeatLost"
+             THEN E!TimeoutOk(el) /\\ Step(r, a2, E!TimeoutNext(el))
+             ELSE Step(r, a2, [el EXCEPT !.life = LifeOf(a2.state, el.life)])
+    /\\ cursor' = cursor + 1
+    /\\ UNCHANGED failed
+Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
+         /\\ failed' = cursor /\\ UNCHANGED <<ag, el, cursor>>
+Next == Match \\/ Stuck
+Matched == cursor <= Len(Trace)
+NotStuck == failed = 0
+====
+"""

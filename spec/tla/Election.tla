@@ -101,11 +101,42 @@ Linked(x, y) == {x, y} \notin down
 M(t, s, d, e, x) == [t |-> t, src |-> s, dst |-> d, e |-> e, x |-> x]
 Drops(a) == {M("RDROP", a, r, epoch[a], NoNode) : r \in relays[a]}
 
+-----------------------------------------------------------------------------
+(* One node's own variables as a record (its "local state"), and the      *)
+(* rules of each action on it.  Every action X below is an enabling        *)
+(* condition on the node's own state XOk(n, s, m) (s = Loc(n)), the         *)
+(* environment's part (links, the network, the other nodes), and the new   *)
+(* local state XNext(..): these operators are the one definition of each   *)
+(* rule, used by the actions here and by the check of a single agent's     *)
+(* trace (conformance/ev3conformance/tracecheck.py, docs/spec.md           *)
+(* "Election traces"), which sees only the agent's own variables.  The PC  *)
+(* has no votedFor, leader, following, via, relays, offered, prevotes:     *)
+(* NoNode / 0 / {} in its record, never written back.                      *)
+
+Own(f, n, none) == IF n \in Agents THEN f[n] ELSE none
+Loc(n) == [life |-> life[n], epoch |-> epoch[n], votes |-> votes[n],
+           votedFor |-> Own(votedFor, n, NoNode), leader |-> Own(leader, n, NoNode),
+           following |-> Own(following, n, 0), via |-> Own(via, n, NoNode),
+           relays |-> Own(relays, n, {}), offered |-> Own(offered, n, {}),
+           prevotes |-> Own(prevotes, n, {})]
+Put(f, n, x) == IF n \in Agents THEN [f EXCEPT ![n] = x] ELSE f
+SetLoc(n, s) ==
+    /\ life' = [life EXCEPT ![n] = s.life]
+    /\ epoch' = [epoch EXCEPT ![n] = s.epoch]
+    /\ votes' = [votes EXCEPT ![n] = s.votes]
+    /\ votedFor' = Put(votedFor, n, s.votedFor)
+    /\ leader' = Put(leader, n, s.leader)
+    /\ following' = Put(following, n, s.following)
+    /\ via' = Put(via, n, s.via)
+    /\ relays' = Put(relays, n, s.relays)
+    /\ offered' = Put(offered, n, s.offered)
+    /\ prevotes' = Put(prevotes, n, s.prevotes)
+
 \* The lifecycle state after n learns of a newer epoch than the one it acts in.
-SteppedDown(n) ==
-    CASE life[n] \in {"MASTER", "CANDIDATE"} -> IF n = PC THEN "CANDIDATE" ELSE "PANIC"
-      [] life[n] = "WORKING" -> "PAUSED"
-      [] OTHER -> life[n]
+SteppedDown(n, s) ==
+    CASE s.life \in {"MASTER", "CANDIDATE"} -> IF n = PC THEN "CANDIDATE" ELSE "PANIC"
+      [] s.life = "WORKING" -> "PAUSED"
+      [] OTHER -> s.life
 
 Init ==
     /\ life = [n \in Nodes |-> IF n = PC THEN "MASTER" ELSE "ACTIVE"]
@@ -144,23 +175,18 @@ HeartbeatOK(a) ==
 \* Agent a misses heartbeats past the threshold: WORKING -> PAUSED (behaviour
 \* stopped), ACTIVE or PAUSED -> PANIC.  An agent that panics drops the
 \* agents it relays for and tells them (RELAY_DROP).
+TimeoutOk(s) == s.life \in Followers
+TimeoutNext(s) ==
+    IF s.life = "WORKING" THEN [s EXCEPT !.life = "PAUSED"]
+    ELSE LET t == [s EXCEPT !.life = "PANIC", !.leader = NoNode, !.following = 0, !.via = NoNode]
+         IN IF BUG = "KeepTableOnPanic" THEN t ELSE [t EXCEPT !.relays = {}, !.offered = {}]
 Timeout(a) ==
-    /\ life[a] \in Followers
+    /\ TimeoutOk(Loc(a))
     /\ SpuriousTimeout \/ ~HeartbeatOK(a)
-    /\ IF life[a] = "WORKING"
-       THEN /\ life' = [life EXCEPT ![a] = "PAUSED"]
-            /\ UNCHANGED <<leader, following, via, relays, offered, net>>
-       ELSE /\ life' = [life EXCEPT ![a] = "PANIC"]
-            /\ leader' = [leader EXCEPT ![a] = NoNode]
-            /\ following' = [following EXCEPT ![a] = 0]
-            /\ via' = [via EXCEPT ![a] = NoNode]
-            /\ IF BUG = "KeepTableOnPanic"
-               THEN UNCHANGED <<relays, offered, net>>
-               ELSE /\ relays' = [relays EXCEPT ![a] = {}]
-                    /\ offered' = [offered EXCEPT ![a] = {}]
-                    /\ net' = net \cup Drops(a)
+    /\ SetLoc(a, TimeoutNext(Loc(a)))
+    /\ net' = IF life[a] = "WORKING" \/ BUG = "KeepTableOnPanic" THEN net ELSE net \cup Drops(a)
     /\ lastAction' = <<"Timeout", a>>
-    /\ UNCHANGED <<epoch, votedFor, votes, prevotes, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Relay.                                                                  *)
@@ -169,8 +195,9 @@ Timeout(a) ==
 \* The request is also a pre-vote: a peer with a master offers a relay, a
 \* peer without one answers PREVOTE_OK (GrantPreVote).  A candidate whose
 \* election stalled asks again before it stands in the next epoch.
+RequestRelayOk(s) == s.life \in {"PANIC", "CANDIDATE"}
 RequestRelay(a) ==
-    /\ life[a] \in {"PANIC", "CANDIDATE"}
+    /\ RequestRelayOk(Loc(a))
     /\ M("RREQ", a, NoNode, epoch[a], NoNode) \notin net
     /\ net' = net \cup {M("RREQ", a, NoNode, epoch[a], NoNode)}
     /\ lastAction' = <<"RequestRelay", a>>
@@ -180,61 +207,61 @@ RequestRelay(a) ==
 \* A peer p that follows a master over a direct link receives a's request
 \* and offers to relay (RELAY_OFFER with its epoch and master).  Never if p
 \* is relayed itself (one hop), never if a has seen a newer epoch than p.
+OfferRelayOk(p, s, m) ==
+    /\ m.t = "RREQ" /\ m.src # p
+    /\ s.life \in Followers /\ s.following = s.epoch /\ s.leader # NoNode
+    /\ BUG = "OfferWhileRelayed" \/ s.via = NoNode
+    /\ m.e <= s.epoch
+OfferRelayNext(s, m) == [s EXCEPT !.offered = @ \cup {m.src}]
 OfferRelay(p, m) ==
-    /\ m.t = "RREQ" /\ m.src # p /\ Linked(m.src, p)
-    /\ life[p] \in Followers /\ following[p] = epoch[p] /\ leader[p] # NoNode
-    /\ BUG = "OfferWhileRelayed" \/ via[p] = NoNode
-    /\ m.e <= epoch[p]
+    /\ OfferRelayOk(p, Loc(p), m) /\ Linked(m.src, p)
     /\ M("ROFFER", p, m.src, epoch[p], leader[p]) \notin net
     /\ net' = net \cup {M("ROFFER", p, m.src, epoch[p], leader[p])}
-    /\ offered' = [offered EXCEPT ![p] = @ \cup {m.src}]
+    /\ SetLoc(p, OfferRelayNext(Loc(p), m))
     /\ lastAction' = <<"OfferRelay", p, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, prevotes, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 \* Relay p gets a's RELAY_ACCEPT: if it answers an offer p made since p
 \* last changed master (offers are forgotten on every change: a late
 \* accept of an old offer could close a cycle) and p still follows,
 \* directly, the same master in the same epoch, it enters a in its table and tells its
 \* master the route (RELAY_ROUTE; abstracted: the master reads the table).
+HandleAcceptOk(p, s, m) ==
+    /\ m.t = "RACCEPT" /\ m.dst = p
+    /\ s.life \in Followers /\ s.following = m.e /\ s.leader = m.x
+    /\ BUG = "OfferWhileRelayed" \/ s.via = NoNode
+    /\ m.src \in s.offered
+HandleAcceptNext(s, m) == [s EXCEPT !.relays = @ \cup {m.src}, !.offered = @ \ {m.src}]
 HandleAccept(p, m) ==
-    /\ m.t = "RACCEPT" /\ m.dst = p /\ Linked(m.src, p)
-    /\ life[p] \in Followers /\ following[p] = m.e /\ leader[p] = m.x
-    /\ BUG = "OfferWhileRelayed" \/ via[p] = NoNode
-    /\ m.src \in offered[p]
-    /\ relays' = [relays EXCEPT ![p] = @ \cup {m.src}]
-    /\ offered' = [offered EXCEPT ![p] = @ \ {m.src}]
+    /\ HandleAcceptOk(p, Loc(p), m) /\ Linked(m.src, p)
+    /\ SetLoc(p, HandleAcceptNext(Loc(p), m))
     /\ lastAction' = <<"HandleAccept", p, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, prevotes, net, down,
-                   faults, lost, elected, applied>>
+    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
 
 \* Agent a in PANIC takes an offer from p (RELAY_ACCEPT to p): it follows
 \* p's master through p, in p's epoch if that is not older than its own.
+AcceptRelayOk(a, s, m) ==
+    /\ m.t = "ROFFER" /\ m.dst = a
+    /\ s.life = "PANIC"
+    /\ m.e >= s.epoch
+AcceptRelayNext(s, m) ==
+    [s EXCEPT !.life = "ACTIVE", !.votedFor = IF m.e > s.epoch THEN NoNode ELSE @,
+              !.epoch = m.e, !.leader = m.x, !.following = m.e, !.via = m.src, !.prevotes = {}]
 AcceptRelay(a, m) ==
-    /\ m.t = "ROFFER" /\ m.dst = a /\ Linked(m.src, a)
-    /\ life[a] = "PANIC"
-    /\ m.e >= epoch[a]
-    /\ life' = [life EXCEPT ![a] = "ACTIVE"]
-    /\ votedFor' = IF m.e > epoch[a] THEN [votedFor EXCEPT ![a] = NoNode] ELSE votedFor
-    /\ epoch' = [epoch EXCEPT ![a] = m.e]
-    /\ leader' = [leader EXCEPT ![a] = m.x]
-    /\ following' = [following EXCEPT ![a] = m.e]
-    /\ via' = [via EXCEPT ![a] = m.src]
-    /\ prevotes' = [prevotes EXCEPT ![a] = {}]
+    /\ AcceptRelayOk(a, Loc(a), m) /\ Linked(m.src, a)
+    /\ SetLoc(a, AcceptRelayNext(Loc(a), m))
     /\ net' = net \cup {M("RACCEPT", a, m.src, m.e, m.x)}
     /\ lastAction' = <<"AcceptRelay", a, m>>
-    /\ UNCHANGED <<votes, relays, offered, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 \* A relayed agent a whose relay p dropped it (RELAY_DROP) goes back to PANIC.
+RelayDroppedOk(a, s, m) == m.t = "RDROP" /\ m.dst = a /\ s.via = m.src /\ s.life \in Followers
+RelayDroppedNext(s) == [s EXCEPT !.life = "PANIC", !.leader = NoNode, !.following = 0, !.via = NoNode]
 RelayDropped(a, m) ==
-    /\ m.t = "RDROP" /\ m.dst = a /\ via[a] = m.src /\ life[a] \in Followers
-    /\ life' = [life EXCEPT ![a] = "PANIC"]
-    /\ leader' = [leader EXCEPT ![a] = NoNode]
-    /\ following' = [following EXCEPT ![a] = 0]
-    /\ via' = [via EXCEPT ![a] = NoNode]
+    /\ RelayDroppedOk(a, Loc(a), m)
+    /\ SetLoc(a, RelayDroppedNext(Loc(a)))
     /\ lastAction' = <<"RelayDropped", a, m>>
-    /\ UNCHANGED <<epoch, votedFor, votes, relays, offered, prevotes, net, down, faults, lost, elected,
-                   applied>>
+    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Pre-vote.  An agent stands only when a majority of the fleet (itself    *)
@@ -247,11 +274,13 @@ RelayDropped(a, m) ==
 
 \* Agent v, without a master (PANIC or CANDIDATE), receives a's RELAY_REQ of
 \* epoch e >= its own and would vote for a in the next epoch (a is not
-\* stronger than v): it answers PREVOTE_OK.
+\* stronger than v: sa, sv are their scores): it answers PREVOTE_OK.
+GrantPreVoteOk(v, s, m, sa, sv) ==
+    /\ m.t = "RREQ" /\ m.src # v
+    /\ s.life \in {"PANIC", "CANDIDATE"}
+    /\ m.e >= s.epoch /\ sa <= sv
 GrantPreVote(v, m) ==
-    /\ m.t = "RREQ" /\ m.src # v /\ Linked(m.src, v)
-    /\ life[v] \in {"PANIC", "CANDIDATE"}
-    /\ m.e >= epoch[v] /\ Score[m.src] <= Score[v]
+    /\ GrantPreVoteOk(v, Loc(v), m, Score[m.src], Score[v]) /\ Linked(m.src, v)
     /\ M("PREOK", v, m.src, m.e, NoNode) \notin net
     /\ net' = net \cup {M("PREOK", v, m.src, m.e, NoNode)}
     /\ lastAction' = <<"GrantPreVote", v, m>>
@@ -260,14 +289,16 @@ GrantPreVote(v, m) ==
 
 \* Agent a, still without a master in the epoch it asked in, counts a
 \* PREVOTE_OK.
+HandlePreVoteOk(a, s, m) ==
+    /\ m.t = "PREOK" /\ m.dst = a
+    /\ s.life \in {"PANIC", "CANDIDATE"} /\ m.e = s.epoch
+    /\ m.src \notin s.prevotes
+HandlePreVoteNext(s, m) == [s EXCEPT !.prevotes = @ \cup {m.src}]
 HandlePreVote(a, m) ==
-    /\ m.t = "PREOK" /\ m.dst = a /\ Linked(m.src, a)
-    /\ life[a] \in {"PANIC", "CANDIDATE"} /\ m.e = epoch[a]
-    /\ m.src \notin prevotes[a]
-    /\ prevotes' = [prevotes EXCEPT ![a] = @ \cup {m.src}]
+    /\ HandlePreVoteOk(a, Loc(a), m) /\ Linked(m.src, a)
+    /\ SetLoc(a, HandlePreVoteNext(Loc(a), m))
     /\ lastAction' = <<"HandlePreVote", a, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, net,
-                   down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Election.                                                               *)
@@ -277,77 +308,88 @@ HandlePreVote(a, m) ==
 \* included, granted it a pre-vote: it votes for itself and broadcasts
 \* ELECT with its score.  The PC, once back (CANDIDATE), does the same
 \* without pre-vote (it always may take the fleet back).
+StartElectionOk(n, s) ==
+    /\ s.life \in IF n = PC THEN {"CANDIDATE"} ELSE {"PANIC", "CANDIDATE"}
+    /\ IF n = PC \/ ~PreVote THEN TRUE ELSE Quorum(s.prevotes \cup {n})
+    /\ s.epoch < MaxEpoch
+StartElectionNext(n, s) ==
+    [s EXCEPT !.epoch = @ + 1, !.votedFor = IF n = PC THEN @ ELSE n,
+              !.votes = IF n = PC THEN {} ELSE {n}, !.life = "CANDIDATE",
+              !.prevotes = IF n = PC THEN @ ELSE {}]
 StartElection(n) ==
-    /\ life[n] \in IF n = PC THEN {"CANDIDATE"} ELSE {"PANIC", "CANDIDATE"}
-    /\ IF n = PC \/ ~PreVote THEN TRUE ELSE Quorum(prevotes[n] \cup {n})
-    /\ epoch[n] < MaxEpoch
-    /\ epoch' = [epoch EXCEPT ![n] = @ + 1]
-    /\ votedFor' = IF n = PC THEN votedFor ELSE [votedFor EXCEPT ![n] = n]
-    /\ votes' = [votes EXCEPT ![n] = IF n = PC THEN {} ELSE {n}]
-    /\ life' = [life EXCEPT ![n] = "CANDIDATE"]
+    /\ StartElectionOk(n, Loc(n))
+    /\ SetLoc(n, StartElectionNext(n, Loc(n)))
     /\ net' = net \cup {M("ELECT", n, NoNode, epoch[n] + 1, NoNode)}
-    /\ prevotes' = IF n = PC THEN prevotes ELSE [prevotes EXCEPT ![n] = {}]
     /\ lastAction' = <<"StartElection", n, epoch[n] + 1>>
-    /\ UNCHANGED <<leader, following, via, relays, offered, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
-\* Agent v receives an ELECT of candidate c in epoch e.
+\* Agent v receives an ELECT of candidate c in epoch e (sc, sv: the scores
+\* of c and v).
 \*  - e older than v's epoch: v answers EPOCH_STALE.
 \*  - v follows a master it still hears and c is not the PC: ignored (a
-\*    healthy follower does not disrupt its master).
+\*    healthy follower does not disrupt its master; HeartbeatOK is the
+\*    environment's part, in HandleElect).
 \*  - otherwise v adopts e (stepping down if it acts in an older epoch) and
 \*    grants its one vote of epoch e to c if it has not voted in e yet and c
 \*    is not stronger than v (VOTE).
+ElectGrant(s, m, sc, sv) ==
+    /\ m.e > s.epoch \/ s.votedFor \in {NoNode, m.src} \/ BUG = "DoubleVote"
+    /\ sc <= sv
+HandleElectOk(v, s, m, sc, sv) ==
+    /\ m.t = "ELECT" /\ m.src # v /\ s.life # "DOWN"
+    /\ \/ m.e < s.epoch
+       \/ m.e > s.epoch
+       \/ ElectGrant(s, m, sc, sv) /\ s.votedFor # m.src
+HandleElectNext(v, s, m, sc, sv) ==
+    LET grant == ElectGrant(s, m, sc, sv) IN
+    CASE m.e < s.epoch -> s
+      [] m.e > s.epoch ->
+           [s EXCEPT !.epoch = m.e, !.votedFor = IF grant THEN m.src ELSE NoNode,
+                     !.life = SteppedDown(v, s), !.leader = NoNode, !.following = 0,
+                     !.via = NoNode, !.relays = {}, !.offered = {}, !.prevotes = {}]
+      [] OTHER -> [s EXCEPT !.votedFor = IF grant THEN m.src ELSE @]
 HandleElect(v, m) ==
     LET c == m.src
-        newer == m.e > epoch[v]
-        free == newer \/ votedFor[v] \in {NoNode, c} \/ BUG = "DoubleVote"
-        grant == free /\ Score[c] <= Score[v]
+        sc == Score[c]
     IN
-    /\ m.t = "ELECT" /\ c # v /\ Linked(c, v) /\ life[v] # "DOWN"
+    /\ HandleElectOk(v, Loc(v), m, sc, Score[v]) /\ Linked(c, v)
     /\ IF m.e < epoch[v]
        THEN /\ M("STALE", v, c, epoch[v], NoNode) \notin net
             /\ net' = net \cup {M("STALE", v, c, epoch[v], NoNode)}
-            /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, prevotes>>
        ELSE /\ ~(life[v] \in Followers /\ HeartbeatOK(v) /\ c # PC)
-            /\ newer \/ (grant /\ votedFor[v] # c)
-            /\ epoch' = [epoch EXCEPT ![v] = m.e]
-            /\ votedFor' = [votedFor EXCEPT ![v] = IF grant THEN c
-                                                   ELSE IF newer THEN NoNode ELSE @]
-            /\ IF newer
-               THEN /\ life' = [life EXCEPT ![v] = SteppedDown(v)]
-                    /\ leader' = [leader EXCEPT ![v] = NoNode]
-                    /\ following' = [following EXCEPT ![v] = 0]
-                    /\ via' = [via EXCEPT ![v] = NoNode]
-                    /\ relays' = [relays EXCEPT ![v] = {}]
-                    /\ offered' = [offered EXCEPT ![v] = {}]
-                    /\ prevotes' = [prevotes EXCEPT ![v] = {}]
-               ELSE UNCHANGED <<life, leader, following, via, relays, offered, prevotes>>
-            /\ net' = net \cup (IF newer THEN Drops(v) ELSE {})
-                          \cup (IF grant THEN {M("VOTE", v, c, m.e, NoNode)} ELSE {})
+            /\ net' = net \cup (IF m.e > epoch[v] THEN Drops(v) ELSE {})
+                          \cup (IF ElectGrant(Loc(v), m, sc, Score[v])
+                                THEN {M("VOTE", v, c, m.e, NoNode)} ELSE {})
+    /\ SetLoc(v, HandleElectNext(v, Loc(v), m, sc, Score[v]))
     /\ lastAction' = <<"HandleElect", v, m>>
-    /\ UNCHANGED <<votes, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 \* Candidate n counts a VOTE for it in its current epoch.
+HandleVoteOk(n, s, m) ==
+    /\ m.t = "VOTE" /\ m.dst = n
+    /\ s.life = "CANDIDATE" /\ m.e = s.epoch
+    /\ m.src \notin s.votes
+HandleVoteNext(s, m) == [s EXCEPT !.votes = @ \cup {m.src}]
 HandleVote(n, m) ==
-    /\ m.t = "VOTE" /\ m.dst = n /\ Linked(m.src, n)
-    /\ life[n] = "CANDIDATE" /\ m.e = epoch[n]
-    /\ m.src \notin votes[n]
-    /\ votes' = [votes EXCEPT ![n] = @ \cup {m.src}]
+    /\ m.t = "VOTE" /\ m.dst = n   \* first: Loc(n) needs a node
+    /\ HandleVoteOk(n, Loc(n), m) /\ Linked(m.src, n)
+    /\ SetLoc(n, HandleVoteNext(Loc(n), m))
     /\ lastAction' = <<"HandleVote", n, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, prevotes, net,
-                   down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
 
 \* A candidate with the votes of a majority of the fleet becomes master of
 \* its epoch and announces itself (LEADER, also its heartbeat).
+BecomeMasterOk(s) ==
+    /\ s.life = "CANDIDATE"
+    /\ IF BUG = "MinorityQuorum" THEN s.votes # {} ELSE Quorum(s.votes)
+BecomeMasterNext(s) == [s EXCEPT !.life = "MASTER"]
 BecomeMaster(n) ==
-    /\ life[n] = "CANDIDATE"
-    /\ IF BUG = "MinorityQuorum" THEN votes[n] # {} ELSE Quorum(votes[n])
-    /\ life' = [life EXCEPT ![n] = "MASTER"]
+    /\ BecomeMasterOk(Loc(n))
+    /\ SetLoc(n, BecomeMasterNext(Loc(n)))
     /\ elected' = elected \cup {<<epoch[n], n>>}
     /\ net' = net \cup {M("HB", n, NoNode, epoch[n], NoNode)}
     /\ lastAction' = <<"BecomeMaster", n, epoch[n]>>
-    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, down,
-                   faults, lost, applied>>
+    /\ UNCHANGED <<down, faults, lost, applied>>
 
 \* A master re-sends its heartbeat (LEADER) when the last one was lost.
 Heartbeat(n) ==
@@ -364,56 +406,48 @@ Heartbeat(n) ==
 \*  - otherwise v follows s directly in e: from PANIC, CANDIDATE or MASTER
 \*    (an older one: handover) it becomes ACTIVE; a WORKING agent whose
 \*    master changes is PAUSED until the new master resumes it.
+Stale(s, m) == m.e < s.epoch /\ BUG # "NoEpochCheck"
+MasterChange(s, m) == s.leader # m.src \/ s.following # m.e
+HandleHeartbeatOk(v, s, m) ==
+    /\ m.t = "HB" /\ m.src # v /\ s.life # "DOWN"
+    /\ ~Stale(s, m) =>
+         /\ MasterChange(s, m) \/ s.via # NoNode \/ s.life \notin Followers
+         /\ s.life = "MASTER" => m.e > s.epoch
+HandleHeartbeatNext(s, m) ==
+    IF Stale(s, m) THEN s
+    ELSE LET t == [s EXCEPT !.life = CASE s.life \in {"PANIC", "CANDIDATE", "MASTER"} -> "ACTIVE"
+                                       [] s.life = "WORKING" /\ MasterChange(s, m) -> "PAUSED"
+                                       [] OTHER -> s.life,
+                            !.epoch = IF m.e > s.epoch THEN m.e ELSE @,
+                            !.votedFor = IF m.e > s.epoch THEN NoNode ELSE @,
+                            !.leader = m.src, !.following = m.e, !.via = NoNode, !.prevotes = {}]
+         IN IF MasterChange(s, m) THEN [t EXCEPT !.relays = {}, !.offered = {}] ELSE t
 HandleHeartbeat(v, m) ==
-    LET s == m.src
-        newer == m.e > epoch[v]
-        change == leader[v] # s \/ following[v] # m.e
-    IN
-    /\ m.t = "HB" /\ s # v /\ Linked(s, v) /\ life[v] # "DOWN"
-    /\ IF m.e < epoch[v] /\ BUG # "NoEpochCheck"
-       THEN /\ M("STALE", v, s, epoch[v], NoNode) \notin net
-            /\ net' = net \cup {M("STALE", v, s, epoch[v], NoNode)}
-            /\ UNCHANGED <<life, epoch, votedFor, leader, following, via, relays, offered, prevotes>>
-       ELSE /\ change \/ via[v] # NoNode \/ life[v] \notin Followers
-            /\ life[v] = "MASTER" => m.e > epoch[v]
-            /\ life' = [life EXCEPT ![v] =
-                          CASE life[v] \in {"PANIC", "CANDIDATE", "MASTER"} -> "ACTIVE"
-                            [] life[v] = "WORKING" /\ change -> "PAUSED"
-                            [] OTHER -> life[v]]
-            /\ epoch' = [epoch EXCEPT ![v] = IF newer THEN m.e ELSE @]
-            /\ votedFor' = IF newer THEN [votedFor EXCEPT ![v] = NoNode] ELSE votedFor
-            /\ leader' = [leader EXCEPT ![v] = s]
-            /\ following' = [following EXCEPT ![v] = m.e]
-            /\ via' = [via EXCEPT ![v] = NoNode]
-            /\ prevotes' = [prevotes EXCEPT ![v] = {}]
-            /\ IF change
-               THEN /\ relays' = [relays EXCEPT ![v] = {}]
-                    /\ offered' = [offered EXCEPT ![v] = {}]
-                    /\ net' = net \cup Drops(v)
-               ELSE UNCHANGED <<relays, offered, net>>
+    /\ HandleHeartbeatOk(v, Loc(v), m) /\ Linked(m.src, v)
+    /\ IF Stale(Loc(v), m)
+       THEN /\ M("STALE", v, m.src, epoch[v], NoNode) \notin net
+            /\ net' = net \cup {M("STALE", v, m.src, epoch[v], NoNode)}
+       ELSE net' = IF MasterChange(Loc(v), m) THEN net \cup Drops(v) ELSE net
+    /\ SetLoc(v, HandleHeartbeatNext(Loc(v), m))
     /\ lastAction' = <<"HandleHeartbeat", v, m>>
-    /\ UNCHANGED <<votes, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 \* Node n learns from EPOCH_STALE that a newer epoch exists: it adopts it;
 \* a master or candidate steps down (an agent to PANIC, the PC to stand
 \* again), a follower of an older master stops following it.
+HandleStaleOk(n, s, m) == m.t = "STALE" /\ m.dst = n /\ s.life # "DOWN" /\ m.e > s.epoch
+HandleStaleNext(n, s, m) ==
+    LET t == [s EXCEPT !.epoch = m.e, !.life = SteppedDown(n, s)] IN
+    IF n = PC THEN t
+    ELSE [t EXCEPT !.votedFor = NoNode, !.prevotes = {}, !.leader = NoNode, !.following = 0,
+                   !.via = NoNode, !.relays = {}, !.offered = {}]
 HandleStale(n, m) ==
-    /\ m.t = "STALE" /\ m.dst = n /\ Linked(m.src, n) /\ life[n] # "DOWN"
-    /\ m.e > epoch[n]
-    /\ epoch' = [epoch EXCEPT ![n] = m.e]
-    /\ life' = [life EXCEPT ![n] = SteppedDown(n)]
-    /\ IF n = PC
-       THEN UNCHANGED <<votedFor, leader, following, via, relays, offered, prevotes, net>>
-       ELSE /\ votedFor' = [votedFor EXCEPT ![n] = NoNode]
-            /\ prevotes' = [prevotes EXCEPT ![n] = {}]
-            /\ leader' = [leader EXCEPT ![n] = NoNode]
-            /\ following' = [following EXCEPT ![n] = 0]
-            /\ via' = [via EXCEPT ![n] = NoNode]
-            /\ relays' = [relays EXCEPT ![n] = {}]
-            /\ offered' = [offered EXCEPT ![n] = {}]
-            /\ net' = net \cup Drops(n)
+    /\ m.t = "STALE" /\ m.dst = n   \* first: Loc(n) needs a node
+    /\ HandleStaleOk(n, Loc(n), m) /\ Linked(m.src, n)
+    /\ SetLoc(n, HandleStaleNext(n, Loc(n), m))
+    /\ net' = IF n = PC THEN net ELSE net \cup Drops(n)
     /\ lastAction' = <<"HandleStale", n, m>>
-    /\ UNCHANGED <<votes, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Commands, fenced by epoch.                                              *)
@@ -435,9 +469,9 @@ SendCommand(s, a) ==
 
 \* Relay p forwards the inner datagram of a RELAY to the agent it relays
 \* for, unchanged (same sender, msgid: the receiver dedupes end to end).
+ForwardOk(p, s, m) == m.t = "RELAY" /\ m.dst = p /\ s.life \in Followers /\ m.x \in s.relays
 Forward(p, m) ==
-    /\ m.t = "RELAY" /\ m.dst = p /\ Linked(m.src, p)
-    /\ life[p] \in Followers /\ m.x \in relays[p]
+    /\ ForwardOk(p, Loc(p), m) /\ Linked(m.src, p)
     /\ M("CMD", m.src, m.x, m.e, p) \notin net
     /\ net' = net \cup {M("CMD", m.src, m.x, m.e, p)}
     /\ lastAction' = <<"Forward", p, m>>
@@ -446,17 +480,20 @@ Forward(p, m) ==
 
 \* Agent a receives a command of master s in epoch e (directly, or from its
 \* relay).  It takes effect only if a follows s in e and e is the highest
-\* epoch a has seen: ACTIVE or PAUSED -> WORKING.
-ApplyCommand(a, m) ==
+\* epoch a has seen (the fence, Obeys): ACTIVE or PAUSED -> WORKING.
+Obeys(s, m) == BUG = "NoFencing" \/ (s.leader = m.src /\ s.following = m.e /\ m.e = s.epoch)
+ApplyCommandOk(a, s, m) ==
     /\ m.t = "CMD" /\ m.dst = a
+    /\ s.life \in {"ACTIVE", "PAUSED"}
+    /\ Obeys(s, m)
+ApplyCommandNext(s) == [s EXCEPT !.life = "WORKING"]
+ApplyCommand(a, m) ==
+    /\ ApplyCommandOk(a, Loc(a), m)
     /\ Linked(IF m.x = NoNode THEN m.src ELSE m.x, a)
-    /\ life[a] \in {"ACTIVE", "PAUSED"}
-    /\ BUG = "NoFencing" \/ (leader[a] = m.src /\ following[a] = m.e /\ m.e = epoch[a])
-    /\ life' = [life EXCEPT ![a] = "WORKING"]
+    /\ SetLoc(a, ApplyCommandNext(Loc(a)))
     /\ applied' = applied \cup {[a |-> a, src |-> m.src, e |-> m.e, seen |-> epoch[a]]}
     /\ lastAction' = <<"ApplyCommand", a, m>>
-    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
-                   down, faults, lost, elected>>
+    /\ UNCHANGED <<net, down, faults, lost, elected>>
 
 -----------------------------------------------------------------------------
 (* Faults.                                                                 *)

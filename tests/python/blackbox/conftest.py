@@ -82,10 +82,13 @@ def start_agent(agent_exe, programs, tmp_path, tm):
 # --resend-ms and --max-resends). At the end of the session every failed check is reported as an
 # error at teardown of its test, with the first record the spec cannot match.
 # EV3_TRACE_VALIDATE=0 turns it off; =sync checks at each teardown (slower, fails the test at once).
-# Not checked: programs started with --election (test_election.py: a master and three agents per
-# scenario, with their own --trace=FILE): their traces hold Election.tla actions (master: Heartbeat,
-# HandleVote, MasterRoute, ...; agent: HandleHeartbeat, StartElection, Forward, ...) that neither
-# MasterLogic nor AgentLogic has; the summary line counts them as "not checked (--election)".
+# Agents started with --election (test_election.py, with their own --trace=FILE) are checked too: their
+# traces hold Election.tla actions (HandleHeartbeat, StartElection, Forward, ...), checked by the
+# per-agent projection of Election.tla composed with AgentLogic (tracecheck.election_module; constants:
+# the run's timers, its --score, the epoch / voted_for of its --state-dir at start).
+# Not checked: masters started with --election (ev3-master --election, and the Master core an elected
+# agent runs): Heartbeat, HandleVote, MasterRoute, ... are not in MasterLogic; the summary line counts
+# them as "not checked (--election)".
 
 import concurrent.futures as _cf  # noqa: E402
 import threading as _threading  # noqa: E402
@@ -122,7 +125,7 @@ def _traced_init(self, exe, args, tmp, name, *a, **kw):
         self.trace_path = next((Path(x.split("=", 1)[1]) for x in args if x.startswith("--trace=")), None)
     self.trace_args = args
     self.trace_prog = prog
-    self.trace_state = _state_file(args) if prog == "ev3-master" else {}
+    self.trace_state = _state_file(args) if prog == "ev3-master" else _agent_state(args)
     if self.trace_path is not None and _CURRENT:
         _CURRENT[0].__dict__.setdefault("_ev3_started", []).append(self)
     _orig_init(self, exe, args, tmp, name, *a, **kw)
@@ -131,13 +134,32 @@ def _traced_init(self, exe, args, tmp, name, *a, **kw):
 _ev3net.Program.__init__ = _traced_init
 
 
-def _consts(args: list[str]) -> dict:
+def _consts(args: list[str], state: dict | None = None) -> dict:
     c = {"TPing": 1000, "TLoss": 3000, "TSync": 10000}
     for i, x in enumerate(args[:-1]):
         if x in _TIMER_FLAGS:
             c[_TIMER_FLAGS[x]] = int(args[i + 1])
     c.setdefault("TPaused", 2 * c["TLoss"])
+    if "--election" in args:
+        # Election.tla's side: the agent's score (unknown without --score: both outcomes of a
+        # comparison allowed) and the durable epoch / vote it starts from.
+        c["Election"] = True
+        c["Score"] = int(args[args.index("--score") + 1]) if "--score" in args[:-1] else None
+        state = state or {}
+        c["Epoch"] = int(state.get("epoch", 1))
+        c["VotedFor"] = int(state.get("voted_for", 0))
     return c
+
+
+def _agent_state(args: list[str]) -> dict:
+    """The key=value lines of DIR/ev3-agent.state of the agent's --state-dir at start (epoch, voted_for)."""
+    if "--state-dir" not in args[:-1]:
+        return {}
+    f = Path(args[args.index("--state-dir") + 1]) / "ev3-agent.state"
+    try:
+        return dict(line.split("=", 1) for line in f.read_text().splitlines() if "=" in line)
+    except OSError:
+        return {}
 
 
 _MASTER_FLAGS = {"--agent-timeout-ms": "TDrop", "--resend-ms": "TResend", "--max-resends": "MaxResends"}
@@ -182,13 +204,15 @@ def _submit(nodeid: str, p) -> None:
     if path is None or _MODE == "0":
         return
     master = p.trace_prog == "ev3-master"
-    if "--election" in p.trace_args:
-        # Election.tla actions: neither AgentLogic nor MasterLogic (see the comment above).
-        _STATS["election_masters" if master else "election_agents"] += 1
+    if master and "--election" in p.trace_args:
+        # Election.tla master actions: not in MasterLogic (see the comment above).
+        _STATS["election_masters"] += 1
         return
+    if not master and "--election" in p.trace_args:
+        _STATS["election_agents"] += 1
     if _POOL is None:
         _POOL = _cf.ThreadPoolExecutor(max_workers=2)
-    consts = _master_consts(p.trace_args, p.trace_state) if master else _consts(p.trace_args)
+    consts = _master_consts(p.trace_args, p.trace_state) if master else _consts(p.trace_args, p.trace_state)
     fut = _POOL.submit(_validate, path, consts, master)
     if _MODE == "sync":
         r = fut.result()
@@ -241,8 +265,8 @@ def pytest_sessionfinish(session, exitstatus):
         tr.write_line(f"trace validation: {_STATS['traces']} agent traces ({_STATS['records']} records, "
                       f"{_STATS['skipped']} skipped), {_STATS['master_traces']} master traces "
                       f"({_STATS['master_records']} records, {_STATS['master_skipped']} skipped), "
-                      f"{bad} not conforming; not checked (--election): {_STATS['election_masters']} masters, "
-                      f"{_STATS['election_agents']} agents; "
+                      f"{bad} not conforming; of the agents {_STATS['election_agents']} with --election "
+                      f"(AgentLogic + Election); not checked (--election): {_STATS['election_masters']} masters; "
                       f"TLC {_STATS['seconds'] + _STATS['master_seconds']:.0f} s (masters "
                       f"{_STATS['master_seconds']:.0f} s) in 2 parallel runs, {waited:.0f} s waited at the end")
     if bad:

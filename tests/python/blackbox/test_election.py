@@ -4,8 +4,9 @@ elect one of them master of epoch 2 (the lowest --score), the others follow it, 
 --master-script commands take effect. With broadcast lists that make a line (#1 and #3 do not hear
 each other), #3 gets through #2's relay and answers the new master's PINGs and commands through it.
 
-These runs pass `--trace=FILE` themselves: their agent traces contain Election.tla actions, which
-the AgentLogic trace check (conftest) does not model."""
+These runs pass `--trace=FILE` themselves; conftest validates the agents' traces against AgentLogic
+composed with Election.tla's per-agent rules (docs/spec.md "Election traces"); the master's, with
+Election.tla's master actions, are not checked."""
 
 from __future__ import annotations
 
