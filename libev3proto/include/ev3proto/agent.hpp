@@ -550,6 +550,9 @@ class Agent {
   /// Spec Goto(a, s): enter @p s (the LED follows); emits state and LED events on change.
   void Goto(State s) noexcept {
     if (s != state_) {
+      // Pre-votes are for standing from this PANIC: leaving it (a master found) forgets them, as
+      // Election's HandleHeartbeat and AcceptRelay do.
+      if (state_ == State::PANIC) clear_prevotes();
       state_ = s;
       push_event(AgentEvent{AgentEvent::Kind::state, s, Led::DARK, ControlKind::stop});
     }
