@@ -166,7 +166,7 @@ FIXED_MESSAGES = [
     Message(1, 1, 2**32, 8),
     Message(1, 1, 1, 0),
     Message(1, 1, 1, 256),
-    Message(1, 1, 1, 33, (b"x",)),
+    Message(1, 1, 1, 34, (b"x",)),
     Message(1, 1, 1, 5),
     Message(1, 1, 1, 5, (b"idle",)),
     Message(1, 1, 1, 5, (b"IDLE", b"")),

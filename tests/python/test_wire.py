@@ -72,7 +72,7 @@ REJECTIONS = [
     (b"7:1:12:0:IDLE", ("out of range", 3)),
     (b"7:1:12:0", ("out of range", 3)),
     # header: unknown type (in 1..255, not in the table)
-    (b"7:1:12:33:x", ("unknown type", 3)),
+    (b"7:1:12:34:x", ("unknown type", 3)),
     (b"7:1:12:255", ("unknown type", 3)),
     # 4. params: too many params (type's max), non-printable, bad escape, kind
     (b"7:1:12:5:WORKING:", ("too many params", 5)),
@@ -335,7 +335,7 @@ def test_bad_states(state):
 def test_encode_refusals():
     assert refuses(Message(1, 2, 3, 0)) == ("out of range", 3)
     assert refuses(Message(1, 2, 3, 256)) == ("out of range", 3)
-    assert refuses(Message(1, 2, 3, 33, (b"x",))) == ("unknown type", 3)
+    assert refuses(Message(1, 2, 3, 34, (b"x",))) == ("unknown type", 3)
     assert refuses(Message(70000, 70000, 3, 0)) == ("out of range", 0)
     assert refuses(Message(1, 70000, 3, 0)) == ("out of range", 1)
     assert refuses(Message(1, 2, 2**32, 0)) == ("out of range", 2)

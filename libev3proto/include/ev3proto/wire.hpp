@@ -351,52 +351,71 @@ inline void classify_block(const unsigned char* b, std::size_t len, std::uint64_
 #endif
 }
 
-/// classify_block() over the @p padded bytes at @p d (a multiple of 16, at most 4096): one pair of
-/// 64-bit masks per 64-byte block into @p colons and @p specials. Portable version.
-inline void classify_region_generic(const unsigned char* d, std::size_t padded, std::uint64_t* colons,
-                                    std::uint64_t* specials) noexcept {
+/// Pads the @p n bytes at @p d with a plain byte ('A') up to the next multiple of 16: a fixed 16-byte
+/// store (one instruction) where it fits in the 4096-byte message buffer, the exact length at its end.
+inline void pad_region(unsigned char* d, std::size_t n) noexcept {
+  const std::size_t padded = (n + kChunk - 1u) & ~(kChunk - 1u);
+  if (n + kChunk <= kMaxDatagram) std::memset(d + n, 'A', kChunk);
+  else std::memset(d + n, 'A', padded - n);
+}
+
+/// Copies the @p n param bytes at @p src to @p d, pads them (pad_region()) and classifies the padded
+/// region: one pair of classify_block() masks per 64-byte block into @p colons and @p specials.
+/// Portable version: one memcpy, then the blocks.
+inline void copy_classify_generic(const unsigned char* src, std::size_t n, unsigned char* d,
+                                  std::uint64_t* colons, std::uint64_t* specials) noexcept {
+  if (n != 0) std::memcpy(d, src, n);
+  pad_region(d, n);
+  const std::size_t padded = (n + kChunk - 1u) & ~(kChunk - 1u);
   for (std::size_t base = 0; base < padded; base += kBlock)
     classify_block(d + base, padded - base < kBlock ? padded - base : kBlock, *colons++, *specials++);
 }
 
 #if defined(EV3PROTO_AVX2_DISPATCH)
-/// classify_region_generic() 32 bytes at a time with AVX2 (only called where the CPU has it).
-__attribute__((target("avx2"))) inline void classify_region_avx2(const unsigned char* d, std::size_t padded,
-                                                                 std::uint64_t* colons,
-                                                                 std::uint64_t* specials) noexcept {
+/// copy_classify_generic() with AVX2 (only called where the CPU has it): each whole 64-byte block is
+/// loaded once from @p src, stored to @p d and classified from the registers; the tail goes through
+/// memcpy and the block classifier. Reads nothing past src + n.
+__attribute__((target("avx2"))) inline void copy_classify_avx2(const unsigned char* src, std::size_t n,
+                                                               unsigned char* d, std::uint64_t* colons,
+                                                               std::uint64_t* specials) noexcept {
   const __m256i k_colon = _mm256_set1_epi8(':');
   const __m256i k_percent = _mm256_set1_epi8('%');
   // As in classify_sse2(): adding 0x60 maps 0x20..0x7E onto -128..-34, every other byte above -34.
   const __m256i k_shift = _mm256_set1_epi8(0x60);
   const __m256i k_limit = _mm256_set1_epi8(-34);
+  auto bits = [](__m256i m) __attribute__((target("avx2"))) {
+    return std::uint64_t{static_cast<std::uint32_t>(_mm256_movemask_epi8(m))};
+  };
   std::size_t base = 0;
-  for (; padded - base >= kBlock; base += kBlock) {
-    const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(d + base));
-    const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(d + base + 32u));
+  for (; n - base >= kBlock; base += kBlock) {
+    const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(src + base));
+    const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(src + base + 32u));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + base), lo);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + base + 32u), hi);
     const __m256i slo = _mm256_or_si256(_mm256_cmpeq_epi8(lo, k_percent),
                                         _mm256_cmpgt_epi8(_mm256_add_epi8(lo, k_shift), k_limit));
     const __m256i shi = _mm256_or_si256(_mm256_cmpeq_epi8(hi, k_percent),
                                         _mm256_cmpgt_epi8(_mm256_add_epi8(hi, k_shift), k_limit));
-    auto bits = [](__m256i m) __attribute__((target("avx2"))) {
-      return std::uint64_t{static_cast<std::uint32_t>(_mm256_movemask_epi8(m))};
-    };
     *colons++ = bits(_mm256_cmpeq_epi8(lo, k_colon)) | bits(_mm256_cmpeq_epi8(hi, k_colon)) << 32;
     *specials++ = bits(slo) | bits(shi) << 32;
   }
-  if (base != padded) classify_block(d + base, padded - base, *colons, *specials);  // 16, 32 or 48 bytes
+  if (n != base) std::memcpy(d + base, src + base, n - base);
+  pad_region(d, n);
+  const std::size_t padded = (n + kChunk - 1u) & ~(kChunk - 1u);
+  if (base != padded) classify_block(d + base, padded - base, *colons, *specials);  // 16 to 64 bytes
 }
 
 /// True when the CPU running this has AVX2 (asked on every call: a load and a test).
 inline bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2"); }
 #endif
 
-/// classify_region_generic(), with AVX2 where the CPU has it.
-inline void classify_region(const unsigned char* d, std::size_t padded, std::uint64_t* colons,
-                            std::uint64_t* specials) noexcept {
+/// copy_classify_generic(), with AVX2 where the CPU has it.
+inline void copy_classify(const unsigned char* src, std::size_t n, unsigned char* d, std::uint64_t* colons,
+                          std::uint64_t* specials) noexcept {
 #if defined(EV3PROTO_AVX2_DISPATCH)
-  if (cpu_has_avx2()) return classify_region_avx2(d, padded, colons, specials);
+  if (cpu_has_avx2()) return copy_classify_avx2(src, n, d, colons, specials);
 #endif
-  classify_region_generic(d, padded, colons, specials);
+  copy_classify_generic(src, n, d, colons, specials);
 }
 
 /// Bit i set where p[i] must be escaped in a param (':' '%' and bytes outside 0x20..0x7E), for the
@@ -510,14 +529,9 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     const std::size_t n = static_cast<std::size_t>(e - p);
     const std::size_t padded = (n + detail::kChunk - 1u) & ~(detail::kChunk - 1u);
     unsigned char* const d = reinterpret_cast<unsigned char*>(out.data_);
-    if (n != 0) std::memcpy(d, p, n);
-    // A fixed 16-byte store (one instruction) where it fits; the last 16 bytes of the buffer take the
-    // exact length.
-    if (n + detail::kChunk <= Message::kCapacity) std::memset(d + n, 'A', detail::kChunk);
-    else std::memset(d + n, 'A', padded - n);
     std::uint64_t colons[Message::kCapacity / detail::kBlock];
     std::uint64_t specials[Message::kCapacity / detail::kBlock];
-    detail::classify_region(d, padded, colons, specials);
+    detail::copy_classify(reinterpret_cast<const unsigned char*>(p), n, d, colons, specials);
     const std::size_t blocks = (padded + detail::kBlock - 1u) / detail::kBlock;
 
     // Pass 1: bounds. The region examined ends at `limit`: n, or the ':' that opens param max_params.

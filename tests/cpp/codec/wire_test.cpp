@@ -141,10 +141,10 @@ TEST(Decode, HeaderFields) {
       {"7:1:12:0", Reason::out_of_range, 3},
       {"7:1:12:256", Reason::out_of_range, 3},
       {"7:1:12:99999999999", Reason::out_of_range, 3},
-      {"7:1:12:33", Reason::unknown_type, 3},
+      {"7:1:12:34", Reason::unknown_type, 3},
       {"7:1:12:39", Reason::unknown_type, 3},
       {"7:1:12:255", Reason::unknown_type, 3},
-      {"7:1:12:33:\x01", Reason::unknown_type, 3},
+      {"7:1:12:34:\x01", Reason::unknown_type, 3},
       {"7:1:12:5", Reason::too_few_fields, 4},
       {"7:1:12:8", Reason::ok, 0},
       {"7:1:12:8:", Reason::too_many_params, 4},
@@ -366,7 +366,7 @@ TEST(Encode, Refusals) {
     EXPECT_EQ(buf[0], '#') << "encode wrote although it refused";
   };
   refused(Message(1, 2, 3, static_cast<MsgType>(0)), Reason::out_of_range, 3);
-  refused(Message(1, 2, 3, static_cast<MsgType>(33)), Reason::unknown_type, 3);
+  refused(Message(1, 2, 3, static_cast<MsgType>(34)), Reason::unknown_type, 3);
   refused(Message(1, 2, 3, static_cast<MsgType>(255)), Reason::unknown_type, 3);
   refused(Message(1, 2, 3, MsgType::PING), Reason::too_few_fields, 4);
   Message ping(1, 2, 3, MsgType::PING);
@@ -569,31 +569,39 @@ TEST(Classify, VariantsAgreeWithScalarReference) {
   }
 }
 
-// decode() classifies the whole param region at once: AVX2 where the CPU has it (x86-64), else block
-// by block. Both must give the per-block masks of classify_scalar() for every padded length.
+// decode() copies and classifies the whole param region at once: AVX2 where the CPU has it (x86-64),
+// else memcpy and block by block. Both must copy the same bytes, pad the same way and give the
+// per-block masks of classify_scalar(), for every length.
 TEST(Classify, RegionVariantsAgreeWithScalarReference) {
   std::mt19937 rng(20261122);
-  alignas(64) unsigned char region[ev3proto::kMaxDatagram];
+  std::vector<unsigned char> src;
+  alignas(64) unsigned char g[ev3proto::kMaxDatagram];
   std::uint64_t gc[64], gs[64];
-  for (int iter = 0; iter < 400; ++iter) {
-    for (auto& b : region) b = static_cast<unsigned char>((rng() % 4u == 0) ? ':' : rng());
-    const std::size_t padded = 16u * (1u + rng() % 256u);
-    ev3proto::detail::classify_region_generic(region, padded, gc, gs);
+  for (int iter = 0; iter < 600; ++iter) {
+    const std::size_t n = rng() % 4089u;  // a param region is at most 4088 bytes
+    src.assign(n, 0);  // exactly n bytes: ASan would see a read past them
+    for (auto& b : src) b = static_cast<unsigned char>((rng() % 4u == 0) ? ':' : rng());
+    ev3proto::detail::copy_classify_generic(src.data(), n, g, gc, gs);
+    ASSERT_EQ(0, n ? std::memcmp(g, src.data(), n) : 0) << "generic copy, n " << n;
+    const std::size_t padded = (n + 15u) & ~std::size_t{15};
+    for (std::size_t i = n; i < padded; ++i) ASSERT_EQ(g[i], 'A') << "padding, n " << n;
     const std::size_t blocks = (padded + 63u) / 64u;
     for (std::size_t k = 0; k < blocks; ++k) {
       std::uint64_t rc = 0, rs = 0;
       const std::size_t span = padded - 64u * k < 64u ? padded - 64u * k : 64u;
-      ev3proto::detail::classify_scalar(region + 64u * k, span, rc, rs);
-      ASSERT_EQ(gc[k], rc) << "generic colons, block " << k << " of " << padded;
-      ASSERT_EQ(gs[k], rs) << "generic specials, block " << k << " of " << padded;
+      ev3proto::detail::classify_scalar(g + 64u * k, span, rc, rs);
+      ASSERT_EQ(gc[k], rc) << "generic colons, block " << k << ", n " << n;
+      ASSERT_EQ(gs[k], rs) << "generic specials, block " << k << ", n " << n;
     }
 #if defined(EV3PROTO_AVX2_DISPATCH)
     if (ev3proto::detail::cpu_has_avx2()) {
+      alignas(64) unsigned char a[ev3proto::kMaxDatagram];
       std::uint64_t ac[64], as[64];
-      ev3proto::detail::classify_region_avx2(region, padded, ac, as);
+      ev3proto::detail::copy_classify_avx2(src.data(), n, a, ac, as);
+      ASSERT_EQ(0, std::memcmp(a, g, padded)) << "avx2 copy, n " << n;
       for (std::size_t k = 0; k < blocks; ++k) {
-        ASSERT_EQ(ac[k], gc[k]) << "avx2 colons, block " << k << " of " << padded;
-        ASSERT_EQ(as[k], gs[k]) << "avx2 specials, block " << k << " of " << padded;
+        ASSERT_EQ(ac[k], gc[k]) << "avx2 colons, block " << k << ", n " << n;
+        ASSERT_EQ(as[k], gs[k]) << "avx2 specials, block " << k << ", n " << n;
       }
     }
 #endif
