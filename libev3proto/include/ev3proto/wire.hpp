@@ -460,6 +460,56 @@ inline unsigned lowest_bit(std::uint64_t m) noexcept {
   return static_cast<unsigned>(__builtin_ctzll(static_cast<unsigned long long>(m)));
 }
 
+/// The positions of the ':'s, in order: the set bits of the @p blocks masks at @p colons (bit i of
+/// mask k is byte 64k + i), at most @p cap of them, into @p at (room for cap + 4). Returns how many
+/// it wrote: cap means there may be more. Portable version, one bit at a time.
+inline std::size_t colon_positions_generic(const std::uint64_t* colons, std::size_t blocks, std::size_t cap,
+                                           std::uint16_t* at) noexcept {
+  std::size_t seen = 0;
+  if (cap == 0) return 0;
+  for (std::size_t k = 0; k < blocks; ++k)
+    for (std::uint64_t m = colons[k]; m != 0; m &= m - 1u) {
+      at[seen++] = static_cast<std::uint16_t>(k * kBlock + lowest_bit(m));
+      if (seen == cap) return seen;
+    }
+  return seen;
+}
+
+#if defined(EV3PROTO_AVX2_DISPATCH)
+/// colon_positions_generic() with POPCNT and BMI (every AVX2 CPU has them; only called there): each
+/// block's first four positions are written unconditionally and the count advanced by the block's
+/// popcount, so a block costs no mispredicted loop exit.
+__attribute__((target("avx2,bmi,popcnt"))) inline std::size_t colon_positions_bmi(
+    const std::uint64_t* colons, std::size_t blocks, std::size_t cap, std::uint16_t* at) noexcept {
+  std::size_t seen = 0;
+  for (std::size_t k = 0; k < blocks; ++k) {
+    std::uint64_t m = colons[k];
+    const std::size_t cnt = static_cast<std::size_t>(__builtin_popcountll(m));
+    const std::size_t base = k * kBlock;
+    if (seen + cnt >= cap) {  // the last block needed: exactly up to cap
+      for (; seen < cap; m &= m - 1u) at[seen++] = static_cast<std::uint16_t>(base + static_cast<unsigned>(__builtin_ctzll(m)));
+      return seen;
+    }
+    for (std::size_t j = 0; j < 4; ++j, m &= m - 1u)  // bit 63 stands in for "none left"
+      at[seen + j] = static_cast<std::uint16_t>(base + static_cast<unsigned>(__builtin_ctzll(m | (std::uint64_t{1} << 63))));
+    for (std::size_t j = 4; j < cnt; ++j, m &= m - 1u)
+      at[seen + j] = static_cast<std::uint16_t>(base + static_cast<unsigned>(__builtin_ctzll(m)));
+    seen += cnt;
+  }
+  return seen;
+}
+#endif
+
+/// colon_positions_generic(), with POPCNT and BMI where the CPU has AVX2.
+inline std::size_t colon_positions(const std::uint64_t* colons, std::size_t blocks, std::size_t cap,
+                                   std::uint16_t* at) noexcept {
+#if defined(EV3PROTO_AVX2_DISPATCH)
+  if (cpu_has_avx2()) return colon_positions_bmi(colons, blocks, cap, at);
+#endif
+  return colon_positions_generic(colons, blocks, cap, at);
+}
+
+
 } // namespace detail
 
 /// Number of bytes @p value takes as an escaped param on the wire (without its ':').
@@ -535,30 +585,11 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     const std::size_t blocks = (padded + detail::kBlock - 1u) / detail::kBlock;
 
     // Pass 1: bounds. The region examined ends at `limit`: n, or the ':' that opens param max_params.
-    // Each block's first four ':' positions are written unconditionally (a fixed trip count: no
-    // mispredicted loop exit per block), the count advanced by the block's popcount.
     std::uint16_t at[kMaxParams + 4];  // positions of the ':'s, in order
-    std::size_t colons_seen = 0;
+    std::size_t colons_seen = detail::colon_positions(colons, blocks, max_params, at);
     std::size_t limit = n;
-    bool too_many = false;
-    for (std::size_t k = 0; k < blocks; ++k) {
-      std::uint64_t m = colons[k];
-      const std::size_t cnt = static_cast<std::size_t>(__builtin_popcountll(m));
-      const std::size_t base = k * detail::kBlock;
-      if (colons_seen + cnt >= max_params) {  // this block holds the ':' that opens param max_params
-        for (std::size_t j = colons_seen; j + 1u < max_params; ++j, m &= m - 1u)
-          at[j] = static_cast<std::uint16_t>(base + detail::lowest_bit(m));
-        limit = base + detail::lowest_bit(m);
-        colons_seen = max_params - 1u;
-        too_many = true;
-        break;
-      }
-      for (std::size_t j = 0; j < 4; ++j, m &= m - 1u)  // bit 63 stands in for "none left"
-        at[colons_seen + j] = static_cast<std::uint16_t>(base + detail::lowest_bit(m | (std::uint64_t{1} << 63)));
-      for (std::size_t j = 4; j < cnt; ++j, m &= m - 1u)
-        at[colons_seen + j] = static_cast<std::uint16_t>(base + detail::lowest_bit(m));
-      colons_seen += cnt;
-    }
+    const bool too_many = colons_seen == max_params;
+    if (too_many) limit = at[--colons_seen];
     out.begins_[0] = 0;
     for (std::size_t j = 0; j < colons_seen; ++j) {
       out.ends_[j] = at[j];

@@ -608,6 +608,35 @@ TEST(Classify, RegionVariantsAgreeWithScalarReference) {
   }
 }
 
+// Pass 1 of decode(): the ':' positions from the masks, at most cap of them. The POPCNT/BMI variant
+// (unconditional stores per block) must write exactly what the bit-by-bit one writes.
+TEST(Classify, ColonPositionsVariantsAgree) {
+  std::mt19937_64 rng(20261123);
+  for (int iter = 0; iter < 20000; ++iter) {
+    std::uint64_t masks[64];
+    const std::size_t blocks = 1u + rng() % 64u;
+    const unsigned density = static_cast<unsigned>(rng() % 4u);  // sparse to dense
+    for (std::size_t k = 0; k < blocks; ++k) {
+      std::uint64_t m = rng();
+      for (unsigned d = 0; d < 3u - density; ++d) m &= rng();
+      masks[k] = m;
+    }
+    const std::size_t cap = rng() % 33u;
+    std::uint16_t g[ev3proto::kMaxParams + 4];
+    const std::size_t ng = ev3proto::detail::colon_positions_generic(masks, blocks, cap, g);
+    ASSERT_LE(ng, cap);
+    for (std::size_t j = 1; j < ng; ++j) ASSERT_LT(g[j - 1], g[j]);
+#if defined(EV3PROTO_AVX2_DISPATCH)
+    if (ev3proto::detail::cpu_has_avx2()) {
+      std::uint16_t b[ev3proto::kMaxParams + 4];
+      const std::size_t nb = ev3proto::detail::colon_positions_bmi(masks, blocks, cap, b);
+      ASSERT_EQ(nb, ng) << "iteration " << iter;
+      for (std::size_t j = 0; j < ng; ++j) ASSERT_EQ(b[j], g[j]) << "position " << j;
+    }
+#endif
+  }
+}
+
 // Unescaping moves bytes left inside the message buffer with move_left(): it must equal memmove for
 // every length and every distance, including the overlapping ones, and write nothing past the end.
 TEST(Classify, MoveLeftIsMemmoveForLeftMoves) {
