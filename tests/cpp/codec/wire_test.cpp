@@ -614,14 +614,14 @@ TEST(Classify, ColonPositionsVariantsAgree) {
   std::mt19937_64 rng(20261123);
   for (int iter = 0; iter < 20000; ++iter) {
     std::uint64_t masks[64];
-    const std::size_t blocks = 1u + rng() % 64u;
+    const std::size_t blocks = 1u + static_cast<std::size_t>(rng() % 64u);
     const unsigned density = static_cast<unsigned>(rng() % 4u);  // sparse to dense
     for (std::size_t k = 0; k < blocks; ++k) {
       std::uint64_t m = rng();
       for (unsigned d = 0; d < 3u - density; ++d) m &= rng();
       masks[k] = m;
     }
-    const std::size_t cap = rng() % 33u;
+    const std::size_t cap = static_cast<std::size_t>(rng() % 33u);
     std::uint16_t g[ev3proto::kMaxParams + 4];
     const std::size_t ng = ev3proto::detail::colon_positions_generic(masks, blocks, cap, g);
     ASSERT_LE(ng, cap);
