@@ -91,7 +91,7 @@ std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
 }
 
 using AgentCore = ev3proto::Agent<ev3proto::NdjsonTrace>;
-using MasterCore = ev3proto::Master<>;  // run while this agent is the elected master
+using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;  // run while this agent is the elected master
 
 std::string role_name(ev3proto::Role r) {
   switch (r) {
@@ -425,9 +425,20 @@ class Program {
     if (role == ev3proto::Role::master && (!mc_ || mc_->epoch() != agent_->master_epoch())) {
       std::vector<std::uint16_t> members;
       for (std::size_t i = 0; i < agent_->member_count(); ++i) members.push_back(agent_->member(i));
+      // --trace: the Master core's records go to the same file, node "master:ID:EPOCH" (one Master core
+      // per epoch won; docs/spec.md "Election master traces").
+      mc_.reset();
+      mtrace_.reset();
+      if (trace_file_ != nullptr) {
+        mtrace_.emplace("master:" + std::to_string(agent_->id()) + ":" + std::to_string(agent_->master_epoch()));
+        mtrace_->set_output([this](const std::string& line) {
+          std::fwrite(line.data(), 1, line.size(), trace_file_);
+          std::fputc('\n', trace_file_);
+        });
+      }
       mc_.emplace(ev3proto::MasterConfig::for_elected_agent(opt_.timers, agent_->id(), agent_->master_epoch(),
                                                             members, agent_->next_msgid() + (1u << 30)),
-                  now);
+                  now, mtrace_ ? &*mtrace_ : nullptr);
       std::string m;
       for (std::uint16_t id : members) m += " " + std::to_string(id);
       log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", mc_->epoch(),
@@ -506,6 +517,7 @@ class Program {
   ev3proto::Role seen_role_ = ev3proto::Role::none;
   std::uint16_t seen_leader_ = 0, seen_via_ = 0;
   std::string seen_relays_;
+  std::optional<ev3proto::NdjsonTrace> mtrace_;  // the Master core's records (--trace)
   std::optional<MasterCore> mc_;
   ev3proto::DedupeWindow<4096> copies_;  // in front of mc_
   ev3master::FleetView view_;

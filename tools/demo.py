@@ -16,9 +16,12 @@ Phases (each a function):
                 all`; both followers (#3 through the relay) go WORKING and report ACTION_OK
   6. handover   the PC master comes back with its --state-file: it stands in epoch 3 (score 0),
                 the agent-master steps down and hands the fleet over (HANDOVER)
-Then a summary: the timeline with times, and the three agents' NDJSON traces validated by TLC against
-the spec (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
-docs/spec.md "Election traces"); a trace that does not conform fails the demo. Logs, traces and the
+Then a summary: the timeline with times, and the NDJSON traces validated by TLC against the spec: the
+three agents' (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
+docs/spec.md "Election traces"), the master's two runs (`validate --master`: MasterLogic composed
+with Election.tla's rules of the PC, "Election master traces") and the Master core the elected agent
+ran (its records in that agent's trace, node master:ID:EPOCH: the same check as node ID); a trace
+that does not conform fails the demo. Logs, traces and the
 status JSON stay in build/demo/. The standard library, and for the validation the ev3conformance
 package (conformance/) with TLC: runs wherever `make deps` has run.
 """
@@ -80,6 +83,8 @@ class Demo:
         self.log_pos: dict[int, int] = {}
         self.following: dict[int, tuple[float, str]] = {}  # agent index -> (when, its last "following ..." line)
         self.master_out = "master.out"
+        # Each run of ev3-master: (its trace, the --state-file it started from: key=value, empty when fresh).
+        self.master_runs: list[tuple[Path, dict[str, str]]] = []
 
     # --- output -------------------------------------------------------------------------------
     def t(self) -> float:
@@ -179,6 +184,12 @@ class Demo:
 
     def start_master(self, out: str) -> None:
         self.master_out, self.master_out_pos = out, 0
+        state: dict[str, str] = {}
+        try:
+            state = dict(line.split("=", 1) for line in (self.dir / "master.state").read_text().splitlines() if "=" in line)
+        except OSError:
+            pass
+        self.master_runs.append((self.dir / out.replace(".out", ".ndjson"), state))
         self.master = subprocess.Popen(
             [str(self.bin / "ev3-master"), "--port", str(self.mport), "--bind", "127.0.0.1",
              *sum((["--broadcast", f"127.0.0.1:{p}"] for p in self.aports), []),
@@ -433,8 +444,21 @@ class Demo:
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
 
 
+def master_consts(state: dict[str, str]) -> dict:
+    """validate --master's constants for a run of the demo's ev3-master: its timers (--agent-timeout-ms
+    5000, resend and max resends: the program's defaults) and, restarted from its --state-file, the
+    first id / msgid, epoch and members the file held (Election's Restart(PC): it stands, CANDIDATE)."""
+    c = {"TDrop": 5000, "TResend": 500, "MaxResends": 10, "Election": True, "Life": "MASTER", "Epoch": 1, "Members": []}
+    if {"next_id", "next_msgid", "epoch"} <= state.keys():
+        c.update({"NextId": int(state["next_id"]), "FirstMsgid": int(state["next_msgid"]), "Life": "CANDIDATE",
+                  "Epoch": int(state["epoch"]),
+                  "Members": [int(x) for x in state.get("members", "").split(",") if x.strip()]})
+    return c
+
+
 def validate_traces(d: Demo) -> bool:
-    """The agents' traces checked by TLC (two runs at a time): AgentLogic + Election (per agent)."""
+    """The traces checked by TLC (two runs at a time): the agents' against AgentLogic + Election (per
+    agent), the master's (each run) against MasterLogic + Election's rules of the PC."""
     repo = Path(__file__).resolve().parents[1]
     sys.path.insert(0, str(repo / "conformance"))
     try:
@@ -444,23 +468,34 @@ def validate_traces(d: Demo) -> bool:
     except ImportError as e:  # pragma: no cover - make deps installs it
         print(f"\n  trace validation skipped: {e}", flush=True)
         return False
-    d.heading("trace validation (TLC: AgentLogic + Election, per agent)")
+    d.heading("trace validation (TLC: AgentLogic + Election per agent; MasterLogic + Election's PC per master run)")
     paths = [d.dir / f"agent{i + 1}.ndjson" for i in range(len(d.agents))]
+    jobs: list[tuple[str, object]] = [(f"agent #{i + 1}", i) for i in range(len(paths))]
+    jobs += [(f"master ({p.name})", (p, st)) for p, st in d.master_runs if p.exists()]
+    # the Master core an agent ran while elected (node master:ID:EPOCH in its trace)
+    jobs += [(f"agent #{i + 1}'s {node}", (paths[i], node, c)) for i in range(len(paths)) if paths[i].exists()
+             for node, c in tracecheck.agent_master_runs(paths[i])]
 
-    def one(i: int):
-        consts = {"TPing": HB, "TLoss": LOSS, "TPaused": PAUSED, "Election": True, "Score": SCORES[i],
-                  "Epoch": 1, "VotedFor": 0}  # fresh --state-dir: epoch 1, no vote
+    def one(job):
         t = time.monotonic()
-        return tracecheck.validate(paths[i], consts), time.monotonic() - t
+        if isinstance(job, tuple) and len(job) == 3:
+            path, node, c = job
+            return tracecheck.validate_master(path, c, node=node), time.monotonic() - t
+        if isinstance(job, int):
+            consts = {"TPing": HB, "TLoss": LOSS, "TPaused": PAUSED, "Election": True, "Score": SCORES[job],
+                      "Epoch": 1, "VotedFor": 0}  # fresh --state-dir: epoch 1, no vote
+            return tracecheck.validate(paths[job], consts), time.monotonic() - t
+        path, state = job
+        return tracecheck.validate_master(path, master_consts(state)), time.monotonic() - t
 
     t0 = time.monotonic()
     with ThreadPoolExecutor(max_workers=tracecheck.jobs_default()) as ex:
-        results = list(ex.map(one, range(len(paths))))
+        results = list(ex.map(one, [j for _, j in jobs]))
     ok = True
-    for i, (r, secs) in enumerate(results):
+    for (label, _), (r, secs) in zip(jobs, results):
         ok &= r.ok
         first = r.message.splitlines()[0] if r.message else ""
-        print(f"  agent #{i + 1}: {'conforms' if r.ok else 'DOES NOT CONFORM'}: {first} ({secs:.1f} s)", flush=True)
+        print(f"  {label}: {'conforms' if r.ok else 'DOES NOT CONFORM'}: {first} ({secs:.1f} s)", flush=True)
         if not r.ok:
             print("\n".join("    " + line for line in r.message.splitlines()[1:]), flush=True)
     print(f"  {sum(r.records for r, _ in results)} records in {len(results)} traces, "

@@ -17,7 +17,11 @@
                                                   an --election agent's against AgentLogic + Election
     ev3-conformance validate --master TRACE... [--drop MS --resend MS --max-resends N]
                                                   master traces (ev3-master --driver, or the program
-                                                  over UDP with its timers) against MasterLogic
+                                                  over UDP with its timers) against MasterLogic; an
+                                                  --election master's with Election's rules of the PC
+                                                  [--candidate --epoch E --members 2,3,4: its state file];
+                                                  an --election agent's trace: its Master cores
+                                                  (node master:ID:EPOCH; timers: ev3-agent's defaults)
     ev3-conformance mutate [--only NAME ...] [--list]
                                                   mutation score: seeded core faults vs these checks
 
@@ -195,7 +199,23 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     if args.master:
         mc = {"TDrop": args.drop, "TResend": args.resend, "MaxResends": args.max_resends,
               "Behaviours": args.behaviour or ["wait"], "NextId": args.next_id, "FirstMsgid": args.first_msgid}
-        rs = [tracecheck.validate_master(p, mc) for p in args.traces]
+        # ev3-master --election (automatic when the trace has Election records): MasterLogic + Election's
+        # rules of the PC, from the epoch / members / role it started with.
+        if args.election is not None:
+            mc["Election"] = args.election
+        mc.update({"Epoch": args.epoch, "Members": [int(x) for x in args.members.split(",") if x.strip()],
+                   "Life": "CANDIDATE" if args.candidate else "MASTER"})
+        rs = []
+        for p in args.traces:
+            r = tracecheck.validate_master(p, mc)
+            runs = tracecheck.agent_master_runs(p)  # an --election agent's trace: its Master cores
+            if not (r.skipped and runs):
+                rs.append(r)
+            for node, c in runs:
+                c.update({k: mc[k] for k in ("Behaviours",)})
+                r2 = tracecheck.validate_master(p, c, node=node)
+                r2.message = f"{node}: {r2.message}"
+                rs.append(r2)
         bad = sum(not r.ok for r in rs)
         for r in rs:
             print(f"{'skip' if r.skipped else ('ok  ' if r.ok else 'FAIL')} {r.path}: {r.message}")
@@ -309,6 +329,11 @@ def _parser() -> argparse.ArgumentParser:
     vp.add_argument("--first-msgid", type=int, default=1,
                     help="--master: the master's first msgid (a restart from --state-file: its next_msgid)")
     vp.add_argument("--behaviour", action="append", help="--master: behaviour names (default wait)")
+    vp.add_argument("--members", default="",
+                    help="--master --election: the members (comma-separated ids) of the --state-file it "
+                         "restarted from; with --candidate, and --epoch the file's epoch")
+    vp.add_argument("--candidate", action="store_true",
+                    help="--master --election: restarted from a --state-file, it starts as a CANDIDATE")
     vp.set_defaults(run=_cmd_validate)
 
     mp = sub.add_parser("mutate", help="seeded faults in a copy of the core, each checked by replay/validate")

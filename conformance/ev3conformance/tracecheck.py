@@ -64,15 +64,24 @@ def _win(w: list) -> tuple:
 
 
 def load(path: Path, node: str | None = None) -> list[dict]:
+    """The trace's records (of @p node, if given). A last line without its newline that is not JSON
+    was cut by a kill (a master killed with SIGKILL: the program writes through stdio) and is left out."""
     recs = []
     with open(path) as f:
-        for line in f:
-            line = line.strip()
-            if not line:
-                continue
+        text = f.read()
+    lines = text.split("\n")
+    for i, line in enumerate(lines):
+        line = line.strip()
+        if not line:
+            continue
+        try:
             r = json.loads(line)
-            if node is None or r.get("node") == node:
-                recs.append(r)
+        except json.JSONDecodeError:
+            if i == len(lines) - 1:  # unterminated last line: cut by a kill
+                break
+            raise
+        if node is None or r.get("node") == node:
+            recs.append(r)
     return recs
 
 
@@ -294,22 +303,33 @@ def _behaviour_names(recs: list[dict], given) -> list[str]:
     return names
 
 
+def _master_consts(consts: dict, recs: list[dict]) -> tuple[dict, int]:
+    """The check's constants (MASTER_DEFAULTS overridden by @p consts) and the trace's first time."""
+    c = dict(MASTER_DEFAULTS)
+    c.update(consts)
+    return c, (int(recs[0].get("now", 0)) if recs else 0)
+
+
+def _master_changed_parts(ch: dict) -> list[str]:
+    """The MasterLogic variables a master record changed, as TLA+ record fields (reg, nextId, msgid)."""
+    parts = []
+    if "reg" in ch:
+        parts.append(f"reg |-> {_reg_tla(ch['reg'])}")
+    for k in ("nextId", "msgid"):
+        if k in ch:
+            parts.append(f"{k} |-> {int(ch[k])}")
+    return parts
+
+
 def master_module(name: str, recs: list[dict], consts: dict) -> str:
     """MasterTraceCheck: one TLC step per record, with the time map above. consts: TDrop and TResend
     (ms), MaxResends, Behaviours, NextId / FirstMsgid (the master's first id and msgid: 2 and 1 unless
     it was restarted from a state file)."""
-    c = dict(MASTER_DEFAULTS)
-    c.update(consts)
-    base = int(recs[0].get("now", 0)) if recs else 0
+    c, base = _master_consts(consts, recs)
     items = []
     for r in recs:
         ch = r.get("changed", {})
-        parts = []
-        if "reg" in ch:
-            parts.append(f"reg |-> {_reg_tla(ch['reg'])}")
-        for k in ("nextId", "msgid"):
-            if k in ch:
-                parts.append(f"{k} |-> {int(ch[k])}")
+        parts = _master_changed_parts(ch)
         m = r.get("args", {}).get("msg")
         mrec = _msg(m) if m else {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
         chs = "[" + ", ".join(parts) + "]" if parts else "[x \\in {} |-> 0]"
@@ -396,35 +416,48 @@ NotStuck == failed = 0
 """
 
 
-def validate_master(path: Path, consts: dict, workdir: Path | None = None) -> Result:
+def validate_master(path: Path, consts: dict, workdir: Path | None = None, node: str | None = None) -> Result:
     """A master trace against MasterLogic (exact msgids): `ev3-master --driver --trace` (TResend 1,
     the default) or the real program's `--trace` over UDP (TResend = its --resend-ms). consts: TDrop
     (--agent-timeout-ms / the driver's drop), TResend, MaxResends, Behaviours, NextId, FirstMsgid.
-    A trace with Election.tla actions (ev3-master --election) fails at the first one: only
-    MasterLogic is checked."""
+    A trace of `ev3-master --election` (Election.tla records, or consts Election = True) is checked by
+    MasterLogic + Election.tla's PC rules (master_election_module; consts Epoch, Members, Life: the
+    state the master starts from); Election = False forces MasterLogic alone."""
     path = Path(path)
-    recs = [r for r in load(path, None) if r.get("node", "").startswith("master")]
+    if node is None:  # the master program's records (an agent-master's are named master:ID:EPOCH)
+        recs = [r for r in load(path, None) if r.get("node", "").startswith("master") and ":" not in r.get("node", "")]
+    else:
+        recs = [r for r in load(path, None) if r.get("node", "") == node]
     if not recs:
         return Result(str(path), True, 0, "no master records; nothing to check", skipped=True)
     wd = Path(workdir or (gr.BUILD / "traces"))
     wd.mkdir(parents=True, exist_ok=True)
     d = Path(tempfile.mkdtemp(prefix="mtrace-", dir=wd))
-    name = "MasterTraceCheck"
-    (d / f"{name}.tla").write_text(master_module(name, recs, consts))
+    election = consts.get("Election")
+    if election is None:
+        election = is_master_election_trace(recs)
+    if election:
+        name, what, tag = "MasterElectionTraceCheck", "MasterLogic + Election (the PC's rules)", ", election"
+        (d / f"{name}.tla").write_text(master_election_module(name, recs, consts))
+        specs = ("MasterLogic.tla", "Messages.tla", "Election.tla")
+    else:
+        name, what, tag = "MasterTraceCheck", "MasterLogic", ""
+        (d / f"{name}.tla").write_text(master_module(name, recs, consts))
+        specs = ("MasterLogic.tla", "Messages.tla")
     (d / f"{name}.cfg").write_text("INIT Init\nNEXT Next\nINVARIANTS Matched NotStuck\nCHECK_DEADLOCK FALSE\n")
-    for f in ("MasterLogic.tla", "Messages.tla"):
+    for f in specs:
         (d / f).write_text((gr.SPEC / f).read_text())
     rc, out = gr.tlc(f"{name}.tla", f"{name}.cfg", [], cwd=d)
     if rc == 12 and "Invariant Matched is violated" in out:
-        return Result(str(path), True, len(recs), f"{len(recs)} master records matched")
+        return Result(str(path), True, len(recs), f"{len(recs)} master records matched{tag}")
     if rc == 12 and "Invariant NotStuck is violated" in out:
         fails = re.findall(r"failed = (\d+)", out)
         k = int(fails[-1]) - 1 if fails else -1
         why = ""
-        if 0 <= k < len(recs) and recs[k].get("action") in ELECTION_MASTER_ACTIONS:
-            why = " (an Election.tla action: validate --master checks MasterLogic only)"
+        if not election and 0 <= k < len(recs) and recs[k].get("action") in ELECTION_MASTER_ACTIONS:
+            why = " (an Election.tla action: run without --no-election)"
         return Result(str(path), False, len(recs),
-                      f"record {k + 1} of {len(recs)} could not be matched by MasterLogic{why} "
+                      f"record {k + 1} of {len(recs)} could not be matched by {what}{why} "
                       f"(module kept in {d}):\n{_describe_record(recs, k)}")
     return Result(str(path), False, len(recs), f"TLC failed (exit {rc}); module in {d}:\n{out[-2500:]}")
 
@@ -706,3 +739,349 @@ Matched == cursor <= Len(Trace)
 NotStuck == failed = 0
 ====
 """
+
+
+# --- the master with --election (MasterLogic + Election.tla's PC rules) ------------------------
+#
+# `ev3-master --election` writes, besides MasterLogic's records, Election.tla records of the PC (node
+# 1 in Election.tla; its own variables life, epoch, votes) and two master-side extensions. The check
+# (module MasterElectionTraceCheck, docs/spec.md "Election master traces") keeps MasterLogic's state
+# `ms` with the time map above, the PC's Election record `el` (Election.tla's Loc: life, epoch, votes;
+# the agent-only fields NoNode / {}) and the membership `mem` quorums count against; one TLC step per
+# record:
+#   - MasterLogic's records (MasterSync, MasterAnswer, MasterPing, MasterReport) only while MASTER (the
+#     core ignores the fleet's datagrams otherwise), after the master's route bookkeeping (the core's
+#     note_route, not in MasterLogic: the sender's entry moves to the endpoint it was heard from; a
+#     member that PINGs unregistered is adopted as synced with desired UNKNOWN; a member syncing
+#     that PINGs is synced): a datagram inside RELAY(1, inner) is the inner one (the relay is
+#     transparent). MasterCommand and MasterTick as MasterLogic; the registry ticks only while MASTER.
+#   - Election.tla's PC rules by its own operators: StartElection (XOk / XNext of node 1), HandleVote
+#     (from a member), BecomeMaster (Quorum over `mem`), HandleStale; Heartbeat's guard (life MASTER:
+#     Election has no HeartbeatOk operator). HandleHeartbeat of the PC (docs/core.md deviation 4): an
+#     older LEADER is answered EPOCH_STALE (state unchanged, Election's Stale branch), a newer one is
+#     HandleStale's rule with the LEADER's epoch. HandleElect: the PC ignores ELECT (Election has no
+#     HandleElect of the PC): rejected. Every datagram the core sends draws a msgid (LEADER, ELECT,
+#     EPOCH_STALE): `msgid` grows by one on Heartbeat, StartElection, BecomeMaster and an answered
+#     older LEADER. (Self: node 1; the Master core of an elected agent is checked as its node, see
+#     agent_master_runs at the end: HandleElect / HandleHeartbeat / HandleStale are then Election's
+#     rules of that agent node, the trace's STEPPED_DOWN any life but MASTER, HANDOVER sent once.)
+#   - The core's time: Heartbeat and StartElection come from its deadlines like MasterTick (nothing of
+#     the registry due before their ms; at the same ms the heartbeat goes first). Operator arguments
+#     are bound once (\E x \in {e}): TLC passes them by name and re-evaluates them at every use.
+#   - Extensions Election abstracts (docs/election.md section 5): MasterRoute (RELAY_ROUTE(epoch, a):
+#     only as MASTER of that epoch, for an entry or a member; the entry moves to the relay's endpoint
+#     or a member is adopted), MasterHandover (HANDOVER(epoch, ids): only as MASTER, epoch not above
+#     ours; its assigned ids join `mem`, nothing else changes).
+#   - Not observed: what the master sends (as for MasterLogic): EPOCH_CMD and RELAY wrapping of its
+#     commands (checked at the agents: ApplyCommand's fence), LEADER's membership; the election's
+#     timers (leader heartbeat, candidate timeout: Election.tla has no time); the `via` of an entry.
+
+_MASTER_EL_TYPES = {"VOTE", "LEADER", "EPOCH_STALE", "RELAY_ROUTE", "HANDOVER", "ELECT"}
+
+
+def is_master_election_trace(recs: list[dict]) -> bool:
+    """True when the master ran with --election: Election actions or variables in its records."""
+    return any(r.get("action") in ELECTION_MASTER_ACTIONS or
+               any(k in r.get("changed", {}) for k in ("life", "epoch", "votes")) for r in recs)
+
+
+def _master_el_msg(text: str) -> tuple[dict, dict, list[int], bool]:
+    """A master record's datagram: (MasterLogic's record or NONE, Election's [t, src, dst, e, x] or NONE,
+    HANDOVER's ids, relayed). RELAY(1, inner) is unwrapped: the master takes the inner datagram."""
+    dm = wire.decode(text.encode("latin-1"))
+    relayed = False
+    if dm.type_name == "RELAY" and len(dm.params) > 1:
+        text = dm.params[1].decode("latin-1")
+        dm = wire.decode(dm.params[1])
+        relayed = True
+    name = dm.type_name or ""
+    if name not in _MASTER_EL_TYPES:
+        return _msg(text), dict(_NONE_EL), [], relayed
+    em, _inner, _members = _el_msg(text)
+    ps = list(dm.params)
+    ids: list[int] = []
+    if name == "RELAY_ROUTE":
+        em["x"] = _num(ps, 1)
+    if name == "HANDOVER":
+        ids = [_num(ps, i) for i in range(1, len(ps))]
+    return dict(_NONE_MSG), em, ids, relayed
+
+
+def master_election_module(name: str, recs: list[dict], consts: dict) -> str:
+    """MasterElectionTraceCheck (see above). consts: as master_module, and Epoch, Members (the epoch
+    and membership the master starts from: its --state-file, else 1 and none) and Life ("CANDIDATE"
+    when restarted from a state file: Election's Restart(PC); else "MASTER")."""
+    c, base = _master_consts(consts, recs)
+    items = []
+    for r in recs:
+        ch = r.get("changed", {})
+        parts, eparts = _master_changed_parts(ch), []
+        if "life" in ch:
+            eparts.append(f"life |-> {tla.to_tla(ch['life'])}")
+        if "epoch" in ch:
+            eparts.append(f"epoch |-> {int(ch['epoch'])}")
+        if "votes" in ch:
+            eparts.append(f"votes |-> {tla.to_tla(frozenset(int(v) for v in ch['votes']))}")
+        text = r.get("args", {}).get("msg")
+        m, em, ids = dict(_NONE_MSG), dict(_NONE_EL), []
+        if text:
+            m, em, ids, _relayed = _master_el_msg(text)
+            if m["dst"] == int(c.get("Self", 1) or 1):
+                m["dst"] = 1  # an agent-master: MasterLogic's master is MasterId
+        chs = "[" + ", ".join(parts) + "]" if parts else "[x \\in {} |-> 0]"
+        echs = "[" + ", ".join(eparts) + "]" if eparts else "[x \\in {} |-> 0]"
+        now = int(r.get("now", 0)) - base
+        items.append(f'[a |-> "{r["action"]}", m |-> {tla.to_tla(m)}, em |-> {tla.to_tla(em)}, '
+                     f'ids |-> {tla.to_tla(frozenset(ids))}, now |-> {now}, ch |-> {chs}, ech |-> {echs}]')
+    behs = "{" + ", ".join(tla.to_tla(b) for b in _behaviour_names(recs, c.get("Behaviours"))) + "}"
+    members = frozenset(int(x) for x in (c.get("Members") or []))
+    # Election's Agents is a constant: one instance per membership the trace can reach (the start's,
+    # grown by each HANDOVER's assigned ids); BecomeMasterOk picks the one equal to `mem`.
+    fleets, cur = [members], set(members)
+    for r in recs:
+        if r.get("action") == "MasterHandover" and r.get("args", {}).get("msg"):
+            try:
+                _m, _em, ids, _rl = _master_el_msg(r["args"]["msg"])
+            except wire.DecodeError:
+                continue
+            cur |= {i for i in ids if 2 <= i <= 49999}
+            if frozenset(cur) not in fleets:
+                fleets.append(frozenset(cur))
+    quorum = "\n      [] ".join(f"mem = {tla.to_tla(f) if f else '{}'} -> E({tla.to_tla(f) if f else '{}'})!BecomeMasterOk(s)"
+                                 for f in fleets)
+    life0 = str(c.get("Life") or "MASTER")
+    self_id = int(c.get("Self", 1) or 1)
+    epoch0 = int(c.get("Epoch", 1) or 1)
+    return f"""---- MODULE {name} ----
+EXTENDS Integers, Sequences, FiniteSets, TLC
+VARIABLES ms, el, mem, handed, cursor, clock, sent, failed
+TDrop == {int(c["TDrop"])}
+M == INSTANCE MasterLogic WITH TDrop <- TDrop, MaxResends <- {int(c["MaxResends"])},
+       ExactMsgids <- TRUE, BUG <- "none"
+\\* Election.tla's per-node operators for a fleet F (the membership: quorums count against it); its
+\\* variables are never read.
+\\* (Election's Agents is a constant: one instance per membership, see QuorumOk.)
+E(F) == INSTANCE Election WITH Agents <- F, Score <- [n \\in {{}} |-> 0], MaxEpoch <- {_TLC_MAXINT},
+       MaxFaults <- 0, Crashes <- FALSE, PCCrash <- FALSE, PCReturns <- FALSE, Partitions <- FALSE,
+       MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {{}}, PreVote <- TRUE, BUG <- "None",
+       life <- {{}}, epoch <- {{}}, votedFor <- {{}}, votes <- {{}}, leader <- {{}}, following <- {{}},
+       via <- {{}}, relays <- {{}}, offered <- {{}}, prevotes <- {{}}, net <- {{}}, down <- {{}}, faults <- 0,
+       lost <- 0, elected <- {{}}, applied <- {{}}, lastAction <- <<>>
+PC == 1
+\\* The master's node: the PC, or the elected agent whose Master core wrote the trace.
+Self == {self_id}
+\\* The trace's life: the PC's Election life; an agent-master's Master core knows MASTER and STEPPED_DOWN
+\\* (any other Election life of the node: its agent core carries the node's lifecycle).
+View(l) == IF Self = PC \\/ l \\in {{"MASTER", "CANDIDATE"}} THEN l ELSE "STEPPED_DOWN"
+TResend == {int(c["TResend"])}
+Behs == {behs}
+Trace == <<
+  {(","+chr(10)+"  ").join(items)}
+>>
+Vars == {{"reg", "nextId", "msgid"}}
+ElVars == {{"life", "epoch", "votes"}}
+Val(v, s) == IF v = "msgid" THEN s.msgid[0] ELSE s[v]
+Fits(r, before, after) ==
+    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN Val(v, after) = r.ch[v] ELSE after[v] = before[v]
+FitsEl(r, before, after) ==
+    \\A v \\in ElVars :
+        IF v = "life" THEN View(after.life) = IF v \\in DOMAIN r.ech THEN r.ech.life ELSE View(before.life)
+        ELSE IF v \\in DOMAIN r.ech THEN after[v] = r.ech[v] ELSE after[v] = before[v]
+Eps(r) == {{x.ep : x \\in ms.reg}} \\cup (IF "reg" \\in DOMAIN r.ch THEN {{x.ep : x \\in r.ch.reg}} ELSE {{}})
+Cmds == {{M!Cmd(t, M!NoBehaviour) : t \\in {tla.to_tla(set(COMMANDS) - {"BEHAVIOUR"})}}}
+        \\cup {{M!Cmd("BEHAVIOUR", b) : b \\in Behs}}
+Ids(s) == {{x.id : x \\in s.reg}}
+EntryOf(s, i) == CHOOSE x \\in s.reg : x.id = i
+Age(s, k) == [s EXCEPT !.reg = {{[x EXCEPT !.quiet = x.quiet + k] : x \\in s.reg}}]
+\\* The registry's deadlines (MasterLogic's tick, time map above) run only while the PC is MASTER.
+DueAt(y, t) == y.quiet + (t - clock) >= TDrop \\/ (y.pending /\\ t - sent[y.id] >= TResend)
+Due(t) == IF el.life = "MASTER" THEN {{y.id : y \\in {{x \\in ms.reg : DueAt(x, t)}}}} ELSE {{}}
+NewSent(s2, D, t) ==
+    [i \\in Ids(s2) |-> IF i \\in D \\/ ~\\E y \\in ms.reg : y.id = i /\\ y.pending /\\ y.mid = EntryOf(s2, i).mid
+                       THEN t ELSE sent[i]]
+\\* The console's `all` (one core call, one record): MasterCommand for every registered id in id order
+\\* leads from s to s2. (A predicate with each intermediate state bound by \\E: TLC passes operator
+\\* arguments by name, and a recursive operator returning the state re-evaluates them exponentially.)
+RECURSIVE ForAllLeads(_, _, _, _)
+ForAllLeads(s, ids, c, s2) ==
+    IF ids = {{}} THEN s = s2
+    ELSE \\E i \\in {{CHOOSE i \\in ids : \\A j \\in ids : i <= j}} :
+         \\E s1 \\in {{M!MasterCommand(s, i, c).ms}} : ForAllLeads(s1, ids \\ {{i}}, c, s2)
+CmdResults(s) == {{M!MasterCommand(s, id, c).ms : id \\in Ids(s) \\cup {{1}}, c \\in Cmds}}
+\\* The state a MasterCommand record claims (its changed variables over s).
+Claimed(r, s) == [reg |-> IF "reg" \\in DOMAIN r.ch THEN r.ch.reg ELSE s.reg,
+                  nextId |-> IF "nextId" \\in DOMAIN r.ch THEN r.ch.nextId ELSE s.nextId,
+                  msgid |-> [k \\in {{0}} |-> IF "msgid" \\in DOMAIN r.ch THEN r.ch.msgid ELSE s.msgid[0]]]
+\\* A datagram the election side sends (LEADER, ELECT, EPOCH_STALE) draws a msgid.
+Drawn(s) == [s EXCEPT !.msgid[0] = @ + 1]
+\\* --- master-side extensions (not in MasterLogic; Election abstracts them) ---
+\\* A member registered without MASTER (it follows our LEADER): synced, desired unknown.
+Adopted(i, from) == [ann |-> i, id |-> i, ep |-> from, synced |-> TRUE, pending |-> FALSE, mid |-> 0,
+                     resends |-> 0, queue |-> <<>>, desired |-> M!UnknownDesired, beh |-> M!NoBehaviour,
+                     quiet |-> 0, hi |-> 0]
+\\* Where a fleet datagram came from (the core's note_route, before MasterLogic's handler).
+Route(s, m, from) ==
+    IF m.src \\in Ids(s) THEN
+       LET x == EntryOf(s, m.src)
+           y == [x EXCEPT !.ep = from]
+       IN IF m.type = "PING" /\\ ~x.synced /\\ m.src \\in mem
+          THEN LET r == M!StartNext(s, [y EXCEPT !.synced = TRUE, !.pending = FALSE])
+               IN M!Replace(r.ms, x, r.x)
+          ELSE M!Replace(s, x, y)
+    ELSE IF m.type = "PING" /\\ m.src \\in mem THEN [s EXCEPT !.reg = @ \\cup {{Adopted(m.src, from)}}]
+    ELSE s
+\\* RELAY_ROUTE(e, a) from a relay heard at endpoint from: a is reached there.
+RouteTo(s, a, from) ==
+    IF a \\in Ids(s) THEN M!Replace(s, EntryOf(s, a), [EntryOf(s, a) EXCEPT !.ep = from])
+    ELSE [s EXCEPT !.reg = @ \\cup {{Adopted(a, from)}}]
+AssignedIds == 2..49999
+\\* Election's BecomeMasterOk (a majority of the membership voted) over the membership mem.
+QuorumOk(s) ==
+    CASE {quorum}
+      [] OTHER -> FALSE
+\\* The rules that do not read the membership.
+EP == INSTANCE Election WITH Agents <- {tla.to_tla(members) if members else "{}"}, Score <- [n \\in {{}} |-> 0],
+       MaxEpoch <- {_TLC_MAXINT}, MaxFaults <- 0, Crashes <- FALSE, PCCrash <- FALSE, PCReturns <- FALSE,
+       Partitions <- FALSE, MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {{}}, PreVote <- TRUE,
+       BUG <- "None", life <- {{}}, epoch <- {{}}, votedFor <- {{}}, votes <- {{}}, leader <- {{}},
+       following <- {{}}, via <- {{}}, relays <- {{}}, offered <- {{}}, prevotes <- {{}}, net <- {{}}, down <- {{}},
+       faults <- 0, lost <- 0, elected <- {{}}, applied <- {{}}, lastAction <- <<>>
+InitEl == [life |-> {tla.to_tla(life0)}, epoch |-> {epoch0}, votes |-> {{}}, votedFor |-> 0, leader |-> 0,
+           following |-> 0, via |-> 0, relays |-> {{}}, offered |-> {{}}, prevotes |-> {{}}]
+Init == /\\ ms = [reg |-> {{}}, nextId |-> {int(c["NextId"])}, msgid |-> [k \\in {{0}} |-> {int(c["FirstMsgid"])}]]
+        /\\ el = InitEl /\\ mem = {tla.to_tla(members) if members else "{}"}
+        /\\ handed = FALSE /\\ cursor = 1 /\\ clock = 0 /\\ sent = [i \\in {{}} |-> 0] /\\ failed = 0
+\\* One step of the master: registry s2 (before: s0), election state el2, membership mem2. (TLC passes
+\\* operator arguments by name: \\E x \\in {{e}} evaluates each once.)
+Step(r, s0, s2x, el2x, mem2, D, t) ==
+    \\E s2 \\in {{s2x}} : \\E el2 \\in {{el2x}} :
+       /\\ Fits(r, s0, s2) /\\ FitsEl(r, el, el2)
+       /\\ ms' = s2 /\\ el' = el2 /\\ mem' = mem2 /\\ sent' = NewSent(s2, D, t)
+Match ==
+    /\\ failed = 0 /\\ cursor <= Len(Trace)
+    /\\ \\E r \\in {{Trace[cursor]}} : \\E s0 \\in {{Age(ms, Trace[cursor].now - clock)}} :
+       LET t == r.now
+           k == t - clock
+           em == r.em
+       IN /\\ t >= clock
+          \\* Heartbeat, StartElection, MasterTick come from the core's deadlines: at the first ms
+          \\* anything of the registry is due (Heartbeat first when both are); the rest find nothing due.
+          /\\ IF r.a \\in {{"Heartbeat", "StartElection", "MasterTick"}} THEN k > 0 => Due(t - 1) = {{}}
+             ELSE Due(t) = {{}}
+          /\\ IF r.a = "MasterTick" THEN
+                  /\\ Due(t) # {{}}
+                  /\\ \\E D \\in {{Due(t)}} :
+                     \\E pre \\in {{[s0 EXCEPT !.reg = {{IF x.id \\in D THEN [x EXCEPT !.quiet = @ - 1] ELSE x : x \\in @}}]}} :
+                        Step(r, s0, M!TickEntries(pre, D, {{}}).ms, el, mem, D, t)
+             ELSE IF r.a = "MasterCommand" THEN
+                  \\E s2 \\in CmdResults(s0) \\cup {{Claimed(r, s0)}} :
+                     /\\ s2 \\in CmdResults(s0) \\/ \\E c \\in Cmds : ForAllLeads(s0, Ids(s0), c, s2)
+                     /\\ Step(r, s0, s2, el, mem, {{}}, t)
+             ELSE IF r.a \\in {tla.to_tla(set(MASTER_RECV))} THEN
+                  /\\ el.life = "MASTER" /\\ r.m.type # "NONE" /\\ M!Handler(r.m) = r.a
+                  /\\ \\E from \\in Eps(r) \\cup {{0}} :
+                        \\E s1 \\in {{Route(s0, r.m, from)}} :
+                           \\* ids exhausted (an agent-master assigns none): an unknown temporary id is ignored
+                           IF r.a = "MasterSync" /\\ M!Known(s1, r.m.src) = {{}} /\\ r.m.src \\notin AssignedIds
+                              /\\ s1.nextId > 49999
+                           THEN Step(r, s0, s1, el, mem, {{}}, t)
+                           ELSE Step(r, s0, M!Receive(s1, r.m, from).ms, el, mem, {{}}, t)
+             ELSE IF r.a = "Heartbeat" THEN
+                  /\\ el.life = "MASTER"   \\* Election's Heartbeat(n): life[n] = "MASTER"
+                  /\\ Step(r, s0, Drawn(s0), el, mem, {{}}, t)
+             ELSE IF r.a = "StartElection" THEN
+                  /\\ EP!StartElectionOk(Self, el)
+                  /\\ Step(r, s0, Drawn(s0), EP!StartElectionNext(Self, el), mem, {{}}, t)
+             ELSE IF r.a = "HandleVote" THEN
+                  /\\ em.src \\in mem /\\ EP!HandleVoteOk(Self, el, em)
+                  /\\ Step(r, s0, s0, EP!HandleVoteNext(el, em), mem, {{}}, t)
+             ELSE IF r.a = "BecomeMaster" THEN
+                  /\\ QuorumOk(el)
+                  /\\ Step(r, s0, Drawn(s0), EP!BecomeMasterNext(el), mem, {{}}, t)
+             ELSE IF r.a = "HandleStale" THEN
+                  /\\ EP!HandleStaleOk(Self, el, em)
+                  /\\ Step(r, s0, s0, EP!HandleStaleNext(Self, el, em), mem, {{}}, t)
+             ELSE IF r.a = "HandleHeartbeat" THEN
+                  LET st == [em EXCEPT !.t = "STALE", !.dst = PC] IN
+                  /\\ em.t = "HB" /\\ em.src # Self
+                  /\\ IF em.e < el.epoch
+                     THEN /\\ View(el.life) # "STEPPED_DOWN"
+                          /\\ Step(r, s0, Drawn(s0), el, mem, {{}}, t)
+                     ELSE IF Self = PC
+                     THEN /\\ EP!HandleStaleOk(PC, el, st)
+                          /\\ Step(r, s0, s0, EP!HandleStaleNext(PC, el, st), mem, {{}}, t)
+                     \\* an agent-master: Election's HandleHeartbeat of node Self (it follows the newer
+                     \\* master); its Master core hands the registry over once (HANDOVER: a msgid)
+                     ELSE /\\ EP!HandleHeartbeatOk(Self, el, em)
+                          /\\ Step(r, s0, IF handed THEN s0 ELSE Drawn(s0), EP!HandleHeartbeatNext(el, em), mem, {{}}, t)
+             ELSE IF r.a = "HandleElect" THEN
+                  \\* an agent-master steps down on a newer ELECT (Election's HandleElect of node Self; the
+                  \\* vote is its agent core's); the PC ignores ELECT (Election has no HandleElect of the PC)
+                  /\\ Self # PC /\\ em.t = "ELECT" /\\ em.e > el.epoch /\\ View(el.life) # "STEPPED_DOWN"
+                  /\\ EP!HandleElectOk(Self, el, em, 0, 0)
+                  /\\ Step(r, s0, s0, EP!HandleElectNext(Self, el, em, 0, 0), mem, {{}}, t)
+             ELSE IF r.a = "MasterRoute" THEN
+                  /\\ em.t = "ROUTE" /\\ em.dst = Self /\\ el.life = "MASTER" /\\ em.e = el.epoch
+                  /\\ em.x \\in Ids(s0) \\cup mem
+                  /\\ \\E from \\in Eps(r) \\cup {{0}} : Step(r, s0, RouteTo(s0, em.x, from), el, mem, {{}}, t)
+             ELSE IF r.a = "MasterHandover" THEN
+                  /\\ em.t = "HANDOVER" /\\ em.dst = Self /\\ el.life = "MASTER" /\\ em.e <= el.epoch
+                  /\\ Step(r, s0, s0, el, mem \\cup (r.ids \\cap (AssignedIds \\ {{Self}})), {{}}, t)
+             ELSE FALSE
+          /\\ clock' = t
+          /\\ handed' = (handed \\/ (r.a = "HandleHeartbeat" /\\ Self # PC /\\ em.e >= el.epoch))
+    /\\ cursor' = cursor + 1
+    /\\ UNCHANGED failed
+Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
+         /\\ failed' = cursor /\\ UNCHANGED <<ms, el, mem, handed, cursor, clock, sent>>
+Next == Match \\/ Stuck
+Matched == cursor <= Len(Trace)
+NotStuck == failed = 0
+====
+"""
+
+
+# --- the Master core an elected agent runs (ev3-agent --election --trace) --------------------------
+#
+# While an agent is the elected master, its program runs a Master core (docs/core.md "An agent becomes
+# master") whose records go to the agent's --trace as node "master:ID:EPOCH" (one core per epoch won).
+# Each is checked by master_election_module with Self = ID: MASTER of EPOCH from its first record, no
+# ids to assign (next id 50000: an unknown temporary id is ignored), the membership its agent core
+# knew (the members of the last LEADER it took before), the first msgid read from its first record
+# (a Heartbeat: the core draws msgids above the agent core's); its step-down by Election's
+# HandleElect / HandleHeartbeat / HandleStale of node ID (the trace's STEPPED_DOWN: any life but
+# MASTER), HANDOVER sent once.
+
+
+def agent_master_runs(path: Path, consts: dict | None = None) -> list[tuple[str, dict]]:
+    """(node, validate_master constants) of each Master core in an agent's trace. consts: the master
+    timers TDrop, TResend, MaxResends (default: ev3-agent's, the defaults of timers.hpp: 10000, 500, 10)."""
+    recs = load(Path(path), None)
+    out = []
+    for name in dict.fromkeys(r.get("node", "") for r in recs):
+        parts = name.split(":")
+        if len(parts) != 3 or parts[0] != "master":
+            continue
+        mine = [r for r in recs if r.get("node") == name]
+        start = mine[0].get("now", 0)
+        members: list[int] = []
+        best = 0
+        for r in recs:  # the last LEADER the agent core took (not an older epoch's) before this core started
+            if r.get("node") == "agent" and r.get("now", 0) <= start and r.get("action") == "HandleHeartbeat":
+                try:
+                    m = wire.decode(r["args"]["msg"].encode("latin-1"))
+                except (KeyError, wire.DecodeError):
+                    continue
+                e = _num(list(m.params), 0)
+                if e >= best:
+                    best = e
+                    members = [_num(list(m.params), i) for i in range(2, len(m.params))]
+        first = mine[0]
+        msgid = first.get("changed", {}).get("msgid")
+        c = {"TDrop": 10000, "TResend": 500, "MaxResends": 10}  # the Master core's defaults (timers.hpp)
+        c.update(consts or {})
+        c.update({"Election": True, "Self": int(parts[1]), "Epoch": int(parts[2]), "Life": "MASTER",
+                  "Members": [x for x in members if 2 <= x <= 49999], "NextId": 50000,
+                  "FirstMsgid": int(msgid) - 1 if first.get("action") == "Heartbeat" and msgid else 1})
+        out.append((name, c))
+    return out

@@ -86,9 +86,13 @@ def start_agent(agent_exe, programs, tmp_path, tm):
 # traces hold Election.tla actions (HandleHeartbeat, StartElection, Forward, ...), checked by the
 # per-agent projection of Election.tla composed with AgentLogic (tracecheck.election_module; constants:
 # the run's timers, its --score, the epoch / voted_for of its --state-dir at start).
-# Not checked: masters started with --election (ev3-master --election, and the Master core an elected
-# agent runs): Heartbeat, HandleVote, MasterRoute, ... are not in MasterLogic; the summary line counts
-# them as "not checked (--election)".
+# Masters started with --election (test_election.py: 2) are checked by MasterLogic composed with
+# Election.tla's rules of the PC (tracecheck.master_election_module: Heartbeat, StartElection,
+# HandleVote, BecomeMaster, HandleStale, ... by Election's own XOk / XNext of node 1; MasterRoute and
+# MasterHandover as stated there; constants: the run's master timers, and the epoch / members of its
+# --state-file when it restarts from one). The Master core an elected agent runs writes its records to
+# the agent's trace as node master:ID:EPOCH: each is checked the same way as node ID
+# (tracecheck.agent_master_runs), counted with the master traces.
 
 import concurrent.futures as _cf  # noqa: E402
 import threading as _threading  # noqa: E402
@@ -101,7 +105,8 @@ _POOL: _cf.ThreadPoolExecutor | None = None
 _PENDING: list[tuple[str, str, bool, _cf.Future]] = []  # (nodeid, program name, master?, future of Result)
 _CURRENT: list = []                                 # the running test's item
 _STATS = {"traces": 0, "records": 0, "skipped": 0, "master_traces": 0, "master_records": 0,
-          "master_skipped": 0, "election_masters": 0, "election_agents": 0, "seconds": 0.0,
+          "master_skipped": 0, "election_masters": 0, "election_agents": 0, "election_agent_masters": 0,
+          "seconds": 0.0,
           "master_seconds": 0.0}
 _STATS_LOCK = _threading.Lock()
 _orig_init = _ev3net.Program.__init__
@@ -175,6 +180,14 @@ def _master_consts(args: list[str], state: dict) -> dict:
             c[_MASTER_FLAGS[x]] = int(args[i + 1])
     if "next_id" in state and "next_msgid" in state:
         c["NextId"], c["FirstMsgid"] = int(state["next_id"]), int(state["next_msgid"])
+    if "--election" in args:
+        # Election.tla's PC (node 1): a master restarted from its state file stands as a candidate
+        # (Restart(PC)) in the epoch and with the membership the file holds; a fresh one is MASTER of 1.
+        restored = "next_id" in state and "next_msgid" in state and "epoch" in state
+        c["Election"] = True
+        c["Life"] = "CANDIDATE" if restored else "MASTER"
+        c["Epoch"] = int(state["epoch"]) if restored else 1
+        c["Members"] = [int(x) for x in state.get("members", "").split(",") if x.strip()] if restored else []
     return c
 
 
@@ -189,10 +202,10 @@ def _state_file(args: list[str]) -> dict:
         return {}
 
 
-def _validate(path: Path, consts: dict, master: bool):
+def _validate(path: Path, consts: dict, master: bool, node: str | None = None):
     from ev3conformance import tracecheck
     t0 = _time.monotonic()
-    r = tracecheck.validate_master(path, consts) if master else tracecheck.validate(path, consts)
+    r = tracecheck.validate_master(path, consts, node=node) if master else tracecheck.validate(path, consts)
     with _STATS_LOCK:
         _STATS["master_seconds" if master else "seconds"] += _time.monotonic() - t0
     return r
@@ -205,21 +218,27 @@ def _submit(nodeid: str, p) -> None:
         return
     master = p.trace_prog == "ev3-master"
     if master and "--election" in p.trace_args:
-        # Election.tla master actions: not in MasterLogic (see the comment above).
         _STATS["election_masters"] += 1
-        return
     if not master and "--election" in p.trace_args:
         _STATS["election_agents"] += 1
     if _POOL is None:
         _POOL = _cf.ThreadPoolExecutor(max_workers=2)
     consts = _master_consts(p.trace_args, p.trace_state) if master else _consts(p.trace_args, p.trace_state)
-    fut = _POOL.submit(_validate, path, consts, master)
-    if _MODE == "sync":
-        r = fut.result()
-        _count(r, master)
-        assert r.ok, f"trace of {p.name} does not conform to the spec: {r.message}"
-        return
-    _PENDING.append((nodeid, p.name, master, fut))
+    jobs = [(p.name, master, None, consts)]
+    if not master and "--election" in p.trace_args:
+        # the Master core the agent ran while elected (node master:ID:EPOCH in its trace)
+        from ev3conformance import tracecheck
+        for node, mc in tracecheck.agent_master_runs(path):
+            _STATS["election_agent_masters"] += 1
+            jobs.append((f"{p.name} ({node})", True, node, mc))
+    for name, is_master, node, c in jobs:
+        fut = _POOL.submit(_validate, path, c, is_master, node)
+        if _MODE == "sync":
+            r = fut.result()
+            _count(r, is_master)
+            assert r.ok, f"trace of {name} does not conform to the spec: {r.message}"
+            continue
+        _PENDING.append((nodeid, name, is_master, fut))
 
 
 def _count(r, master: bool) -> None:
@@ -265,8 +284,9 @@ def pytest_sessionfinish(session, exitstatus):
         tr.write_line(f"trace validation: {_STATS['traces']} agent traces ({_STATS['records']} records, "
                       f"{_STATS['skipped']} skipped), {_STATS['master_traces']} master traces "
                       f"({_STATS['master_records']} records, {_STATS['master_skipped']} skipped), "
-                      f"{bad} not conforming; of the agents {_STATS['election_agents']} with --election "
-                      f"(AgentLogic + Election); not checked (--election): {_STATS['election_masters']} masters; "
+                      f"{bad} not conforming; with --election: {_STATS['election_agents']} agents (AgentLogic + Election), "
+                      f"{_STATS['election_masters']} masters (MasterLogic + Election's PC), "
+                      f"{_STATS['election_agent_masters']} agent-masters' Master cores; "
                       f"TLC {_STATS['seconds'] + _STATS['master_seconds']:.0f} s (masters "
                       f"{_STATS['master_seconds']:.0f} s) in 2 parallel runs, {waited:.0f} s waited at the end")
     if bad:

@@ -9,7 +9,6 @@ runs #1's commands (EPOCH_CMD through the relay). They must conform; the same tr
 record corrupted must be rejected, naming that record."""
 from __future__ import annotations
 
-import gzip
 import json
 from pathlib import Path
 
@@ -17,7 +16,8 @@ import pytest
 
 from ev3conformance import tracecheck
 
-DATA = Path(__file__).resolve().parent / "testdata"
+from trace_files import load, nth, write
+
 SCORES = {1: 1, 2: 20, 3: 40}
 
 
@@ -26,18 +26,9 @@ def consts(agent: int) -> dict:
 
 
 def records(agent: int) -> list[dict]:
-    with gzip.open(DATA / f"election_demo_agent{agent}.ndjson.gz", "rt") as f:
-        return [json.loads(line) for line in f if line.strip()]
+    return load(f"election_demo_agent{agent}")
 
 
-def write(path: Path, recs: list[dict]) -> Path:
-    path.write_text("".join(json.dumps(r) + "\n" for r in recs))
-    return path
-
-
-def nth(recs: list[dict], action: str, k: int = 0) -> int:
-    """Index of the k-th record of @p action."""
-    return [i for i, r in enumerate(recs) if r["action"] == action][k]
 
 
 def test_demo_election_traces_conform(tmp_path):
