@@ -137,13 +137,15 @@ AgentTimeout(a) ==
 -----------------------------------------------------------------------------
 (* The master and its operator.                                             *)
 
-\* The master (when up) receives datagram e; a crashed master drops it.
-MasterRecv(e) ==
+\* The master (when up) receives datagram e; a crashed master drops it.  With
+\* dup a copy stays in flight, as for an agent (AgentRecv).
+MasterRecv(e, dup) ==
     /\ e.to = MasterEp
-    /\ IF ~up THEN net' = net \ {e} /\ UNCHANGED ms
-       ELSE LET r == M!Receive(ms, e.m, e.from)
-            IN /\ ms' = r.ms
-               /\ net' = (net \ {e}) \cup MEmit(r.out)
+    /\ LET rest == IF dup THEN net ELSE net \ {e}
+       IN IF ~up THEN net' = rest /\ UNCHANGED ms
+          ELSE LET r == M!Receive(ms, e.m, e.from)
+               IN /\ ms' = r.ms
+                  /\ net' = rest \cup MEmit(r.out)
     /\ UNCHANGED <<ag, up, sess, lost>>
 
 \* The operator's mission: every registered agent runs Mission.  It gives
@@ -187,7 +189,7 @@ MasterRestart ==
 Deliver(e, dup) ==
     /\ dup => budget.dup > 0
     /\ IF dup THEN budget' = [budget EXCEPT !.dup = @ - 1] ELSE UNCHANGED budget
-    /\ IF e.to = MasterEp THEN MasterRecv(e) ELSE AgentRecv(e.to, e, dup)
+    /\ IF e.to = MasterEp THEN MasterRecv(e, dup) ELSE AgentRecv(e.to, e, dup)
 
 DeliverAny == \E e \in net : Deliver(e, FALSE)
 
