@@ -413,7 +413,8 @@ inline bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2"); }
 inline void copy_classify(const unsigned char* src, std::size_t n, unsigned char* d, std::uint64_t* colons,
                           std::uint64_t* specials) noexcept {
 #if defined(EV3PROTO_AVX2_DISPATCH)
-  if (cpu_has_avx2()) return copy_classify_avx2(src, n, d, colons, specials);
+  // One block or less (PING, reports): inline, no call; the AVX2 loop pays off from two blocks on.
+  if (n > kBlock && cpu_has_avx2()) return copy_classify_avx2(src, n, d, colons, specials);
 #endif
   copy_classify_generic(src, n, d, colons, specials);
 }
@@ -504,7 +505,7 @@ __attribute__((target("avx2,bmi,popcnt"))) inline std::size_t colon_positions_bm
 inline std::size_t colon_positions(const std::uint64_t* colons, std::size_t blocks, std::size_t cap,
                                    std::uint16_t* at) noexcept {
 #if defined(EV3PROTO_AVX2_DISPATCH)
-  if (cpu_has_avx2()) return colon_positions_bmi(colons, blocks, cap, at);
+  if (blocks > 1 && cpu_has_avx2()) return colon_positions_bmi(colons, blocks, cap, at);
 #endif
   return colon_positions_generic(colons, blocks, cap, at);
 }
