@@ -41,6 +41,39 @@ class Result:
     skipped: bool = False
 
 
+
+def _agent_steps(t_ping: int, apply: str) -> str:
+    """The TLA+ operators both agent trace checks share: Adv (n ticks at once), Recv (the receive
+    handler named by the record, @p apply its CASE arms), IntOk / Internal (AgentLogic's internal
+    actions)."""
+    return f'''Adv(a, k) == IF k = 0 THEN a
+             ELSE [a EXCEPT !.clk = (a.clk + k) % {t_ping},
+                            !.silence = IF a.state = "PANIC" THEN 0 ELSE a.silence + k]
+Recv(h, a, m) ==
+    CASE {apply}
+IntOk(r, a) ==
+    CASE r.a = "SyncTimeout" -> L!SyncTimeoutOk(a)
+      [] r.a = "HeartbeatLost" -> L!HeartbeatLostOk(a)
+      [] r.a = "ActionOk" -> L!ActionOkOk(a)
+      [] r.a = "ActionInterrupted" -> L!ActionInterruptedOk(a, r.e)
+      [] r.a = "ActionFailed" -> L!ActionFailedOk(a)
+      [] r.a = "SensorReport" -> L!SensorReportOk(a)
+      [] r.a = "DeviceUnplugged" -> L!DeviceUnpluggedOk(a)
+      [] r.a = "DevicePlugged" -> L!DevicePluggedOk(a)
+      [] r.a = "BatteryLow" -> L!BatteryLowOk(a)
+      [] OTHER -> FALSE
+Internal(r, a) ==
+    CASE r.a = "SyncTimeout" -> L!SyncTimeout(a)
+      [] r.a = "HeartbeatLost" -> L!HeartbeatLost(a)
+      [] r.a = "ActionOk" -> L!ActionOk(a)
+      [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
+      [] r.a = "ActionFailed" -> L!ActionFailed(a)
+      [] r.a = "SensorReport" -> L!SensorReport(a)
+      [] r.a = "DeviceUnplugged" -> L!DeviceUnplugged(a)
+      [] r.a = "DevicePlugged" -> L!DevicePlugged(a)
+      [] r.a = "BatteryLow" -> L!BatteryLow(a)
+'''
+
 def _msg(text: str) -> dict:
     m = wire.decode(text.encode("latin-1"))
     name = m.type_name
@@ -131,33 +164,7 @@ Trace == <<
 Vars == {tla.to_tla(set(AGENT_VARS))}
 Fits(r, before, after) ==
     \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN after[v] = r.ch[v] ELSE after[v] = before[v]
-Adv(a, k) == IF k = 0 THEN a
-             ELSE [a EXCEPT !.clk = (a.clk + k) % {c["TPing"]},
-                            !.silence = IF a.state = "PANIC" THEN 0 ELSE a.silence + k]
-Recv(h, a, m) ==
-    CASE {apply}
-IntOk(r, a) ==
-    CASE r.a = "SyncTimeout" -> L!SyncTimeoutOk(a)
-      [] r.a = "HeartbeatLost" -> L!HeartbeatLostOk(a)
-      [] r.a = "ActionOk" -> L!ActionOkOk(a)
-      [] r.a = "ActionInterrupted" -> L!ActionInterruptedOk(a, r.e)
-      [] r.a = "ActionFailed" -> L!ActionFailedOk(a)
-      [] r.a = "SensorReport" -> L!SensorReportOk(a)
-      [] r.a = "DeviceUnplugged" -> L!DeviceUnpluggedOk(a)
-      [] r.a = "DevicePlugged" -> L!DevicePluggedOk(a)
-      [] r.a = "BatteryLow" -> L!BatteryLowOk(a)
-      [] OTHER -> FALSE
-Internal(r, a) ==
-    CASE r.a = "SyncTimeout" -> L!SyncTimeout(a)
-      [] r.a = "HeartbeatLost" -> L!HeartbeatLost(a)
-      [] r.a = "ActionOk" -> L!ActionOk(a)
-      [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
-      [] r.a = "ActionFailed" -> L!ActionFailed(a)
-      [] r.a = "SensorReport" -> L!SensorReport(a)
-      [] r.a = "DeviceUnplugged" -> L!DeviceUnplugged(a)
-      [] r.a = "DevicePlugged" -> L!DevicePlugged(a)
-      [] r.a = "BatteryLow" -> L!BatteryLow(a)
-Init == /\\ ag = L!InitAgent({temp_id}) /\\ out = <<>> /\\ cursor = 1 /\\ sub = 0 /\\ snap = ag /\\ failed = 0
+{_agent_steps(c["TPing"], apply)}Init == /\\ ag = L!InitAgent({temp_id}) /\\ out = <<>> /\\ cursor = 1 /\\ sub = 0 /\\ snap = ag /\\ failed = 0
 Match ==
     /\\ failed = 0 /\\ cursor <= Len(Trace)
     /\\ LET r == Trace[cursor] IN
@@ -605,33 +612,7 @@ FitsEl(r, before, after) ==
     \\A v \\in ElVars :
         IF v = "votes" /\\ after.life # "CANDIDATE" THEN TRUE
         ELSE IF v \\in DOMAIN r.ech THEN after[v] = r.ech[v] ELSE after[v] = before[v]
-Adv(a, k) == IF k = 0 THEN a
-             ELSE [a EXCEPT !.clk = (a.clk + k) % {c["TPing"]},
-                            !.silence = IF a.state = "PANIC" THEN 0 ELSE a.silence + k]
-Recv(h, a, m) ==
-    CASE {apply}
-IntOk(r, a) ==
-    CASE r.a = "SyncTimeout" -> L!SyncTimeoutOk(a)
-      [] r.a = "HeartbeatLost" -> L!HeartbeatLostOk(a)
-      [] r.a = "ActionOk" -> L!ActionOkOk(a)
-      [] r.a = "ActionInterrupted" -> L!ActionInterruptedOk(a, r.e)
-      [] r.a = "ActionFailed" -> L!ActionFailedOk(a)
-      [] r.a = "SensorReport" -> L!SensorReportOk(a)
-      [] r.a = "DeviceUnplugged" -> L!DeviceUnpluggedOk(a)
-      [] r.a = "DevicePlugged" -> L!DevicePluggedOk(a)
-      [] r.a = "BatteryLow" -> L!BatteryLowOk(a)
-      [] OTHER -> FALSE
-Internal(r, a) ==
-    CASE r.a = "SyncTimeout" -> L!SyncTimeout(a)
-      [] r.a = "HeartbeatLost" -> L!HeartbeatLost(a)
-      [] r.a = "ActionOk" -> L!ActionOk(a)
-      [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
-      [] r.a = "ActionFailed" -> L!ActionFailed(a)
-      [] r.a = "SensorReport" -> L!SensorReport(a)
-      [] r.a = "DeviceUnplugged" -> L!DeviceUnplugged(a)
-      [] r.a = "DevicePlugged" -> L!DevicePlugged(a)
-      [] r.a = "BatteryLow" -> L!BatteryLow(a)
-
+{_agent_steps(c["TPing"], apply)}
 \\* --- composition (docs/spec.md "Election traces") ---
 \\* life CANDIDATE / MASTER are the lifecycle's PANIC; otherwise life is the lifecycle state.
 StateOf(life) == IF life \\in {{"CANDIDATE", "MASTER"}} THEN "PANIC" ELSE life
