@@ -9,6 +9,7 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
+#include <cstring>
 #include <string_view>
 
 namespace ev3proto {
@@ -276,7 +277,7 @@ constexpr std::string_view to_string(AgentState s) noexcept {
 }
 
 /// Parses a state's wire spelling; returns false (and leaves @p out alone) if it is not one.
-constexpr bool parse_state(std::string_view s, AgentState& out) noexcept {
+inline bool parse_state(std::string_view s, AgentState& out) noexcept {
   AgentState a = AgentState::IDLE;
   switch (s.size()) {  // one comparison at most: the five spellings differ in length or first byte
     case 4: a = AgentState::IDLE; break;
@@ -286,7 +287,15 @@ constexpr bool parse_state(std::string_view s, AgentState& out) noexcept {
     default: return false;
   }
   if (s.size() == 5 && a == AgentState::IDLE) return false;
-  if (to_string(a) != s) return false;
+  // Every spelling has 4 to 7 bytes: compared as two overlapping 4-byte words, not with string_view's
+  // == (a memcmp call, dearer than the whole decode of a PING's header).
+  const std::string_view name = to_string(a);
+  std::uint32_t s0, s1, n0, n1;
+  std::memcpy(&s0, s.data(), 4);
+  std::memcpy(&s1, s.data() + s.size() - 4u, 4);
+  std::memcpy(&n0, name.data(), 4);
+  std::memcpy(&n1, name.data() + name.size() - 4u, 4);
+  if (s0 != n0 || s1 != n1) return false;
   out = a;
   return true;
 }

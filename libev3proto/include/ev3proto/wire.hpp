@@ -210,6 +210,27 @@ constexpr bool must_escape(unsigned char c) noexcept {
   return c < 0x20 || c > 0x7E || c == ':' || c == '%';
 }
 
+/// upper_hex_value() of every byte, as a table: decode() looks up two per escape, without branches.
+struct HexTable {
+  signed char v[256];
+  constexpr HexTable() : v{} {
+    for (int c = 0; c < 256; ++c) v[c] = static_cast<signed char>(upper_hex_value(static_cast<unsigned char>(c)));
+  }
+};
+inline constexpr HexTable kHexTable{};
+
+/// must_escape() of every byte, as 256 bits: decode() tests an escape's byte without branches.
+struct EscapeBits {
+  std::uint64_t w[4];
+  constexpr EscapeBits() : w{} {
+    for (unsigned c = 0; c < 256; ++c)
+      if (must_escape(static_cast<unsigned char>(c))) w[c >> 6] |= std::uint64_t{1} << (c & 63u);
+  }
+  /// must_escape(@p c).
+  constexpr bool has(unsigned char c) const noexcept { return (w[c >> 6] >> (c & 63u)) & 1u; }
+};
+inline constexpr EscapeBits kEscapeBits{};
+
 /// Checks that [p, e) is a canonical decimal number no greater than @p max.
 /// Returns ok, bad_number or out_of_range; stores the value in @p value when ok.
 constexpr Reason parse_number(const char* p, const char* e, std::uint32_t max,
@@ -229,7 +250,7 @@ constexpr Reason parse_number(const char* p, const char* e, std::uint32_t max,
 }
 
 /// Checks a param's unescaped value against its kind (text always passes).
-constexpr Reason check_kind(ParamKind kind, std::string_view v) noexcept {
+inline Reason check_kind(ParamKind kind, std::string_view v) noexcept {
   std::uint32_t n = 0;
   AgentState s = AgentState::IDLE;
   switch (kind) {
@@ -351,6 +372,73 @@ inline void classify_block(const unsigned char* b, std::size_t len, std::uint64_
 #endif
 }
 
+/// Largest value of each header field (sender, receiver, msgid, type); the type must also not be 0.
+inline constexpr std::uint32_t kHeaderMax[4] = {0xFFFFu, 0xFFFFu, 0xFFFFFFFFu, 0xFFu};
+
+#if defined(__SSE2__)
+/// Copies the @p n (1 to 15) bytes at @p src to @p d with two overlapping loads and stores.
+inline void copy_short(unsigned char* d, const unsigned char* src, std::size_t n) noexcept {
+  if (n >= 8) {
+    std::uint64_t a, b;
+    std::memcpy(&a, src, 8);
+    std::memcpy(&b, src + n - 8u, 8);
+    std::memcpy(d, &a, 8);
+    std::memcpy(d + n - 8u, &b, 8);
+  } else if (n >= 4) {
+    std::uint32_t a, b;
+    std::memcpy(&a, src, 4);
+    std::memcpy(&b, src + n - 4u, 4);
+    std::memcpy(d, &a, 4);
+    std::memcpy(d + n - 4u, &b, 4);
+  } else if (n != 0) {
+    const unsigned char a = src[0], b = src[n / 2u], c = src[n - 1u];
+    d[0] = a;
+    d[n / 2u] = b;
+    d[n - 1u] = c;
+  }
+}
+
+/// The small-region path of decode() (PING, reports): for @p n <= 64 param bytes at @p src whose
+/// 16 bytes before src + n are readable (the datagram is at least 16 bytes long; some of them may be
+/// header bytes), copies the n bytes to @p d and classifies them into one pair of masks (no bit at n
+/// or above), all from registers loaded from @p src: a partial chunk is loaded as the 16 bytes ending
+/// at src + n and its masks shifted down. Nothing is padded and nothing just stored is loaded again
+/// (a 16-byte load of bytes written by smaller stores stalls store forwarding).
+inline void copy_classify_small_sse2(const unsigned char* src, std::size_t n, unsigned char* d,
+                                     std::uint64_t& colon, std::uint64_t& special) noexcept {
+  const __m128i k_colon = _mm_set1_epi8(':');
+  const __m128i k_percent = _mm_set1_epi8('%');
+  const __m128i k_shift = _mm_set1_epi8(0x60);  // as in classify_sse2()
+  const __m128i k_limit = _mm_set1_epi8(-34);
+  auto colons_of = [&](__m128i v) noexcept {
+    return std::uint64_t{static_cast<std::uint16_t>(_mm_movemask_epi8(_mm_cmpeq_epi8(v, k_colon)))};
+  };
+  auto specials_of = [&](__m128i v) noexcept {
+    const __m128i outside = _mm_cmpgt_epi8(_mm_add_epi8(v, k_shift), k_limit);
+    return std::uint64_t{static_cast<std::uint16_t>(
+        _mm_movemask_epi8(_mm_or_si128(outside, _mm_cmpeq_epi8(v, k_percent))))};
+  };
+  std::uint64_t c = 0, sp = 0;
+  std::size_t k = 0;
+  for (; n - k >= kChunk; k += kChunk) {
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + k));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(d + k), v);
+    c |= colons_of(v) << k;
+    sp |= specials_of(v) << k;
+  }
+  if (k != n) {  // 1 to 15 bytes left: the 16 bytes ending at src + n
+    const std::size_t drop = kChunk - (n - k);
+    const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(src + n - kChunk));
+    if (k != 0) _mm_storeu_si128(reinterpret_cast<__m128i*>(d + n - kChunk), v);
+    else copy_short(d, src, n);
+    c |= (colons_of(v) >> drop) << k;
+    sp |= (specials_of(v) >> drop) << k;
+  }
+  colon = c;
+  special = sp;
+}
+#endif
+
 /// Pads the @p n bytes at @p d with a plain byte ('A') up to the next multiple of 16: a fixed 16-byte
 /// store (one instruction) where it fits in the 4096-byte message buffer, the exact length at its end.
 inline void pad_region(unsigned char* d, std::size_t n) noexcept {
@@ -369,54 +457,6 @@ inline void copy_classify_generic(const unsigned char* src, std::size_t n, unsig
   const std::size_t padded = (n + kChunk - 1u) & ~(kChunk - 1u);
   for (std::size_t base = 0; base < padded; base += kBlock)
     classify_block(d + base, padded - base < kBlock ? padded - base : kBlock, *colons++, *specials++);
-}
-
-#if defined(EV3PROTO_AVX2_DISPATCH)
-/// copy_classify_generic() with AVX2 (only called where the CPU has it): each whole 64-byte block is
-/// loaded once from @p src, stored to @p d and classified from the registers; the tail goes through
-/// memcpy and the block classifier. Reads nothing past src + n.
-__attribute__((target("avx2"))) inline void copy_classify_avx2(const unsigned char* src, std::size_t n,
-                                                               unsigned char* d, std::uint64_t* colons,
-                                                               std::uint64_t* specials) noexcept {
-  const __m256i k_colon = _mm256_set1_epi8(':');
-  const __m256i k_percent = _mm256_set1_epi8('%');
-  // As in classify_sse2(): adding 0x60 maps 0x20..0x7E onto -128..-34, every other byte above -34.
-  const __m256i k_shift = _mm256_set1_epi8(0x60);
-  const __m256i k_limit = _mm256_set1_epi8(-34);
-  auto bits = [](__m256i m) __attribute__((target("avx2"))) {
-    return std::uint64_t{static_cast<std::uint32_t>(_mm256_movemask_epi8(m))};
-  };
-  std::size_t base = 0;
-  for (; n - base >= kBlock; base += kBlock) {
-    const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(src + base));
-    const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(src + base + 32u));
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + base), lo);
-    _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + base + 32u), hi);
-    const __m256i slo = _mm256_or_si256(_mm256_cmpeq_epi8(lo, k_percent),
-                                        _mm256_cmpgt_epi8(_mm256_add_epi8(lo, k_shift), k_limit));
-    const __m256i shi = _mm256_or_si256(_mm256_cmpeq_epi8(hi, k_percent),
-                                        _mm256_cmpgt_epi8(_mm256_add_epi8(hi, k_shift), k_limit));
-    *colons++ = bits(_mm256_cmpeq_epi8(lo, k_colon)) | bits(_mm256_cmpeq_epi8(hi, k_colon)) << 32;
-    *specials++ = bits(slo) | bits(shi) << 32;
-  }
-  if (n != base) std::memcpy(d + base, src + base, n - base);
-  pad_region(d, n);
-  const std::size_t padded = (n + kChunk - 1u) & ~(kChunk - 1u);
-  if (base != padded) classify_block(d + base, padded - base, *colons, *specials);  // 16 to 64 bytes
-}
-
-/// True when the CPU running this has AVX2 (asked on every call: a load and a test).
-inline bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2"); }
-#endif
-
-/// copy_classify_generic(), with AVX2 where the CPU has it.
-inline void copy_classify(const unsigned char* src, std::size_t n, unsigned char* d, std::uint64_t* colons,
-                          std::uint64_t* specials) noexcept {
-#if defined(EV3PROTO_AVX2_DISPATCH)
-  // One block or less (PING, reports): inline, no call; the AVX2 loop pays off from two blocks on.
-  if (n > kBlock && cpu_has_avx2()) return copy_classify_avx2(src, n, d, colons, specials);
-#endif
-  copy_classify_generic(src, n, d, colons, specials);
 }
 
 /// Bit i set where p[i] must be escaped in a param (':' '%' and bytes outside 0x20..0x7E), for the
@@ -476,40 +516,173 @@ inline std::size_t colon_positions_generic(const std::uint64_t* colons, std::siz
   return seen;
 }
 
+/// What decode()'s scan of the param region hands to its passes (with the per-block special masks).
+struct Scan {
+  std::size_t colons_seen = 0;      ///< ':' positions written (the cap given: there may be more)
+  std::uint64_t special_blocks = 0; ///< bit k set where 64-byte block k has a special byte
+};
+
+/// The scan, portable version: copy_classify_generic(), then colon_positions_generic() and the
+/// blocks with a special byte. Writes the specials of each block of the padded region to
+/// @p specials and up to @p cap (at least 1) ':' positions to @p at (room for cap + 4).
+inline Scan scan_generic(const unsigned char* src, std::size_t n, unsigned char* d, std::size_t cap,
+                         std::uint16_t* at, std::uint64_t* specials) noexcept {
+  std::uint64_t colons[kMaxDatagram / kBlock];
+  copy_classify_generic(src, n, d, colons, specials);
+  const std::size_t blocks = (((n + kChunk - 1u) & ~(kChunk - 1u)) + kBlock - 1u) / kBlock;
+  Scan r;
+  r.colons_seen = colon_positions_generic(colons, blocks, cap, at);
+  for (std::size_t k = 0; k < blocks; ++k) r.special_blocks |= std::uint64_t{specials[k] != 0} << k;
+  return r;
+}
+
+#if defined(__SSE2__)
+/// The scan of a region of at most 64 bytes whose 16 bytes before src + n are readable
+/// (copy_classify_small_sse2()); as scan_generic() otherwise.
+inline Scan scan_small_sse2(const unsigned char* src, std::size_t n, unsigned char* d, std::size_t cap,
+                            std::uint16_t* at, std::uint64_t* specials) noexcept {
+  std::uint64_t colon = 0;
+  copy_classify_small_sse2(src, n, d, colon, specials[0]);
+  Scan r;
+  r.colons_seen = colon_positions_generic(&colon, 1, cap, at);
+  r.special_blocks = std::uint64_t{specials[0] != 0};
+  return r;
+}
+#endif
+
 #if defined(EV3PROTO_AVX2_DISPATCH)
-/// colon_positions_generic() with POPCNT and BMI (every AVX2 CPU has them; only called there): each
-/// block's first four positions are written unconditionally and the count advanced by the block's
-/// popcount, so a block costs no mispredicted loop exit.
-__attribute__((target("avx2,bmi,popcnt"))) inline std::size_t colon_positions_bmi(
-    const std::uint64_t* colons, std::size_t blocks, std::size_t cap, std::uint16_t* at) noexcept {
-  std::size_t seen = 0;
-  for (std::size_t k = 0; k < blocks; ++k) {
-    std::uint64_t m = colons[k];
-    const std::size_t cnt = static_cast<std::size_t>(__builtin_popcountll(m));
-    const std::size_t base = k * kBlock;
-    if (seen + cnt >= cap) {  // the last block needed: exactly up to cap
-      for (; seen < cap; m &= m - 1u) at[seen++] = static_cast<std::uint16_t>(base + static_cast<unsigned>(__builtin_ctzll(m)));
-      return seen;
-    }
-    for (std::size_t j = 0; j < 4; ++j, m &= m - 1u)  // bit 63 stands in for "none left"
-      at[seen + j] = static_cast<std::uint16_t>(base + static_cast<unsigned>(__builtin_ctzll(m | (std::uint64_t{1} << 63))));
-    for (std::size_t j = 4; j < cnt; ++j, m &= m - 1u)
-      at[seen + j] = static_cast<std::uint16_t>(base + static_cast<unsigned>(__builtin_ctzll(m)));
-    seen += cnt;
+/// Appends the ':' positions of one block's mask @p m (bit i = byte @p base + i) at at[seen], up to
+/// @p cap in all; returns the new count. With POPCNT and TZCNT: the first four are written
+/// unconditionally and the count advanced by the popcount, so a block costs no mispredicted exit.
+__attribute__((target("avx2,bmi,popcnt"))) inline std::size_t append_positions_bmi(
+    std::uint64_t m, std::size_t base, std::size_t seen, std::size_t cap, std::uint16_t* at) noexcept {
+  const std::size_t cnt = static_cast<std::size_t>(__builtin_popcountll(m));
+  if (seen + cnt >= cap) {  // the last block needed (or past it): exactly up to cap
+    for (; seen < cap; m &= m - 1u) at[seen++] = static_cast<std::uint16_t>(base + lowest_bit(m));
+    return seen;
   }
-  return seen;
+  for (std::size_t j = 0; j < 4; ++j, m &= m - 1u)  // bit 63 stands in for "none left"
+    at[seen + j] = static_cast<std::uint16_t>(base + lowest_bit(m | (std::uint64_t{1} << 63)));
+  for (std::size_t j = 4; j < cnt; ++j, m &= m - 1u) at[seen + j] = static_cast<std::uint16_t>(base + lowest_bit(m));
+  return seen + cnt;
 }
+
+/// The scan with AVX2 (only called where the CPU has it, for n >= 64): each whole 64-byte block is
+/// loaded once from @p src, stored to @p d, classified from the registers and its ':' positions taken
+/// at once; the tail (under 64 bytes) by copy_classify_small_sse2(), whose 16 bytes before src + n
+/// lie in the region. Nothing is padded. Reads nothing outside [src, src + n).
+__attribute__((target("avx2,bmi,popcnt"))) inline Scan scan_avx2(const unsigned char* src, std::size_t n,
+                                                                unsigned char* d, std::size_t cap,
+                                                                std::uint16_t* at,
+                                                                std::uint64_t* specials) noexcept {
+  const __m256i k_colon = _mm256_set1_epi8(':');
+  const __m256i k_percent = _mm256_set1_epi8('%');
+  // As in classify_sse2(): adding 0x60 maps 0x20..0x7E onto -128..-34, every other byte above -34.
+  const __m256i k_shift = _mm256_set1_epi8(0x60);
+  const __m256i k_limit = _mm256_set1_epi8(-34);
+  auto bits = [](__m256i m) __attribute__((target("avx2"))) {
+    return std::uint64_t{static_cast<std::uint32_t>(_mm256_movemask_epi8(m))};
+  };
+  Scan r;
+  std::size_t base = 0, k = 0;
+  for (; n - base >= kBlock; base += kBlock, ++k) {
+    const __m256i lo = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(src + base));
+    const __m256i hi = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(src + base + 32u));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + base), lo);
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(d + base + 32u), hi);
+    const __m256i slo = _mm256_or_si256(_mm256_cmpeq_epi8(lo, k_percent),
+                                        _mm256_cmpgt_epi8(_mm256_add_epi8(lo, k_shift), k_limit));
+    const __m256i shi = _mm256_or_si256(_mm256_cmpeq_epi8(hi, k_percent),
+                                        _mm256_cmpgt_epi8(_mm256_add_epi8(hi, k_shift), k_limit));
+    const std::uint64_t sp = bits(slo) | bits(shi) << 32;
+    specials[k] = sp;
+    r.special_blocks |= std::uint64_t{sp != 0} << k;
+    r.colons_seen = append_positions_bmi(bits(_mm256_cmpeq_epi8(lo, k_colon)) | bits(_mm256_cmpeq_epi8(hi, k_colon)) << 32,
+                                         base, r.colons_seen, cap, at);
+  }
+  if (base != n) {
+    std::uint64_t colon = 0;
+    copy_classify_small_sse2(src + base, n - base, d + base, colon, specials[k]);
+    r.special_blocks |= std::uint64_t{specials[k] != 0} << k;
+    r.colons_seen = append_positions_bmi(colon, base, r.colons_seen, cap, at);
+  }
+  return r;
+}
+
+/// Byte offsets 0..63 as 16-bit lanes, for scan_avx512()'s positions.
+alignas(64) inline constexpr std::uint16_t kOffsets16[64] = {
+    0,  1,  2,  3,  4,  5,  6,  7,  8,  9,  10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21,
+    22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43,
+    44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63};
+
+/// The scan with AVX-512 (BW for whole 64-byte blocks, VBMI2 for the positions; only called where
+/// the CPU has them, for n >= 64): each block is loaded once (the last one with a mask: nothing
+/// outside [src, src + n) is read), stored to @p d (the last with the same mask), classified into
+/// mask registers, and its ':' positions made by compressing the block's byte offsets under the ':'
+/// mask, 32 at a time, each group stored whole: @p at needs room for cap + 32.
+__attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_avx512(
+    const unsigned char* src, std::size_t n, unsigned char* d, std::size_t cap, std::uint16_t* at,
+    std::uint64_t* specials) noexcept {
+  const __m512i k_colon = _mm512_set1_epi8(':');
+  const __m512i k_percent = _mm512_set1_epi8('%');
+  const __m512i k_shift = _mm512_set1_epi8(0x60);  // as in classify_sse2()
+  const __m512i k_limit = _mm512_set1_epi8(-34);
+  const __m512i off_lo = _mm512_load_si512(kOffsets16);
+  const __m512i off_hi = _mm512_load_si512(kOffsets16 + 32);
+  Scan r;
+  std::size_t seen = 0;
+  for (std::size_t base = 0, k = 0; base < n; base += kBlock, ++k) {
+    const std::size_t left = n - base;
+    const __mmask64 in = left >= kBlock ? ~__mmask64{0} : (__mmask64{1} << left) - 1u;
+    const __m512i v = _mm512_maskz_loadu_epi8(in, src + base);
+    _mm512_mask_storeu_epi8(d + base, in, v);
+    const __mmask64 colon = _mm512_cmpeq_epi8_mask(v, k_colon) & in;
+    const __mmask64 special =
+        (_mm512_cmpeq_epi8_mask(v, k_percent) | _mm512_cmpgt_epi8_mask(_mm512_add_epi8(v, k_shift), k_limit)) & in;
+    specials[k] = special;
+    r.special_blocks |= std::uint64_t{special != 0} << k;
+    const __m512i b = _mm512_set1_epi16(static_cast<short>(base));
+    const __mmask32 c_lo = static_cast<__mmask32>(colon), c_hi = static_cast<__mmask32>(colon >> 32);
+    _mm512_storeu_si512(at + seen, _mm512_maskz_compress_epi16(c_lo, _mm512_add_epi16(off_lo, b)));
+    seen += static_cast<std::size_t>(__builtin_popcount(c_lo));
+    if (seen > cap) seen = cap;  // what is past cap is never read; the next store may overwrite it
+    _mm512_storeu_si512(at + seen, _mm512_maskz_compress_epi16(c_hi, _mm512_add_epi16(off_hi, b)));
+    seen += static_cast<std::size_t>(__builtin_popcount(c_hi));
+    if (seen > cap) seen = cap;
+  }
+  r.colons_seen = seen;
+  return r;
+}
+
+/// True when the CPU has what scan_avx512() needs (asked on every call: loads and tests).
+inline bool cpu_has_avx512_scan() noexcept {
+  return __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512vbmi2");
+}
+
+/// True when the CPU running this has AVX2 (asked on every call: a load and a test).
+inline bool cpu_has_avx2() noexcept { return __builtin_cpu_supports("avx2"); }
 #endif
 
-/// colon_positions_generic(), with POPCNT and BMI where the CPU has AVX2.
-inline std::size_t colon_positions(const std::uint64_t* colons, std::size_t blocks, std::size_t cap,
-                                   std::uint16_t* at) noexcept {
+/// decode()'s scan of the @p n param bytes at @p src: copies them to @p d, writes each 64-byte
+/// block's special mask to @p specials and up to @p cap (at least 1) ':' positions to @p at (room for
+/// cap + 32). @p tail_readable: the 16 bytes before src + n may be read (the datagram has 16 bytes).
+/// Small regions take scan_small_sse2() (PING, reports), large ones scan_avx512() or scan_avx2()
+/// where the CPU has them, the rest scan_generic(); all give the same result (tests: Classify.*).
+inline Scan scan_params(const unsigned char* src, std::size_t n, bool tail_readable, unsigned char* d,
+                        std::size_t cap, std::uint16_t* at, std::uint64_t* specials) noexcept {
+#if defined(__SSE2__)
+  if (n <= kBlock && tail_readable) return scan_small_sse2(src, n, d, cap, at, specials);
+#else
+  (void)tail_readable;
+#endif
 #if defined(EV3PROTO_AVX2_DISPATCH)
-  if (blocks > 1 && cpu_has_avx2()) return colon_positions_bmi(colons, blocks, cap, at);
+  if (n >= kBlock) {
+    if (cpu_has_avx512_scan()) return scan_avx512(src, n, d, cap, at, specials);
+    if (cpu_has_avx2()) return scan_avx2(src, n, d, cap, at, specials);
+  }
 #endif
-  return colon_positions_generic(colons, blocks, cap, at);
+  return scan_generic(src, n, d, cap, at, specials);
 }
-
 
 } // namespace detail
 
@@ -529,7 +702,6 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   const char* const e = p + len;
 
   // Header: four canonical numbers separated by ':'.
-  constexpr std::uint32_t kMax[4] = {0xFFFFu, 0xFFFFu, 0xFFFFFFFFu, 0xFFu};
   std::uint32_t hdr[4] = {0, 0, 0, 0};
   bool has_params = false;  // a ':' follows the type (then there is at least one, maybe empty, param)
   for (std::size_t k = 0; k < 4; ++k) {
@@ -543,7 +715,7 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     }
     const std::size_t n = static_cast<std::size_t>(q - p);
     if ((q != e && *q != ':') || n == 0 || (n > 1 && *p == '0')) return fail(Reason::bad_number, k);
-    if (v > kMax[k] || (k == kFieldType && v == 0)) return fail(Reason::out_of_range, k);
+    if (v > detail::kHeaderMax[k] || (k == kFieldType && v == 0)) return fail(Reason::out_of_range, k);
     hdr[k] = static_cast<std::uint32_t>(v);
     if (q == e) {
       if (k < 3) return fail(Reason::too_few_fields, k + 1);
@@ -563,10 +735,9 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   // Params. p is the first byte of param 0. A datagram that ends with ':' after the type carries one
   // empty param, so "p == e" alone does not mean "no params".
   //
-  // The whole param region is copied into the message's buffer once, separators included, and padded
-  // to a multiple of 16 bytes with a plain byte (the header takes at least 8 bytes, so the region is at
-  // most 4088 bytes and the padding stays within the 4096-byte buffer), then classified once into two
-  // bit masks per 64 bytes: ':' and bytes that may not stand raw ("specials"). Three passes follow,
+  // The whole param region is copied into the message's buffer once, separators included, and
+  // classified on the way (detail::scan_params()): the ':' positions (up to max_params of them) and,
+  // per 64 bytes, a bit mask of the bytes that may not stand raw ("specials"). Three passes follow,
   // and the first problem in left-to-right order is reported (docs/protocol.md):
   //  1. the ':' bits give every param's bounds (a param without escapes is then done, in place,
   //     whatever its length); a ':' that would open param max_params is a too_many_params there;
@@ -578,16 +749,14 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     const std::size_t max_params = spec->max_params < kMaxParams ? spec->max_params : kMaxParams;
     if (max_params == 0) return fail(Reason::too_many_params, kFieldParam0);
     const std::size_t n = static_cast<std::size_t>(e - p);
-    const std::size_t padded = (n + detail::kChunk - 1u) & ~(detail::kChunk - 1u);
     unsigned char* const d = reinterpret_cast<unsigned char*>(out.data_);
-    std::uint64_t colons[Message::kCapacity / detail::kBlock];
     std::uint64_t specials[Message::kCapacity / detail::kBlock];
-    detail::copy_classify(reinterpret_cast<const unsigned char*>(p), n, d, colons, specials);
-    const std::size_t blocks = (padded + detail::kBlock - 1u) / detail::kBlock;
+    std::uint16_t at[kMaxParams + 32];  // positions of the ':'s, in order (room: see scan_params())
+    const detail::Scan scan = detail::scan_params(reinterpret_cast<const unsigned char*>(p), n,
+                                                  len >= detail::kChunk, d, max_params, at, specials);
 
     // Pass 1: bounds. The region examined ends at `limit`: n, or the ':' that opens param max_params.
-    std::uint16_t at[kMaxParams + 4];  // positions of the ':'s, in order
-    std::size_t colons_seen = detail::colon_positions(colons, blocks, max_params, at);
+    std::size_t colons_seen = scan.colons_seen;
     std::size_t limit = n;
     const bool too_many = colons_seen == max_params;
     if (too_many) limit = at[--colons_seen];
@@ -605,7 +774,8 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     std::size_t cur = 0;              // the param of the special being looked at
     std::size_t r = 0, w = 0;         // in param cur: next byte to move, and where it goes
     bool open = false;                // param cur has had an escape: its tail still has to move
-    for (std::size_t k = 0; k < blocks && bad == count; ++k) {
+    for (std::uint64_t bm = scan.special_blocks; bm != 0 && bad == count; bm &= bm - 1u) {
+      const std::size_t k = detail::lowest_bit(bm);  // only the blocks with a special byte
       for (std::uint64_t m = specials[k]; m != 0; m &= m - 1u) {
         const std::size_t i = k * detail::kBlock + detail::lowest_bit(m);
         if (i >= limit) break;
@@ -625,10 +795,10 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
         } else if (n - i < 3) {
           why = Reason::bad_escape;
         } else {
-          const int hi = detail::upper_hex_value(d[i + 1]);
-          const int lo = detail::upper_hex_value(d[i + 2]);
+          const int hi = detail::kHexTable.v[d[i + 1]];
+          const int lo = detail::kHexTable.v[d[i + 2]];
           b = static_cast<unsigned char>(hi * 16 + lo);
-          if (hi < 0 || lo < 0 || !detail::must_escape(b)) why = Reason::bad_escape;
+          if ((hi | lo) < 0 || !detail::kEscapeBits.has(b)) why = Reason::bad_escape;
         }
         if (why != Reason::ok) {
           bad = cur;

@@ -569,10 +569,9 @@ TEST(Classify, VariantsAgreeWithScalarReference) {
   }
 }
 
-// decode() copies and classifies the whole param region at once: AVX2 where the CPU has it (x86-64),
-// else memcpy and block by block. Both must copy the same bytes, pad the same way and give the
-// per-block masks of classify_scalar(), for every length.
-TEST(Classify, RegionVariantsAgreeWithScalarReference) {
+// copy_classify_generic(): one memcpy, padding to 16 bytes with 'A', and classify_scalar()'s masks
+// of every 64-byte block of the padded region, for every length.
+TEST(Classify, GenericRegionAgreesWithScalarReference) {
   std::mt19937 rng(20261122);
   std::vector<unsigned char> src;
   alignas(64) unsigned char g[ev3proto::kMaxDatagram];
@@ -593,48 +592,68 @@ TEST(Classify, RegionVariantsAgreeWithScalarReference) {
       ASSERT_EQ(gc[k], rc) << "generic colons, block " << k << ", n " << n;
       ASSERT_EQ(gs[k], rs) << "generic specials, block " << k << ", n " << n;
     }
-#if defined(EV3PROTO_AVX2_DISPATCH)
-    if (ev3proto::detail::cpu_has_avx2()) {
-      alignas(64) unsigned char a[ev3proto::kMaxDatagram];
-      std::uint64_t ac[64], as[64];
-      ev3proto::detail::copy_classify_avx2(src.data(), n, a, ac, as);
-      ASSERT_EQ(0, std::memcmp(a, g, padded)) << "avx2 copy, n " << n;
-      for (std::size_t k = 0; k < blocks; ++k) {
-        ASSERT_EQ(ac[k], gc[k]) << "avx2 colons, block " << k << ", n " << n;
-        ASSERT_EQ(as[k], gs[k]) << "avx2 specials, block " << k << ", n " << n;
-      }
-    }
-#endif
   }
 }
 
-// Pass 1 of decode(): the ':' positions from the masks, at most cap of them. The POPCNT/BMI variant
-// (unconditional stores per block) must write exactly what the bit-by-bit one writes.
-TEST(Classify, ColonPositionsVariantsAgree) {
-  std::mt19937_64 rng(20261123);
-  for (int iter = 0; iter < 20000; ++iter) {
-    std::uint64_t masks[64];
-    const std::size_t blocks = 1u + static_cast<std::size_t>(rng() % 64u);
-    const unsigned density = static_cast<unsigned>(rng() % 4u);  // sparse to dense
-    for (std::size_t k = 0; k < blocks; ++k) {
-      std::uint64_t m = rng();
-      for (unsigned d = 0; d < 3u - density; ++d) m &= rng();
-      masks[k] = m;
+// decode()'s scan of the param region (scan_params()): the small-region path (SSE2, at most 64
+// bytes) and the AVX2 and AVX-512 ones (64 bytes and more, where the CPU has them) must copy the
+// same bytes and give the same ':' positions (up to the cap), special masks and special blocks as
+// the portable one, for every length, colon density and cap, writing nothing past the n bytes. The
+// source is exactly the bytes that may be read (the region, and 16 bytes before its end for the
+// small path): ASan would see a read past them.
+TEST(Classify, ScanVariantsAgree) {
+  std::mt19937 rng(20261125);
+  std::vector<unsigned char> buf;
+  alignas(64) unsigned char g[ev3proto::kMaxDatagram], v[ev3proto::kMaxDatagram];
+  std::uint64_t gs[64], vs[64];
+  std::uint16_t ga[ev3proto::kMaxParams + 32], va[ev3proto::kMaxParams + 32];
+  int small_runs = 0, avx2_runs = 0;
+  for (int iter = 0; iter < 4000; ++iter) {
+    const std::size_t n = iter % 2 ? rng() % 200u : rng() % 4089u;
+    const std::size_t before = n < 16u ? 16u - n : 0u;
+    const unsigned density = 1u + rng() % 64u;  // one ':' in `density` bytes on average
+    const unsigned special = 1u + rng() % 128u;
+    buf.assign(before + n, 0);
+    for (auto& b : buf) {
+      const unsigned x = static_cast<unsigned>(rng());
+      b = static_cast<unsigned char>(x % density == 0 ? ':' : x % special == 0 ? (x >> 8) : 'a' + (x >> 8) % 26u);
     }
-    const std::size_t cap = static_cast<std::size_t>(rng() % 33u);
-    std::uint16_t g[ev3proto::kMaxParams + 4];
-    const std::size_t ng = ev3proto::detail::colon_positions_generic(masks, blocks, cap, g);
-    ASSERT_LE(ng, cap);
-    for (std::size_t j = 1; j < ng; ++j) ASSERT_LT(g[j - 1], g[j]);
-#if defined(EV3PROTO_AVX2_DISPATCH)
-    if (ev3proto::detail::cpu_has_avx2()) {
-      std::uint16_t b[ev3proto::kMaxParams + 4];
-      const std::size_t nb = ev3proto::detail::colon_positions_bmi(masks, blocks, cap, b);
-      ASSERT_EQ(nb, ng) << "iteration " << iter;
-      for (std::size_t j = 0; j < ng; ++j) ASSERT_EQ(b[j], g[j]) << "position " << j;
+    const unsigned char* src = buf.data() + before;
+    const std::size_t cap = 1u + rng() % ev3proto::kMaxParams;
+    const ev3proto::detail::Scan want = ev3proto::detail::scan_generic(src, n, g, cap, ga, gs);
+    const std::size_t blocks = (n + 63u) / 64u;
+    auto same = [&](const ev3proto::detail::Scan& got, const char* what) {
+      ASSERT_EQ(0, n ? std::memcmp(v, src, n) : 0) << what << " copy, n " << n;
+      for (std::size_t i = n; i < n + 80u && i < sizeof v; ++i) ASSERT_EQ(v[i], 0xEE) << what << " wrote past n " << n;
+      ASSERT_EQ(got.colons_seen, want.colons_seen) << what << ", n " << n << ", cap " << cap;
+      for (std::size_t j = 0; j < want.colons_seen; ++j) ASSERT_EQ(va[j], ga[j]) << what << " position " << j;
+      ASSERT_EQ(got.special_blocks, want.special_blocks) << what << ", n " << n;
+      for (std::size_t k = 0; k < blocks; ++k) ASSERT_EQ(vs[k], gs[k]) << what << " specials, block " << k;
+    };
+#if defined(__SSE2__)
+    if (n <= 64u) {
+      ++small_runs;
+      std::memset(v, 0xEE, sizeof v);
+      same(ev3proto::detail::scan_small_sse2(src, n, v, cap, va, vs), "small");
     }
 #endif
+#if defined(EV3PROTO_AVX2_DISPATCH)
+    if (n >= 64u && ev3proto::detail::cpu_has_avx2()) {
+      ++avx2_runs;
+      std::memset(v, 0xEE, sizeof v);
+      same(ev3proto::detail::scan_avx2(src, n, v, cap, va, vs), "avx2");
+    }
+    if (n >= 64u && ev3proto::detail::cpu_has_avx512_scan()) {
+      std::memset(v, 0xEE, sizeof v);
+      same(ev3proto::detail::scan_avx512(src, n, v, cap, va, vs), "avx512");
+    }
+#endif
+    if (::testing::Test::HasFatalFailure()) return;
   }
+#if defined(__SSE2__)
+  EXPECT_GT(small_runs, 100);
+#endif
+  (void)avx2_runs;
 }
 
 // Unescaping moves bytes left inside the message buffer with move_left(): it must equal memmove for
