@@ -478,9 +478,10 @@ inline std::size_t escaped_size(std::string_view v) noexcept {
   return n;
 }
 
-/// Moves the @p len bytes at @p src to @p dst <= @p src (they may overlap), like memmove but
-/// inline and 8 bytes at a time: the short moves of unescaping do not pay for a call. Every 8-byte
-/// store lands at or before the source bytes still to be read; the last 8 bytes are read first.
+/// Moves the @p len bytes at @p src to @p dst, which is either apart from them or at or before
+/// @p src (they may overlap), like memmove but inline and 8 bytes at a time: the short moves of
+/// unescaping do not pay for a call. Every 8-byte store lands at or before the source bytes still
+/// to be read; the last 8 bytes are read first.
 inline void move_left(unsigned char* dst, const unsigned char* src, std::size_t len) noexcept {
   if (len < 8) {
     for (std::size_t k = 0; k < len; ++k) dst[k] = src[k];
@@ -768,7 +769,11 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     out.ends_[colons_seen] = static_cast<std::uint16_t>(limit);
     count = colons_seen + 1u;
 
-    // Pass 2: escapes. `bad` is the first param with a bad byte (count if none).
+    // Pass 2: escapes. `bad` is the first param with a bad byte (count if none). Bytes are read from
+    // the datagram (`src`), not from the copy just stored (a load of bytes a wide store has just
+    // written may wait for it): unescaping writes only left of the bytes still to be read, so the two
+    // hold the same there.
+    const unsigned char* const src = reinterpret_cast<const unsigned char*>(p);
     std::size_t bad = count;
     Reason bad_reason = Reason::ok;
     std::size_t cur = 0;              // the param of the special being looked at
@@ -781,13 +786,13 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
         if (i >= limit) break;
         if (out.ends_[cur] < i) {
           if (open) {  // finish the previous param with escapes
-            detail::move_left(d + w, d + r, out.ends_[cur] - r);
+            detail::move_left(d + w, src + r, out.ends_[cur] - r);
             out.ends_[cur] = static_cast<std::uint16_t>(w + (out.ends_[cur] - r));
             open = false;
           }
           while (out.ends_[cur] < i) ++cur;
         }
-        const unsigned char c = d[i];
+        const unsigned char c = src[i];
         Reason why = Reason::ok;
         unsigned char b = 0;
         if (c != '%') {
@@ -795,8 +800,8 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
         } else if (n - i < 3) {
           why = Reason::bad_escape;
         } else {
-          const int hi = detail::kHexTable.v[d[i + 1]];
-          const int lo = detail::kHexTable.v[d[i + 2]];
+          const int hi = detail::kHexTable.v[src[i + 1]];
+          const int lo = detail::kHexTable.v[src[i + 2]];
           b = static_cast<unsigned char>(hi * 16 + lo);
           if ((hi | lo) < 0 || !detail::kEscapeBits.has(b)) why = Reason::bad_escape;
         }
@@ -809,14 +814,14 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
           open = true;
           r = w = i;
         }
-        detail::move_left(d + w, d + r, i - r);
+        detail::move_left(d + w, src + r, i - r);
         w += i - r;
         d[w++] = b;
         r = i + 3u;  // the hex digits are neither ':' nor special: no bit of theirs is set
       }
     }
     if (open && bad == count) {
-      detail::move_left(d + w, d + r, out.ends_[cur] - r);
+      detail::move_left(d + w, src + r, out.ends_[cur] - r);
       out.ends_[cur] = static_cast<std::uint16_t>(w + (out.ends_[cur] - r));
     }
 
