@@ -632,12 +632,10 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_
   const __m512i off_hi = _mm512_load_si512(kOffsets16 + 32);
   Scan r;
   std::size_t seen = 0;
-  for (std::size_t base = 0, k = 0; base < n; base += kBlock, ++k) {
-    const std::size_t left = n - base;
-    const __mmask64 in = left >= kBlock ? ~__mmask64{0} : (__mmask64{1} << left) - 1u;
-    const __m512i v = _mm512_maskz_loadu_epi8(in, src + base);
-    _mm512_mask_storeu_epi8(d + base, in, v);
-    const __mmask64 colon = _mm512_cmpeq_epi8_mask(v, k_colon) & in;
+  // One block at @p base (block k); @p in: its bytes inside the region (all 64 but in the last).
+  auto block = [&](std::size_t base, std::size_t k, __mmask64 in, __m512i v)
+                   __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) {
+    const __mmask64 colon = _mm512_cmpeq_epi8_mask(v, k_colon);  // the bytes outside are 0: no ':'
     const __mmask64 special =
         (_mm512_cmpeq_epi8_mask(v, k_percent) | _mm512_cmpgt_epi8_mask(_mm512_add_epi8(v, k_shift), k_limit)) & in;
     specials[k] = special;
@@ -650,6 +648,18 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_
     _mm512_storeu_si512(at + seen, _mm512_maskz_compress_epi16(c_hi, _mm512_add_epi16(off_hi, b)));
     seen += static_cast<std::size_t>(__builtin_popcount(c_hi));
     if (seen > cap) seen = cap;
+  };
+  std::size_t base = 0, k = 0;
+  for (; n - base >= kBlock; base += kBlock, ++k) {
+    const __m512i v = _mm512_loadu_si512(src + base);
+    _mm512_storeu_si512(d + base, v);
+    block(base, k, ~__mmask64{0}, v);
+  }
+  if (base != n) {  // the last bytes: loaded and stored under a mask
+    const __mmask64 in = (__mmask64{1} << (n - base)) - 1u;
+    const __m512i v = _mm512_maskz_loadu_epi8(in, src + base);
+    _mm512_mask_storeu_epi8(d + base, in, v);
+    block(base, k, in, v);
   }
   r.colons_seen = seen;
   return r;
