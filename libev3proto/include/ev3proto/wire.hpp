@@ -764,10 +764,11 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     std::uint64_t specials[Message::kCapacity / detail::kBlock];
     std::uint16_t at[kMaxParams + 32];  // positions of the ':'s, in order (room: see scan_params())
     const detail::Scan scan = detail::scan_params(reinterpret_cast<const unsigned char*>(p), n,
-                                                  len >= detail::kChunk, d, max_params, at, specials);
+                                                  len >= detail::kChunk, d, kMaxParams, at, specials);
 
     // Pass 1: bounds. The region examined ends at `limit`: n, or the ':' that opens param max_params.
-    std::size_t colons_seen = scan.colons_seen;
+    // (The scan takes up to kMaxParams positions, not max_params: then it need not wait for the row.)
+    std::size_t colons_seen = scan.colons_seen < max_params ? scan.colons_seen : max_params;
     std::size_t limit = n;
     const bool too_many = colons_seen == max_params;
     if (too_many) limit = at[--colons_seen];
