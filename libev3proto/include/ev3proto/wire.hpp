@@ -610,17 +610,23 @@ __attribute__((target("avx2,bmi,popcnt"))) inline Scan scan_avx2(const unsigned 
   return r;
 }
 
-/// Byte offsets 0..63 as 16-bit lanes, for scan_avx512()'s positions.
-alignas(64) inline constexpr std::uint16_t kOffsets16[64] = {
+/// Byte offsets 0..63, for scan_avx512()'s positions.
+alignas(64) inline constexpr unsigned char kOffsets8[64] = {
     0,  1,  2,  3,  4,  5,  6,  7,  8,  9,  10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21,
     22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43,
     44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63};
 
+// GCC 12 warns inside its own _mm512_castsi512_si256() (an intentionally undefined upper half).
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
 /// The scan with AVX-512 (BW for whole 64-byte blocks, VBMI2 for the positions; only called where
-/// the CPU has them, for n >= 64): each block is loaded once (the last one with a mask: nothing
-/// outside [src, src + n) is read), stored to @p d (the last with the same mask), classified into
+/// the CPU has them, for n >= 64): each block is loaded once (the last one under a mask: nothing
+/// outside [src, src + n) is read), stored to @p d (the last under the same mask), classified into
 /// mask registers, and its ':' positions made by compressing the block's byte offsets under the ':'
-/// mask, 32 at a time, each group stored whole: @p at needs room for cap + 32.
+/// mask, widening the first 32 to 16 bits and storing them whole (cap is at most 32, so no block
+/// can contribute more): @p at needs room for cap + 32.
 __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_avx512(
     const unsigned char* src, std::size_t n, unsigned char* d, std::size_t cap, std::uint16_t* at,
     std::uint64_t* specials) noexcept {
@@ -628,26 +634,19 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_
   const __m512i k_percent = _mm512_set1_epi8('%');
   const __m512i k_shift = _mm512_set1_epi8(0x60);  // as in classify_sse2()
   const __m512i k_limit = _mm512_set1_epi8(-34);
-  const __m512i off_lo = _mm512_load_si512(kOffsets16);
-  const __m512i off_hi = _mm512_load_si512(kOffsets16 + 32);
-  Scan r;
+  const __m512i offsets = _mm512_load_si512(kOffsets8);
   std::size_t seen = 0;
   // One block at @p base (block k); @p in: its bytes inside the region (all 64 but in the last).
   auto block = [&](std::size_t base, std::size_t k, __mmask64 in, __m512i v)
                    __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) {
     const __mmask64 colon = _mm512_cmpeq_epi8_mask(v, k_colon);  // the bytes outside are 0: no ':'
-    const __mmask64 special =
-        (_mm512_cmpeq_epi8_mask(v, k_percent) | _mm512_cmpgt_epi8_mask(_mm512_add_epi8(v, k_shift), k_limit)) & in;
-    specials[k] = special;
-    r.special_blocks |= std::uint64_t{special != 0} << k;
-    const __m512i b = _mm512_set1_epi16(static_cast<short>(base));
-    const __mmask32 c_lo = static_cast<__mmask32>(colon), c_hi = static_cast<__mmask32>(colon >> 32);
-    _mm512_storeu_si512(at + seen, _mm512_maskz_compress_epi16(c_lo, _mm512_add_epi16(off_lo, b)));
-    seen += static_cast<std::size_t>(__builtin_popcount(c_lo));
+    specials[k] = _cvtmask64_u64(
+        (_mm512_cmpeq_epi8_mask(v, k_percent) | _mm512_cmpgt_epi8_mask(_mm512_add_epi8(v, k_shift), k_limit)) & in);
+    const __m256i first = _mm512_castsi512_si256(_mm512_maskz_compress_epi8(colon, offsets));
+    _mm512_storeu_si512(at + seen, _mm512_add_epi16(_mm512_cvtepu8_epi16(first),
+                                                    _mm512_set1_epi16(static_cast<short>(base))));
+    seen += static_cast<std::size_t>(__builtin_popcountll(_cvtmask64_u64(colon)));
     if (seen > cap) seen = cap;  // what is past cap is never read; the next store may overwrite it
-    _mm512_storeu_si512(at + seen, _mm512_maskz_compress_epi16(c_hi, _mm512_add_epi16(off_hi, b)));
-    seen += static_cast<std::size_t>(__builtin_popcount(c_hi));
-    if (seen > cap) seen = cap;
   };
   std::size_t base = 0, k = 0;
   for (; n - base >= kBlock; base += kBlock, ++k) {
@@ -659,11 +658,16 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_
     const __mmask64 in = (__mmask64{1} << (n - base)) - 1u;
     const __m512i v = _mm512_maskz_loadu_epi8(in, src + base);
     _mm512_mask_storeu_epi8(d + base, in, v);
-    block(base, k, in, v);
+    block(base, k++, in, v);
   }
+  Scan r;
   r.colons_seen = seen;
+  for (std::size_t j = 0; j < k; ++j) r.special_blocks |= std::uint64_t{specials[j] != 0} << j;
   return r;
 }
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
 
 /// True when the CPU has what scan_avx512() needs (asked on every call: loads and tests).
 inline bool cpu_has_avx512_scan() noexcept {
