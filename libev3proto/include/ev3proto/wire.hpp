@@ -636,12 +636,15 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_
   const __m512i k_limit = _mm512_set1_epi8(-34);
   const __m512i offsets = _mm512_load_si512(kOffsets8);
   std::size_t seen = 0;
+  std::uint64_t special_blocks = 0;
   // One block at @p base (block k); @p in: its bytes inside the region (all 64 but in the last).
   auto block = [&](std::size_t base, std::size_t k, __mmask64 in, __m512i v)
                    __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) {
     const __mmask64 colon = _mm512_cmpeq_epi8_mask(v, k_colon);  // the bytes outside are 0: no ':'
-    specials[k] = _cvtmask64_u64(
-        (_mm512_cmpeq_epi8_mask(v, k_percent) | _mm512_cmpgt_epi8_mask(_mm512_add_epi8(v, k_shift), k_limit)) & in);
+    const __mmask64 special =
+        (_mm512_cmpeq_epi8_mask(v, k_percent) | _mm512_cmpgt_epi8_mask(_mm512_add_epi8(v, k_shift), k_limit)) & in;
+    specials[k] = _cvtmask64_u64(special);
+    special_blocks |= std::uint64_t{_kortestz_mask64_u8(special, special) == 0} << k;
     const __m256i first = _mm512_castsi512_si256(_mm512_maskz_compress_epi8(colon, offsets));
     _mm512_storeu_si512(at + seen, _mm512_add_epi16(_mm512_cvtepu8_epi16(first),
                                                     _mm512_set1_epi16(static_cast<short>(base))));
@@ -662,7 +665,7 @@ __attribute__((target("avx512f,avx512bw,avx512vbmi2,popcnt"))) inline Scan scan_
   }
   Scan r;
   r.colons_seen = seen;
-  for (std::size_t j = 0; j < k; ++j) r.special_blocks |= std::uint64_t{specials[j] != 0} << j;
+  r.special_blocks = special_blocks;
   return r;
 }
 #if defined(__GNUC__) && !defined(__clang__)
