@@ -197,17 +197,27 @@ constexpr std::array<std::uint8_t, 256> make_type_index() noexcept {
 /// Type number -> index into kMessageTable, or kNoRow.
 inline constexpr std::array<std::uint8_t, 256> kTypeIndex = make_type_index();
 
-/// Bit i set where param i of row r has a kind other than text (i < kMaxParams = 32), built at
-/// compile time so decode() checks kinds without reading the row per param.
-constexpr std::array<std::uint32_t, kMessageTableSize> make_checked_masks() noexcept {
-  std::array<std::uint32_t, kMessageTableSize> masks{};
+/// The kinds of a row's params as decode() checks them, built at compile time so that it need not
+/// read the row per param.
+struct RowKinds {
+  std::uint32_t checked = 0; ///< Bit i set where param i (i < kMaxParams = 32) is not text.
+  std::uint64_t kinds = 0;   ///< Bits 2i and 2i+1: param i's ParamKind (text 0 ... state 3).
+};
+static_assert(static_cast<unsigned>(ParamKind::state) < 4u, "ParamKind must fit in two bits");
+
+/// Builds kRowKinds from kMessageTable.
+constexpr std::array<RowKinds, kMessageTableSize> make_row_kinds() noexcept {
+  std::array<RowKinds, kMessageTableSize> rows{};
   for (std::size_t r = 0; r < kMessageTableSize; ++r)
-    for (std::size_t i = 0; i < kMaxParams; ++i)
-      if (kMessageTable[r].kind(i) != ParamKind::text) masks[r] |= std::uint32_t{1} << i;
-  return masks;
+    for (std::size_t i = 0; i < kMaxParams; ++i) {
+      const ParamKind k = kMessageTable[r].kind(i);
+      if (k != ParamKind::text) rows[r].checked |= std::uint32_t{1} << i;
+      rows[r].kinds |= std::uint64_t{static_cast<std::uint8_t>(k)} << (2u * i);
+    }
+  return rows;
 }
-/// Row index -> params that need a kind check (see make_checked_masks()).
-inline constexpr std::array<std::uint32_t, kMessageTableSize> kCheckedParams = make_checked_masks();
+/// Row index -> the kinds of its params (see RowKinds).
+inline constexpr std::array<RowKinds, kMessageTableSize> kRowKinds = make_row_kinds();
 
 /// Checks the table's invariants at compile time.
 constexpr bool table_is_sane() noexcept {
@@ -278,26 +288,26 @@ constexpr std::string_view to_string(AgentState s) noexcept {
 
 /// Parses a state's wire spelling; returns false (and leaves @p out alone) if it is not one.
 inline bool parse_state(std::string_view s, AgentState& out) noexcept {
-  AgentState a = AgentState::IDLE;
-  switch (s.size()) {  // one comparison at most: the five spellings differ in length or first byte
-    case 4: a = AgentState::IDLE; break;
-    case 5: a = s[1] == 'A' ? AgentState::PANIC : AgentState::IDLE; break;
-    case 6: a = s[0] == 'A' ? AgentState::ACTIVE : AgentState::PAUSED; break;
-    case 7: a = AgentState::WORKING; break;
-    default: return false;
-  }
-  if (s.size() == 5 && a == AgentState::IDLE) return false;
-  // Every spelling has 4 to 7 bytes: compared as two overlapping 4-byte words, not with string_view's
-  // == (a memcmp call, dearer than the whole decode of a PING's header).
-  const std::string_view name = to_string(a);
-  std::uint32_t s0, s1, n0, n1;
+  // Every spelling has 4 to 7 bytes: compared as two overlapping 4-byte words against each of the
+  // five (the words of the names fold to constants), not with string_view's == (a memcmp call).
+  const std::size_t n = s.size();
+  if (n - 4u > 3u) return false;
+  std::uint32_t s0, s1;
   std::memcpy(&s0, s.data(), 4);
-  std::memcpy(&s1, s.data() + s.size() - 4u, 4);
-  std::memcpy(&n0, name.data(), 4);
-  std::memcpy(&n1, name.data() + name.size() - 4u, 4);
-  if (s0 != n0 || s1 != n1) return false;
-  out = a;
-  return true;
+  std::memcpy(&s1, s.data() + n - 4u, 4);
+  for (const AgentState a : {AgentState::IDLE, AgentState::ACTIVE, AgentState::WORKING, AgentState::PAUSED,
+                             AgentState::PANIC}) {
+    const std::string_view name = to_string(a);
+    if (name.size() != n) continue;
+    std::uint32_t n0, n1;
+    std::memcpy(&n0, name.data(), 4);
+    std::memcpy(&n1, name.data() + n - 4u, 4);
+    if (s0 == n0 && s1 == n1) {
+      out = a;
+      return true;
+    }
+  }
+  return false;
 }
 
 } // namespace ev3proto

@@ -844,13 +844,14 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     }
 
     // Pass 3: kinds, of the params before the first bad one.
-    const std::uint32_t checked = detail::kCheckedParams[static_cast<std::size_t>(spec - kMessageTable)];
+    const detail::RowKinds& row = detail::kRowKinds[static_cast<std::size_t>(spec - kMessageTable)];
+    const std::uint32_t checked = row.checked;
     for (std::uint32_t m = bad >= 32u ? checked : checked & ((std::uint32_t{1} << bad) - 1u); m != 0;
          m &= m - 1u) {
       const std::size_t k = static_cast<std::size_t>(__builtin_ctz(m));
       if (k >= count) break;
       const Reason kr = detail::check_kind(
-          spec->kind(k), std::string_view(out.data_ + out.begins_[k],
+          static_cast<ParamKind>((row.kinds >> (2u * k)) & 3u), std::string_view(out.data_ + out.begins_[k],
                                           static_cast<std::size_t>(out.ends_[k] - out.begins_[k])));
       if (kr != Reason::ok) return fail(kr, kFieldParam0 + k);
     }
