@@ -3,7 +3,7 @@
 #   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel
 #   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS, default 1800)
-#   make bench     Google Benchmark figures (see docs/benchmarks.md)
+#   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
 #   make arm       static armel (EV3) build in build/arm/
 #   make spec      SANY + TLC on the small models, broken variants refuted, diagram up to date
 #   make spec-full the full models (minutes)
@@ -20,6 +20,7 @@ BIN := $(CURDIR)/build/bin
 JOBS ?= $(shell nproc)
 FUZZ_SECONDS ?= 1800
 FUZZ_SMOKE_SECONDS ?= 60
+BENCH_RUNS ?= 9
 CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
                 -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN)
 
@@ -86,7 +87,7 @@ bench: deps
 	@cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEV3_BENCH=ON -DEV3_TESTS=OFF \
 	   -DEV3_TOOLS=OFF >/dev/null
 	@ninja -C build/bench
-	@build/bench/bin/bench_codec --benchmark_min_time=0.2 --benchmark_repetitions=5 --benchmark_report_aggregates_only=true
+	@python3 bench/ratios.py --runs $(BENCH_RUNS)
 
 arm: deps
 	@cmake -S . -B build/arm -G Ninja -DCMAKE_BUILD_TYPE=Release \
