@@ -656,6 +656,43 @@ TEST(Classify, ScanVariantsAgree) {
   (void)avx2_runs;
 }
 
+// encode() sizes and writes the last bytes of a value from the 16 bytes ending it, or from two
+// overlapping words: the masks must be the byte-at-a-time ones, escaped_size() the plain count, and
+// encode() of a message with such values must round-trip, for every length and mix of bytes. The
+// values are exactly sized buffers: ASan would see a read outside them.
+TEST(Classify, ShortAndTailEscapeMasks) {
+  std::mt19937 rng(20261126);
+  std::vector<char> buf;
+  for (int iter = 0; iter < 20000; ++iter) {
+    const std::size_t size = rng() % 70u;
+    const unsigned special = 1u + static_cast<unsigned>(rng() % 24u);
+    buf.assign(size, 'a');
+    for (auto& c : buf) {
+      const unsigned x = static_cast<unsigned>(rng());
+      c = static_cast<char>(x % special == 0 ? (x >> 8) & 0xFFu : 'a' + (x >> 8) % 26u);
+    }
+    std::size_t want = size;
+    for (char c : buf) want += ev3proto::detail::must_escape(static_cast<unsigned char>(c)) ? 2u : 0u;
+    ASSERT_EQ(ev3proto::escaped_size(std::string_view(buf.data(), size)), want) << "size " << size;
+    const std::size_t rest = size % 16u;
+    std::uint32_t ref = 0;
+    for (std::size_t i = 0; i < rest; ++i)
+      ref |= std::uint32_t{ev3proto::detail::must_escape(static_cast<unsigned char>(buf[size - rest + i]))} << i;
+    ASSERT_EQ(ev3proto::detail::tail_escape_mask(buf.data(), size, rest), ref) << "size " << size;
+    if (size < 16u) {
+      ASSERT_EQ(ev3proto::detail::escape_mask_short(buf.data(), size), ref) << "size " << size;
+    }
+
+    const std::string_view params[2] = {std::string_view(buf.data(), size), "x"};
+    char out[256];
+    const auto r = ev3proto::encode_parts(7, 1, 3, 7 /* BEHAVIOUR: text params */, params, 2, out, sizeof out);
+    ASSERT_TRUE(r.ok()) << "size " << size;
+    ev3proto::Message m;
+    ASSERT_TRUE(ev3proto::decode(std::string_view(out, r.size), m).ok()) << std::string_view(out, r.size);
+    ASSERT_EQ(m.param(0), params[0]) << "size " << size;
+  }
+}
+
 // Unescaping moves bytes left inside the message buffer with move_left(): it must equal memmove for
 // every length and every distance, including the overlapping ones, and write nothing past the end.
 TEST(Classify, MoveLeftIsMemmoveForLeftMoves) {
