@@ -956,11 +956,12 @@ class Agent {
     prevote_count_ = 0;
   }
 
-  /// Spec OfferRelay's enabling condition (one hop: only a direct follower offers).
+  /// Spec OfferRelay's enabling condition (one hop: only a direct follower offers). An agent already
+  /// in the relay table is offered to again: it asks only after losing its relay state.
   bool OfferRelayOk(const Message& m) const noexcept {
     const auto e = m.param_u32(0);
     return m.receiver == kBroadcastId && is_assigned_id(m.sender) && DirectFollower() && e &&
-           *e <= epoch_ && !find(relays_, relay_count_, m.sender);
+           *e <= epoch_;
   }
   /// Spec OfferRelay: RELAY_OFFER(epoch, master) to the requester, remembered in offered.
   void OfferRelay(const Message& m, Peer from) noexcept {

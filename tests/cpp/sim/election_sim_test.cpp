@@ -197,8 +197,11 @@ TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
     NetConfig net;
     net.loss = 0.1;
-    // The PC keeps the lonely agent registered meanwhile (drop 60 s): this test is about its epoch.
-    ElectionFleet f(kAgents, seed, net, Timers{}.set(Timer::drop, 60000));
+    // The isolation (15 s) outlasts the PC's drop timeout (10 s): the PC forgets the lonely agent,
+    // and its former relay still has it in its table. That relay must offer again (Election.tla's
+    // OfferRelay has no "not already relayed" condition; the core had one, and the agent stayed in
+    // PANIC), and the PC adopts the member again on the relay's RELAY_ROUTE.
+    ElectionFleet f(kAgents, seed, net, Timers{});
     f.run_until(30000, check);
     const Peer lonely = ElectionFleet::agent_peer(0);
     f.cut(lonely, ElectionFleet::kPcPeer);
