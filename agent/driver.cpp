@@ -191,9 +191,7 @@ class Driver {
     return ev3driver::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
   }
 
- private:
-  std::string error(const std::string& msg) { return ev3driver::driver_error("ev3-agent --driver", seq_, msg); }
-
+  // Below: what ev3driver::dispatch_input() asks of a driver (configure() among it), then output().
   bool configure(const Json& in, std::string& err) {
     ev3proto::AgentConfig c;
     const Json& t = in["timers"];
@@ -244,41 +242,26 @@ class Driver {
     return true;
   }
 
-  std::string handle(const std::string& line) {
-    Json in;
+  std::string handle(const std::string& line) { return ev3driver::dispatch_input(*this, line); }
+
+  std::string error(const std::string& msg) { return ev3driver::driver_error("ev3-agent --driver", seq_, msg); }
+  void clear_actions() { sink_.actions.clear(); }
+  bool has_core() const { return core_ != nullptr; }
+  Millis core_now() const { return core_->now(); }
+  void core_advance(Millis to) { core_->advance(to); }
+  void core_recv(const std::string& bytes, const Json& in, Millis now) {
+    core_->recv(bytes, static_cast<ev3proto::Peer>(in["from"].num(1)), now);
+  }
+  /// "random" (the ids and msgids the agent will draw) needs no core.
+  bool early(const std::string& type, const Json& in, std::string& reply) {
+    if (type != "random") return false;
+    if (in.has("temp_id")) draw_temp_ = in["temp_id"].num();
+    if (in.has("first_msgid")) draw_msgid_ = in["first_msgid"].num();
+    reply = output(true);
+    return true;
+  }
+  std::string own(const std::string& type, const Json& in, Millis now) {
     std::string err;
-    if (!ev3driver::parse_json(line, in, err)) return error("not JSON: " + err);
-    if (in.kind != Json::Kind::object) return error("an input is a JSON object");
-    const std::string type = in["type"].str();
-    sink_.actions.clear();
-    if (type == "config") {
-      if (!configure(in, err)) return error(err);
-      return output(true);
-    }
-    if (type == "random") {
-      if (in.has("temp_id")) draw_temp_ = in["temp_id"].num();
-      if (in.has("first_msgid")) draw_msgid_ = in["first_msgid"].num();
-      return output(true);
-    }
-    if (!core_) {
-      Json dflt;
-      dflt.kind = Json::Kind::object;
-      if (!configure(dflt, err)) return error(err);
-    }
-    const Millis now = core_->now();
-    if (type == "advance") {
-      Millis to = now;
-      if (!ev3driver::advance_target(in, now, to, err)) return error(err);
-      core_->advance(to);
-      return output(true);
-    }
-    if (type == "recv") {
-      std::string bytes;
-      if (!ev3driver::datagram_of(in, bytes, err)) return error(err);
-      const auto from = static_cast<ev3proto::Peer>(in["from"].num(1));
-      const std::string handler = core_->recv(bytes, from, now);
-      return output(true);
-    }
     if (type == "event") {
       const bool ok = core_->event(in["event"].str(), in, now, err);
       if (!err.empty()) return error(err);
@@ -298,7 +281,6 @@ class Driver {
     }
     return error("unknown input type '" + type + "'");
   }
-
   std::string output(bool taken) {
     std::string s = "{\"in\":" + std::to_string(seq_) + ",\"ok\":" + (taken ? "true" : "false");
     if (!core_) return s + "}";
@@ -318,6 +300,7 @@ class Driver {
     return s;
   }
 
+ private:
   DriverSink sink_;
   std::unique_ptr<Core> core_;
   std::string model_ = "A";

@@ -275,4 +275,42 @@ inline bool datagram_of(const Json& in, std::string& out, std::string& err) {
   return false;
 }
 
+/// The inputs both drivers take alike (docs/driver.md), for a driver @p d that offers: error(msg),
+/// output(taken), clear_actions(), configure(in, err), has_core(), core_now(), core_advance(to),
+/// core_recv(bytes, in, now), early(type, in, reply) (its inputs that need no core: true when it took
+/// one, its answer in @p reply) and own(type, in, now) (its other inputs). Parses @p line (one JSON
+/// object); "config" configures; any other input first gets a core configured with defaults if
+/// there is none; "advance" and "recv" go to the core.
+template <typename D>
+std::string dispatch_input(D& d, const std::string& line) {
+  Json in;
+  std::string err;
+  if (!parse_json(line, in, err)) return d.error("not JSON: " + err);
+  if (in.kind != Json::Kind::object) return d.error("an input is a JSON object");
+  const std::string type = in["type"].str();
+  d.clear_actions();
+  if (type == "config") return d.configure(in, err) ? d.output(true) : d.error(err);
+  std::string reply;
+  if (d.early(type, in, reply)) return reply;
+  if (!d.has_core()) {
+    Json dflt;
+    dflt.kind = Json::Kind::object;
+    if (!d.configure(dflt, err)) return d.error(err);
+  }
+  const std::uint64_t now = d.core_now();
+  if (type == "advance") {
+    std::uint64_t to = now;
+    if (!advance_target(in, now, to, err)) return d.error(err);
+    d.core_advance(to);
+    return d.output(true);
+  }
+  if (type == "recv") {
+    std::string bytes;
+    if (!datagram_of(in, bytes, err)) return d.error(err);
+    d.core_recv(bytes, in, now);
+    return d.output(true);
+  }
+  return d.own(type, in, now);
+}
+
 }  // namespace ev3driver

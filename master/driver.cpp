@@ -103,7 +103,7 @@ class Driver {
     return ev3driver::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
   }
 
- private:
+  // Below: what ev3driver::dispatch_input() asks of a driver (configure() among it), then output().
   std::string error(const std::string& msg) { return ev3driver::driver_error("ev3-master --driver", seq_, msg); }
 
   bool configure(const Json& in, std::string& err) {
@@ -129,36 +129,18 @@ class Driver {
     return true;
   }
 
-  std::string handle(const std::string& line) {
-    Json in;
-    std::string err;
-    if (!ev3driver::parse_json(line, in, err)) return error("not JSON: " + err);
-    if (in.kind != Json::Kind::object) return error("an input is a JSON object");
-    const std::string type = in["type"].str();
-    sink_.actions.clear();
-    if (type == "config") {
-      if (!configure(in, err)) return error(err);
-      return output(true);
-    }
-    if (!core_) {
-      Json dflt;
-      dflt.kind = Json::Kind::object;
-      if (!configure(dflt, err)) return error(err);
-    }
-    const Millis now = core_->now();
-    if (type == "advance") {
-      Millis to = now;
-      if (!ev3driver::advance_target(in, now, to, err)) return error(err);
-      core_->advance(to);
-      return output(true);
-    }
-    if (type == "recv") {
-      std::string bytes;
-      if (!ev3driver::datagram_of(in, bytes, err)) return error(err);
-      const auto from = static_cast<ev3proto::Peer>(in["from"].num(1));
-      core_->handle_datagram(bytes, from, now);
-      return output(true);
-    }
+  std::string handle(const std::string& line) { return ev3driver::dispatch_input(*this, line); }
+
+  void clear_actions() { sink_.actions.clear(); }
+  bool has_core() const { return core_.has_value(); }
+  Millis core_now() const { return core_->now(); }
+  void core_advance(Millis to) { core_->advance(to); }
+  void core_recv(const std::string& bytes, const Json& in, Millis now) {
+    core_->handle_datagram(bytes, static_cast<ev3proto::Peer>(in["from"].num(1)), now);
+  }
+  /// Every input of the master needs a core.
+  bool early(const std::string&, const Json&, std::string&) { return false; }
+  std::string own(const std::string& type, const Json& in, Millis now) {
     if (type == "command") {
       const auto t = command_type(in["command"].str());
       if (!t) return error("unknown command '" + in["command"].str() + "' (BEHAVIOUR START STOP PAUSE RESUME STANDBY CONTINUE RESTART)");
@@ -228,6 +210,7 @@ class Driver {
     return s;
   }
 
+ private:
   MasterSink sink_;
   std::optional<Core> core_;
   std::map<long long, Core> snaps_;
