@@ -42,6 +42,17 @@ class Result:
 
 
 
+# AgentLogic's internal actions a trace record may name, and their arguments in the check.
+_INTERNAL = [("SyncTimeout", "a"), ("HeartbeatLost", "a"), ("ActionOk", "a"),
+             ("ActionInterrupted", "a, r.e"), ("ActionFailed", "a"), ("SensorReport", "a"),
+             ("DeviceUnplugged", "a"), ("DevicePlugged", "a"), ("BatteryLow", "a")]
+
+
+def _internal_case(suffix: str) -> str:
+    """A CASE over _INTERNAL calling L!<action><suffix> (suffix "Ok": the enabling conditions)."""
+    return "\n      [] ".join(f'r.a = "{n}" -> L!{n}{suffix}({args})' for n, args in _INTERNAL)
+
+
 def _agent_steps(t_ping: int, apply: str) -> str:
     """The TLA+ operators both agent trace checks share: Adv (n ticks at once), Recv (the receive
     handler named by the record, @p apply its CASE arms), IntOk / Internal (AgentLogic's internal
@@ -52,26 +63,10 @@ def _agent_steps(t_ping: int, apply: str) -> str:
 Recv(h, a, m) ==
     CASE {apply}
 IntOk(r, a) ==
-    CASE r.a = "SyncTimeout" -> L!SyncTimeoutOk(a)
-      [] r.a = "HeartbeatLost" -> L!HeartbeatLostOk(a)
-      [] r.a = "ActionOk" -> L!ActionOkOk(a)
-      [] r.a = "ActionInterrupted" -> L!ActionInterruptedOk(a, r.e)
-      [] r.a = "ActionFailed" -> L!ActionFailedOk(a)
-      [] r.a = "SensorReport" -> L!SensorReportOk(a)
-      [] r.a = "DeviceUnplugged" -> L!DeviceUnpluggedOk(a)
-      [] r.a = "DevicePlugged" -> L!DevicePluggedOk(a)
-      [] r.a = "BatteryLow" -> L!BatteryLowOk(a)
+    CASE {_internal_case("Ok")}
       [] OTHER -> FALSE
 Internal(r, a) ==
-    CASE r.a = "SyncTimeout" -> L!SyncTimeout(a)
-      [] r.a = "HeartbeatLost" -> L!HeartbeatLost(a)
-      [] r.a = "ActionOk" -> L!ActionOk(a)
-      [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
-      [] r.a = "ActionFailed" -> L!ActionFailed(a)
-      [] r.a = "SensorReport" -> L!SensorReport(a)
-      [] r.a = "DeviceUnplugged" -> L!DeviceUnplugged(a)
-      [] r.a = "DevicePlugged" -> L!DevicePlugged(a)
-      [] r.a = "BatteryLow" -> L!BatteryLow(a)
+    CASE {_internal_case("")}
 '''
 
 def _msg(text: str) -> dict:
