@@ -383,6 +383,80 @@ inline void classify_block(const unsigned char* b, std::size_t len, std::uint64_
 /// Largest value of each header field (sender, receiver, msgid, type); the type must also not be 0.
 inline constexpr std::uint32_t kHeaderMax[4] = {0xFFFFu, 0xFFFFu, 0xFFFFFFFFu, 0xFFu};
 
+/// The header of decode() byte by byte, as docs/protocol.md checks it: four canonical numbers within
+/// kHeaderMax (the type not 0) separated by ':', in the @p len bytes at @p datagram. On success stores
+/// them in @p hdr and the offset of param 0 in @p params_at (0 when no ':' follows the type: no
+/// params) and returns ok; else the first problem and its field.
+inline DecodeResult header_bytewise(const char* datagram, std::size_t len, std::uint32_t (&hdr)[4],
+                                    std::size_t& params_at) noexcept {
+  const char* p = datagram;
+  const char* const e = datagram + len;
+  params_at = 0;
+  for (std::size_t k = 0; k < 4; ++k) {
+    const char* q = p;
+    std::uint64_t v = 0;
+    while (q != e) {
+      const unsigned d = static_cast<unsigned>(static_cast<unsigned char>(*q)) - unsigned{'0'};
+      if (d > 9u) break;
+      if (q - p < 11) v = v * 10u + d;  // 11 digits without a leading zero already exceed any maximum
+      ++q;
+    }
+    const std::size_t n = static_cast<std::size_t>(q - p);
+    if ((q != e && *q != ':') || n == 0 || (n > 1 && *p == '0')) return fail(Reason::bad_number, k);
+    if (v > kHeaderMax[k] || (k == kFieldType && v == 0)) return fail(Reason::out_of_range, k);
+    hdr[k] = static_cast<std::uint32_t>(v);
+    if (q == e) {
+      if (k < 3) return fail(Reason::too_few_fields, k + 1);
+    } else {
+      p = q + 1;  // past the ':'
+      if (k == 3) params_at = static_cast<std::size_t>(p - datagram);
+    }
+  }
+  return DecodeResult{};
+}
+
+#if defined(__SSE2__)
+/// The header of decode() at once, for a datagram of at least 16 bytes whose first 16 hold the four
+/// header fields and the ':' after the type: one load, the ':' and digit bytes as two masks, every
+/// check as mask arithmetic. Returns false (and decode() takes the byte-at-a-time path, which names
+/// the problem) unless the four fields are canonical numbers within kHeaderMax and the type is not 0;
+/// then stores them in @p hdr and the offset of param 0 in @p params_at, and returns true.
+inline bool header_sse2(const char* p, std::uint32_t (&hdr)[4], std::size_t& params_at) noexcept {
+  const __m128i v = _mm_loadu_si128(reinterpret_cast<const __m128i*>(p));
+  const __m128i t = _mm_sub_epi8(v, _mm_set1_epi8('0'));
+  const unsigned colon = static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(v, _mm_set1_epi8(':'))));
+  const unsigned digit =
+      static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(_mm_min_epu8(t, _mm_set1_epi8(9)), t)));
+  const unsigned zero = static_cast<unsigned>(_mm_movemask_epi8(_mm_cmpeq_epi8(t, _mm_setzero_si128())));
+  const unsigned m1 = colon & (colon - 1u), m2 = m1 & (m1 - 1u), m3 = m2 & (m2 - 1u);
+  if (m3 == 0) return false;  // fewer than four ':' in the first 16 bytes
+  const unsigned c0 = static_cast<unsigned>(__builtin_ctz(colon)), c1 = static_cast<unsigned>(__builtin_ctz(m1));
+  const unsigned c2 = static_cast<unsigned>(__builtin_ctz(m2)), c3 = static_cast<unsigned>(__builtin_ctz(m3));
+  const unsigned field = (1u << c3) - 1u;           // the bytes before the ':' after the type
+  const unsigned starts = (1u | (colon << 1)) & field;  // the first byte of each field
+  // Only digits and ':' in the header; no field empty (a start that is a ':'); no leading zero;
+  // lengths within what each maximum allows (5, 5, 10, 3 digits).
+  if (((digit | colon) & field) != field || (starts & colon) != 0 || (starts & zero & (digit >> 1)) != 0 ||
+      c0 > 5u || c1 - c0 > 6u || c2 - c1 > 11u || c3 - c2 > 4u)
+    return false;
+  auto number = [p](unsigned from, unsigned to) noexcept {  // digits known: no check per byte
+    std::uint64_t x = 0;
+    for (unsigned i = from; i < to; ++i) x = x * 10u + static_cast<unsigned>(static_cast<unsigned char>(p[i]) - '0');
+    return x;
+  };
+  const std::uint64_t a = number(0, c0), b = number(c0 + 1u, c1), c = number(c1 + 1u, c2),
+                      ty = number(c2 + 1u, c3);
+  if (a > kHeaderMax[0] || b > kHeaderMax[1] || c > kHeaderMax[2] || ty > kHeaderMax[3] || ty == 0)
+    return false;
+  hdr[0] = static_cast<std::uint32_t>(a);
+  hdr[1] = static_cast<std::uint32_t>(b);
+  hdr[2] = static_cast<std::uint32_t>(c);
+  hdr[3] = static_cast<std::uint32_t>(ty);
+  params_at = c3 + 1u;
+  return true;
+}
+#endif
+
 /// Copies the @p n (1 to 15) bytes at @p src to @p d with two overlapping loads and stores.
 inline void copy_short(unsigned char* d, const unsigned char* src, std::size_t n) noexcept {
   if (n >= 8) {
@@ -759,30 +833,21 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   const char* p = datagram.data();
   const char* const e = p + len;
 
-  // Header: four canonical numbers separated by ':'.
+  // Header: four canonical numbers separated by ':'. Most datagrams have it, and the ':' after the
+  // type, in their first 16 bytes: checked at once there; anything else (or any problem: it is then
+  // named by the byte-at-a-time path) byte by byte.
   std::uint32_t hdr[4] = {0, 0, 0, 0};
-  bool has_params = false;  // a ':' follows the type (then there is at least one, maybe empty, param)
-  for (std::size_t k = 0; k < 4; ++k) {
-    const char* q = p;
-    std::uint64_t v = 0;
-    while (q != e) {
-      const unsigned d = static_cast<unsigned>(static_cast<unsigned char>(*q)) - unsigned{'0'};
-      if (d > 9u) break;
-      if (q - p < 11) v = v * 10u + d;
-      ++q;
-    }
-    const std::size_t n = static_cast<std::size_t>(q - p);
-    if ((q != e && *q != ':') || n == 0 || (n > 1 && *p == '0')) return fail(Reason::bad_number, k);
-    if (v > detail::kHeaderMax[k] || (k == kFieldType && v == 0)) return fail(Reason::out_of_range, k);
-    hdr[k] = static_cast<std::uint32_t>(v);
-    if (q == e) {
-      if (k < 3) return fail(Reason::too_few_fields, k + 1);
-      p = e;
-    } else {
-      p = q + 1;  // past the ':'
-      has_params = k == 3;
-    }
+  std::size_t params_at = 0;  // where param 0 starts; 0: no ':' follows the type (no params)
+#if defined(__SSE2__)
+  if (!(len >= detail::kChunk && detail::header_sse2(p, hdr, params_at)))
+#endif
+  {
+    const DecodeResult h = detail::header_bytewise(p, len, hdr, params_at);
+    if (!h.ok()) return h;
   }
+  // A ':' after the type opens at least one (maybe empty) param.
+  const bool has_params = params_at != 0;
+  p += params_at;
   const MessageSpec* spec = find_spec(static_cast<std::uint8_t>(hdr[3]));
   if (spec == nullptr) return fail(Reason::unknown_type, kFieldType);
   out.sender = static_cast<std::uint16_t>(hdr[0]);

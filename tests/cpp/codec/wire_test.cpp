@@ -654,6 +654,51 @@ TEST(Classify, ScanVariantsAgree) {
 }
 #endif
 
+#if defined(__SSE2__)
+// decode() checks a header that ends, with its ':' after the type, in the first 16 bytes all at once
+// (header_sse2()) and falls back to the byte-at-a-time check otherwise. The fast check may only accept
+// what the bytewise one accepts, with the same values and param offset, and it must accept every
+// such header that fits (else it would be dead code). Headers are built field by field from digit
+// strings of every length 0 to 11 with and without leading zeros, values at and past each maximum,
+// and a stray byte now and then; each is followed by enough bytes to make 16 or more, exactly sized.
+TEST(Classify, HeaderFastPathAgreesWithBytewise) {
+  std::mt19937 rng(20261121);
+  const char* const edge[] = {"0", "00", "01", "1", "9", "255", "256", "65535", "65536", "4294967295",
+                              "4294967296", "99999999999", "", "12a", "-1", " 1"};
+  auto piece = [&]() -> std::string {
+    const unsigned pick = static_cast<unsigned>(rng() % 4u);
+    if (pick == 0) return edge[rng() % (sizeof edge / sizeof edge[0])];
+    std::string s;
+    const std::size_t len = pick == 1 ? 1u + rng() % 3u : rng() % 12u;
+    for (std::size_t i = 0; i < len; ++i) s += static_cast<char>('0' + rng() % 10u);
+    return s;
+  };
+  int accepted = 0, fast = 0;
+  for (int iter = 0; iter < 200000; ++iter) {
+    std::string h = piece() + ":" + piece() + ":" + piece() + ":" + piece();
+    if (rng() % 8u != 0) h += ":";
+    if (rng() % 16u == 0) h[rng() % h.size()] = static_cast<char>(rng() % 256u);
+    while (h.size() < 16u || rng() % 4u == 0) h += static_cast<char>(' ' + rng() % 95u);
+    const std::vector<char> bytes(h.begin(), h.end());  // exactly sized: ASan sees a read past it
+    std::uint32_t want[4] = {9, 9, 9, 9}, got[4] = {7, 7, 7, 7};
+    std::size_t want_at = 0, got_at = 0;
+    const ev3proto::DecodeResult r = ev3proto::detail::header_bytewise(bytes.data(), bytes.size(), want, want_at);
+    const bool took = ev3proto::detail::header_sse2(bytes.data(), got, got_at);
+    if (took) {
+      ++fast;
+      ASSERT_TRUE(r.ok()) << h;
+      ASSERT_EQ(got_at, want_at) << h;
+      for (int k = 0; k < 4; ++k) ASSERT_EQ(got[k], want[k]) << h << " field " << k;
+    } else if (r.ok()) {
+      ASSERT_TRUE(want_at == 0 || want_at > 16u) << "the fast check refused a header that fits: " << h;
+    }
+    accepted += r.ok();
+  }
+  EXPECT_GT(fast, 1000);
+  EXPECT_GT(accepted, fast);
+}
+#endif
+
 // encode() sizes and writes the last bytes of a value from the 16 bytes ending it, or from two
 // overlapping words: the masks must be the byte-at-a-time ones, escaped_size() the plain count, and
 // encode() of a message with such values must round-trip, for every length and mix of bytes. The
