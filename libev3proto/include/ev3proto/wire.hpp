@@ -616,6 +616,91 @@ inline unsigned lowest_bit(std::uint64_t m) noexcept {
   return static_cast<unsigned>(__builtin_ctzll(static_cast<unsigned long long>(m)));
 }
 
+/// Copies the @p len bytes at @p src to @p dst for unescaping (the bytes of a param between two
+/// escapes, or after its last): one 16-byte copy when the gap is at most 16 bytes and there are 16
+/// bytes to read at @p src (@p src_room) and to write at @p dst (@p dst_room: the rest of the param,
+/// whose bytes past the gap are written again or no longer part of it), else move_left().
+inline void copy_within_param(unsigned char* dst, const unsigned char* src, std::size_t len,
+                              std::size_t dst_room, std::size_t src_room) noexcept {
+  if (len <= kChunk && dst_room >= kChunk && src_room >= kChunk) {
+    unsigned char chunk[kChunk];
+    std::memcpy(chunk, src, kChunk);
+    std::memcpy(dst, chunk, kChunk);
+    return;
+  }
+  move_left(dst, src, len);
+}
+
+/// Checks the escape that starts at byte @p i of the @p n param bytes at @p src (a special byte:
+/// '%' or one that may not stand raw) and stores the byte it stands for in @p out. Returns ok,
+/// non_printable_byte (not a '%') or bad_escape (not two upper-case hex digits, or a byte that
+/// need not be escaped: not canonical).
+inline Reason unescape_at(const unsigned char* src, std::size_t n, std::size_t i, unsigned char& out) noexcept {
+  if (src[i] != '%') return Reason::non_printable_byte;
+  if (n - i < 3) return Reason::bad_escape;
+  const int hi = kHexTable.v[src[i + 1]];
+  const int lo = kHexTable.v[src[i + 2]];
+  const unsigned char b = static_cast<unsigned char>(hi * 16 + lo);
+  if ((hi | lo) < 0 || !kEscapeBits.has(b)) return Reason::bad_escape;
+  out = b;
+  return Reason::ok;
+}
+
+/// The special bytes of a scanned region in order, from its per-block masks and the mask of blocks
+/// that have any: each call returns the next one's offset, or kNone after the last.
+struct SpecialBits {
+  static constexpr std::size_t kNone = ~std::size_t{0};
+  const std::uint64_t* specials;  ///< one mask per 64-byte block
+  std::uint64_t blocks;           ///< the blocks not yet visited that have a special byte
+  std::uint64_t m = 0;            ///< the specials of the block being visited, not yet returned
+  std::size_t base = 0;           ///< that block's first offset
+
+  std::size_t operator()() noexcept {
+    while (m == 0) {
+      if (blocks == 0) return kNone;
+      const std::size_t k = lowest_bit(blocks);
+      blocks &= blocks - 1u;
+      m = specials[k];
+      base = k * kBlock;
+    }
+    const std::size_t i = base + lowest_bit(m);
+    m &= m - 1u;
+    return i;
+  }
+};
+
+/// Pass 1 of decode(): param j of a region whose ':'s are at @p at[0 .. colons) ends at at[j] and
+/// the next begins after it; the last one ends at @p limit. Stores ends[0 .. colons] and
+/// begins[0 .. colons]. With SSE2, 8 at a time: it reads at[] and writes ends and begins up to the
+/// next multiple of 8 of @p colons (at[] has room for that; entries past @p colons mean nothing).
+inline void param_bounds(const std::uint16_t* at, std::size_t colons, std::size_t limit, std::uint16_t* begins,
+                         std::uint16_t* ends) noexcept {
+#if defined(__SSE2__)
+  static_assert(kMaxParams % 8u == 0, "begins and ends (kMaxParams each) take whole chunks of 8");
+  __m128i carry = _mm_setzero_si128();  // lane 0: where the chunk's first param begins
+  begins[0] = 0;
+  for (std::size_t j = 0; j < colons; j += 8) {
+    __m128i a = _mm_loadu_si128(reinterpret_cast<const __m128i*>(at + j));
+    // Opaque to the optimiser: GCC would otherwise split the plain copy to `ends` out of the loop
+    // as a memcpy, inlined as `rep movsq`, whose start-up costs more than the whole loop.
+    __asm__("" : "+x"(a));
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(ends + j), a);
+    const __m128i next = _mm_add_epi16(a, _mm_set1_epi16(1));  // where the param after each ':' begins
+    _mm_storeu_si128(reinterpret_cast<__m128i*>(begins + j), _mm_or_si128(_mm_slli_si128(next, 2), carry));
+    carry = _mm_srli_si128(next, 14);
+  }
+  if (colons != 0) begins[colons] = static_cast<std::uint16_t>(at[colons - 1u] + 1u);
+  ends[colons] = static_cast<std::uint16_t>(limit);
+#else
+  begins[0] = 0;
+  for (std::size_t j = 0; j < colons; ++j) {
+    ends[j] = at[j];
+    begins[j + 1u] = static_cast<std::uint16_t>(at[j] + 1u);
+  }
+  ends[colons] = static_cast<std::uint16_t>(limit);
+#endif
+}
+
 /// The positions of the ':'s, in order: the set bits of the @p blocks masks at @p colons (bit i of
 /// mask k is byte 64k + i), at most @p cap of them, into @p at (room for cap + 4). Returns how many
 /// it wrote: cap means there may be more. Portable version, one bit at a time.
@@ -884,68 +969,39 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     std::size_t limit = n;
     const bool too_many = colons_seen == max_params;
     if (too_many) limit = at[--colons_seen];
-    out.begins_[0] = 0;
-    for (std::size_t j = 0; j < colons_seen; ++j) {
-      out.ends_[j] = at[j];
-      out.begins_[j + 1u] = static_cast<std::uint16_t>(at[j] + 1u);
-    }
-    out.ends_[colons_seen] = static_cast<std::uint16_t>(limit);
+    detail::param_bounds(at, colons_seen, limit, out.begins_, out.ends_);
     count = colons_seen + 1u;
 
-    // Pass 2: escapes. `bad` is the first param with a bad byte (count if none). Bytes are read from
-    // the datagram (`src`), not from the copy just stored (a load of bytes a wide store has just
-    // written may wait for it): unescaping writes only left of the bytes still to be read, so the two
-    // hold the same there.
+    // Pass 2: escapes, in order. A param with one is unescaped in place, all its escapes at once:
+    // each %XX becomes its byte and the bytes between them move left. `bad` is the first param with a
+    // bad byte (count if none). Bytes are read from the datagram (`src`), not from the copy just stored
+    // (a load of bytes a wide store has just written may wait for it).
     const unsigned char* const src = reinterpret_cast<const unsigned char*>(p);
     std::size_t bad = count;
     Reason bad_reason = Reason::ok;
-    std::size_t cur = 0;              // the param of the special being looked at
-    std::size_t r = 0, w = 0;         // in param cur: next byte to move, and where it goes
-    bool open = false;                // param cur has had an escape: its tail still has to move
-    for (std::uint64_t bm = scan.special_blocks; bm != 0 && bad == count; bm &= bm - 1u) {
-      const std::size_t k = detail::lowest_bit(bm);  // only the blocks with a special byte
-      for (std::uint64_t m = specials[k]; m != 0; m &= m - 1u) {
-        const std::size_t i = k * detail::kBlock + detail::lowest_bit(m);
-        if (i >= limit) break;
-        if (out.ends_[cur] < i) {
-          if (open) {  // finish the previous param with escapes
-            detail::move_left(d + w, src + r, out.ends_[cur] - r);
-            out.ends_[cur] = static_cast<std::uint16_t>(w + (out.ends_[cur] - r));
-            open = false;
-          }
-          while (out.ends_[cur] < i) ++cur;
-        }
-        const unsigned char c = src[i];
-        Reason why = Reason::ok;
-        unsigned char b = 0;
-        if (c != '%') {
-          why = Reason::non_printable_byte;
-        } else if (n - i < 3) {
-          why = Reason::bad_escape;
-        } else {
-          const int hi = detail::kHexTable.v[src[i + 1]];
-          const int lo = detail::kHexTable.v[src[i + 2]];
-          b = static_cast<unsigned char>(hi * 16 + lo);
-          if ((hi | lo) < 0 || !detail::kEscapeBits.has(b)) why = Reason::bad_escape;
-        }
+    detail::SpecialBits next{specials, scan.special_blocks};
+    std::size_t i = next();      // the special byte looked at (kNone after the last)
+    for (std::size_t cur = 0; i < limit;) {
+      while (out.ends_[cur] < i) ++cur;  // the param holding byte i (ends_ of those before: shrunk)
+      const std::size_t end = out.ends_[cur];
+      std::size_t w = i;  // where the next unescaped byte of param cur goes
+      for (;;) {
+        const Reason why = detail::unescape_at(src, n, i, d[w]);
         if (why != Reason::ok) {
           bad = cur;
           bad_reason = why;
           break;
         }
-        if (!open) {
-          open = true;
-          r = w = i;
-        }
-        detail::move_left(d + w, src + r, i - r);
-        w += i - r;
-        d[w++] = b;
-        r = i + 3u;  // the hex digits are neither ':' nor special: no bit of theirs is set
+        ++w;
+        const std::size_t r = i + 3u;  // the hex digits are neither ':' nor special: no bit of theirs is set
+        i = next();
+        const std::size_t stop = i < end ? i : end;  // the plain bytes up to the next escape or the end
+        detail::copy_within_param(d + w, src + r, stop - r, end - w, n - r);
+        w += stop - r;
+        if (i >= end) break;
       }
-    }
-    if (open && bad == count) {
-      detail::move_left(d + w, src + r, out.ends_[cur] - r);
-      out.ends_[cur] = static_cast<std::uint16_t>(w + (out.ends_[cur] - r));
+      if (bad != count) break;
+      out.ends_[cur] = static_cast<std::uint16_t>(w);
     }
 
     // Pass 3: kinds, of the params before the first bad one.
