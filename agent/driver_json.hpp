@@ -313,4 +313,41 @@ std::string dispatch_input(D& d, const std::string& line) {
   return d.own(type, in, now);
 }
 
+/// Reads the arguments of `PROGRAM --driver [--trace FILE]` (docs/driver.md) for @p program
+/// ("ev3-agent"), whose @p core ("agent") takes the NDJSON @p inputs ("config, recv, ...") named in
+/// the --help text. Opens the trace file into @p trace (nullptr without --trace). Returns -1 when
+/// the driver is to run, else the exit status (0 after --help, 2 after an error, said on stderr).
+inline int driver_options(int argc, char** argv, const char* program, const char* core, const char* inputs,
+                          std::FILE*& trace) {
+  trace = nullptr;
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--driver") continue;
+    if (a == "--help" || a == "-h") {
+      std::printf(
+          "usage: %s --driver [--trace FILE]\n\n"
+          "The %s core on a virtual clock without sockets: one NDJSON input per stdin line\n"
+          "(%s), one NDJSON output line per input\n"
+          "on stdout, logs on stderr. docs/driver.md has the protocol.\n",
+          program, core, inputs);
+      if (trace != nullptr) std::fclose(trace);
+      return 0;
+    }
+    if (a == "--trace" || a.rfind("--trace=", 0) == 0) {
+      const std::string f = a == "--trace" ? (i + 1 < argc ? argv[++i] : "") : a.substr(8);
+      if (trace != nullptr) std::fclose(trace);  // the last --trace counts
+      trace = f.empty() ? nullptr : std::fopen(f.c_str(), "w");
+      if (trace == nullptr) {
+        std::fprintf(stderr, "%s: bad value for --trace: cannot open '%s'\n", program, f.c_str());
+        return 2;
+      }
+      continue;
+    }
+    std::fprintf(stderr, "%s: --driver takes only --trace FILE (got '%s')\n", program, a.c_str());
+    if (trace != nullptr) std::fclose(trace);
+    return 2;
+  }
+  return -1;
+}
+
 }  // namespace ev3driver

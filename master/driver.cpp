@@ -221,33 +221,13 @@ class Driver {
 
 int run_driver(int argc, char** argv) {
   std::FILE* trace = nullptr;
-  for (int i = 1; i < argc; ++i) {
-    const std::string a = argv[i];
-    if (a == "--driver") continue;
-    if (a == "--help" || a == "-h") {
-      std::printf(
-          "usage: ev3-master --driver [--trace FILE]\n\n"
-          "The master core on a virtual clock without sockets: one NDJSON input per stdin line\n"
-          "(config, recv, command, advance, save, restore), one NDJSON output line per input\n"
-          "on stdout, logs on stderr. docs/driver.md has the protocol.\n");
-      return 0;
-    }
-    if (a == "--trace" || a.rfind("--trace=", 0) == 0) {
-      std::string f = a == "--trace" ? (i + 1 < argc ? argv[++i] : "") : a.substr(8);
-      trace = std::fopen(f.c_str(), "w");
-      if (trace == nullptr) {
-        std::fprintf(stderr, "ev3-master: bad value for --trace: cannot open '%s'\n", f.c_str());
-        return 2;
-      }
-      continue;
-    }
-    std::fprintf(stderr, "ev3-master: --driver takes only --trace FILE (got '%s')\n", a.c_str());
-    return 2;
-  }
-  static Driver d(trace);
-  const int rc = d.run();
+  const int rc = ev3driver::driver_options(argc, argv, "ev3-master", "master",
+                                           "config, recv, command, advance, save, restore", trace);
+  if (rc >= 0) return rc;
+  static Driver d(trace);  // static: the cores are large
+  const int status = d.run();
   if (trace != nullptr) std::fclose(trace);
-  return rc;
+  return status;
 }
 
 }  // namespace ev3master
