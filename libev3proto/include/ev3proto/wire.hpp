@@ -394,17 +394,10 @@ inline DecodeResult header_bytewise(const char* datagram, std::size_t len, std::
   params_at = 0;
   for (std::size_t k = 0; k < 4; ++k) {
     const char* q = p;
-    std::uint64_t v = 0;
-    while (q != e) {
-      const unsigned d = static_cast<unsigned>(static_cast<unsigned char>(*q)) - unsigned{'0'};
-      if (d > 9u) break;
-      if (q - p < 11) v = v * 10u + d;  // 11 digits without a leading zero already exceed any maximum
-      ++q;
-    }
-    const std::size_t n = static_cast<std::size_t>(q - p);
-    if ((q != e && *q != ':') || n == 0 || (n > 1 && *p == '0')) return fail(Reason::bad_number, k);
-    if (v > kHeaderMax[k] || (k == kFieldType && v == 0)) return fail(Reason::out_of_range, k);
-    hdr[k] = static_cast<std::uint32_t>(v);
+    while (q != e && *q != ':') ++q;  // the field: up to the next ':' or the end
+    const Reason r = parse_number(p, q, kHeaderMax[k], hdr[k]);
+    if (r != Reason::ok) return fail(r, k);
+    if (k == kFieldType && hdr[k] == 0) return fail(Reason::out_of_range, k);
     if (q == e) {
       if (k < 3) return fail(Reason::too_few_fields, k + 1);
     } else {
