@@ -53,14 +53,15 @@ class Canvas {
 // looking at the brick would call its colour), grey when both are dark.
 std::string led_colour(const Robot& r, SimTime now) {
   int red = 0, green = 0;
-  for (const Led& l : r.leds()) {
+  for (std::size_t i = 0; i < 2; ++i) {  // leds() lists the left pair first
+    const Led& l = r.leds()[i];
     const int b = l.shown(now);
     if (l.name.find("red") != std::string::npos) red = std::max(red, b);
     else green = std::max(green, b);
   }
   if (red == 0 && green == 0) return "#9e9e9e";
-  char buf[16];
-  std::snprintf(buf, sizeof buf, "#%02x%02x%02x", red, green, 0);
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "#%02x%02x00", std::clamp(red, 0, 255), std::clamp(green, 0, 255));
   return buf;
 }
 

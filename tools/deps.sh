@@ -21,6 +21,9 @@ apt_pkgs=(
   "default-jdk-headless:/usr/bin/javac"
   "python3-venv:/usr/share/doc/python3-venv/copyright"
   "lcov:/usr/bin/lcov"
+  "fuse3:/usr/bin/fusermount3"
+  "libfuse3-dev:/usr/include/fuse3/fuse_lowlevel.h"
+  "pkgconf:/usr/bin/pkg-config"
 )
 missing=()
 for entry in "${apt_pkgs[@]}"; do
