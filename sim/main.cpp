@@ -419,7 +419,7 @@ std::string mount_robot(App& app, Mount& m, const fuse_lowlevel_ops& ops) {
   } else if (!S_ISDIR(st.st_mode)) {
     return m.dir + " is not a directory";
   }
-  std::string o = "default_permissions,fsname=ev3-sim," "subtype=ev3-sim";
+  std::string o = "default_permissions,auto_unmount,fsname=ev3-sim,subtype=ev3-sim";
   if (app.opt.allow_other) o += ",allow_other";
   const char* argv[] = {"ev3-sim", "-o", o.c_str()};
   fuse_args args = FUSE_ARGS_INIT(3, const_cast<char**>(argv));
@@ -515,7 +515,13 @@ int run(App& app) {
     for (auto& m : app.mounts) fds.push_back({fuse_session_fd(m->se), POLLIN, 0});
     fds.push_back({sfd, POLLIN, 0});
     if (control.rfd >= 0) fds.push_back({control.rfd, POLLIN, 0});
-    const std::int64_t wait_us = std::max<std::int64_t>(0, next_tick - monotonic_us());
+    // Wake for the next tick, or sooner when a held write is due (its simulated time, in real time).
+    std::int64_t wake = next_tick;
+    for (const PendingWrite& p : app.pending)
+      wake = std::min(wake, clock.start_us + static_cast<std::int64_t>(
+                                                 static_cast<double>(p.done_at - clock.sim_start + clock.behind) /
+                                                 clock.scale));
+    const std::int64_t wait_us = std::max<std::int64_t>(0, wake - monotonic_us());
     timespec ts{static_cast<time_t>(wait_us / 1000000), static_cast<long>(wait_us % 1000000) * 1000};
     const int n = ppoll(fds.data(), fds.size(), &ts, nullptr);
     if (n < 0 && errno != EINTR) {
@@ -556,6 +562,10 @@ int run(App& app) {
     }
 
     const std::int64_t now_us = monotonic_us();
+    if (!app.pending.empty()) {
+      catch_up(app);
+      answer_due_writes(app, false);
+    }
     if (now_us >= next_tick) {
       catch_up(app);
       answer_due_writes(app, false);

@@ -358,17 +358,17 @@ double TachoMotor::propose(double dt, double volts, SimTime now) {
 }
 
 void TachoMotor::commit(double delta, bool blocked, SimTime now) {
+  pos_ += delta;
   if (blocked) {
     rate_ = 0;
     if (drive_ == Drive::Speed || drive_ == Drive::ToPosition || drive_ == Drive::Direct) {
       if (blocked_since_ < 0) blocked_since_ = now;
       stalled_ = now - blocked_since_ >= kStallUs;
     }
-    return;
+  } else {
+    blocked_since_ = -1;
+    stalled_ = false;
   }
-  blocked_since_ = -1;
-  stalled_ = false;
-  pos_ += delta;
   if (drive_ == Drive::ToPosition && (pos_ - target_) * dir_ >= 0) {
     stop_with(active_.stop_action, true);
   }

@@ -68,7 +68,8 @@ class TachoMotor {
   /// Advances the controller by @p dt seconds with the battery at @p volts; returns the wheel
   /// turn it drives this step, in counts of the user frame (polarity applied).
   double propose(double dt, double volts, SimTime now);
-  /// Applies the step: @p blocked when the robot could not move (the wheel did not turn).
+  /// Applies the step: the wheel turned @p delta counts; @p blocked when an obstacle stopped the
+  /// robot (the wheel stalls: its speed drops to 0).
   void commit(double delta, bool blocked, SimTime now);
   /// +1, or -1 with polarity `inversed` (the physical sense of positive counts).
   double polarity_sign() const { return active_.inversed ? -1.0 : 1.0; }
