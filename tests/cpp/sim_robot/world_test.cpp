@@ -1,6 +1,10 @@
 // World files: every statement, and errors that name the line and column.
 #include <gtest/gtest.h>
 
+#include <fstream>
+#include <sstream>
+
+#include "ev3sim/sim.hpp"
 #include "ev3sim/world.hpp"
 
 namespace {
@@ -101,6 +105,26 @@ TEST(WorldFile, CommentsAndBlankLinesAnywhere) {
   World w;
   EXPECT_EQ(parse_world("\n# x\n\tbounds 0 0 1 1# trailing\n\n", "w", w), "");
   EXPECT_EQ(parse_world("bounds 0 0 1 1", "w", w), "");  // no final newline
+}
+
+TEST(WorldFile, TheExampleWorldsParseAndTheirStartsAreFree) {
+  for (const char* name : {"pen.txt", "arena.txt"}) {
+    std::ifstream in(std::string(EV3_SIM_WORLDS) + "/" + name);
+    ASSERT_TRUE(in) << name;
+    std::stringstream text;
+    text << in.rdbuf();
+    World w;
+    ASSERT_EQ(parse_world(text.str(), name, w), "") << name;
+    ASSERT_GE(w.starts.size(), 2u) << name;
+    Sim sim(w);
+    for (std::size_t i = 0; i < w.starts.size(); ++i) {
+      RobotConfig cfg;
+      cfg.name = "r" + std::to_string(i);
+      cfg.start.p = {w.starts[i].x, w.starts[i].y};
+      cfg.start.heading = deg2rad(w.starts[i].heading_deg);
+      EXPECT_EQ(sim.add_robot(cfg), "") << name << " start " << i;
+    }
+  }
 }
 
 }  // namespace
