@@ -486,17 +486,22 @@ int run(App& app) {
     }
   }
   static const fuse_lowlevel_ops ops = make_ops();
+  bool stop = false;
+  int status = 0;
   for (auto& m : app.mounts) {
     if (std::string e = mount_robot(app, *m, ops); !e.empty()) {
       app.log.log(kError, "%s", e.c_str());
-      return 1;
+      stop = true;  // unmount what is mounted, then exit 1
+      status = 1;
+      break;
     }
     app.log.log(kInfo, "%s: %s tree on %s at (%.1f, %.1f) heading %.1f", m->robot->name().c_str(),
                 opt.gen == Generation::Stretch ? "stretch" : "jessie", m->dir.c_str(), m->robot->pose().p.x,
                 m->robot->pose().p.y, rad2deg(m->robot->pose().heading));
   }
-  app.log.log(kInfo, "running: %.0f Hz, time x%g%s", opt.rate_hz, opt.time_scale,
-              opt.duration_s > 0 ? (", for " + std::to_string(opt.duration_s) + " s").c_str() : "");
+  if (!stop)
+    app.log.log(kInfo, "running: %.0f Hz, time x%g%s", opt.rate_hz, opt.time_scale,
+                opt.duration_s > 0 ? (", for " + std::to_string(opt.duration_s) + " s").c_str() : "");
   app.log.flush();
 
   const std::int64_t period_us = static_cast<std::int64_t>(1e6 / opt.rate_hz);
@@ -507,8 +512,6 @@ int run(App& app) {
   clock.scale = opt.time_scale;
   clock.max_step = std::max<SimTime>(kStepUs, static_cast<SimTime>(static_cast<double>(period_us) * opt.time_scale) * 4);
   std::int64_t next_tick = clock.start_us + period_us;
-  bool stop = false;
-  int status = 0;
   std::vector<pollfd> fds;
   while (!stop) {
     fds.clear();
@@ -579,7 +582,7 @@ int run(App& app) {
     app.log.tick(static_cast<ev3io::Millis>(now_us / 1000));
   }
   answer_due_writes(app, true);
-  write_outputs(app, opt.snapshot, opt.status);
+  if (status == 0) write_outputs(app, opt.snapshot, opt.status);
   for (auto& m : app.mounts) {
     if (m->se) {
       if (m->mounted) fuse_session_unmount(m->se);
