@@ -24,6 +24,7 @@ apt_pkgs=(
   "fuse3:/usr/bin/fusermount3"
   "libfuse3-dev:/usr/include/fuse3/fuse_lowlevel.h"
   "pkgconf:/usr/bin/pkg-config"
+  "tao-pegtl-dev:/usr/include/tao/pegtl.hpp"
 )
 missing=()
 for entry in "${apt_pkgs[@]}"; do

@@ -1,0 +1,94 @@
+/// @file behaviour/model.hpp
+/// @brief What the behaviour language and its checker need to know about a robot model: the devices
+/// it declares, the actions it implements and the limits of its motors.
+///
+/// TO BE UNIFIED with the robot layer of issue 15 (libev3proto/include/ev3proto/robot/, branch dev15):
+/// when that lands with model A's description, the Device and Action enumerations and kModelA below
+/// are replaced by (or built from) its tables. Until then this is the one place the checker reads a
+/// model from. Model A's figures come from the ev3dev reference trees (tests/data/ev3dev: the large
+/// motor `lego-ev3-l-motor` has max_speed 1050 and count_per_rot 360, so tacho counts per second are
+/// degrees per second of the wheel) and from the thesis' test robot (brief.md section 6).
+#pragma once
+
+#include <cstdint>
+#include <string_view>
+
+namespace ev3proto::behaviour {
+
+/// A device a behaviour may need. The value is the bit position in Model::devices.
+enum class Device : std::uint8_t {
+  left_motor = 0,  ///< large motor driving the left wheel (model A: outB)
+  right_motor = 1, ///< large motor driving the right wheel (model A: outC)
+  touch = 2,       ///< touch sensor, the front bumper (model A: in1); raises OBSTACLE_DETECTED
+  colour = 3,      ///< colour sensor facing the floor (model A: in3)
+  ultrasonic = 4,  ///< ultrasonic sensor facing forward (model A: in4); raises PROXIMITY_ALERT
+  gyro = 5,        ///< gyro sensor (not on model A)
+};
+inline constexpr std::size_t kDeviceCount = 6;
+
+/// Bit of a device in a device mask.
+constexpr std::uint32_t bit(Device d) noexcept { return std::uint32_t{1} << static_cast<unsigned>(d); }
+
+/// The device's name in messages ("the robot has no gyro").
+constexpr std::string_view to_string(Device d) noexcept {
+  switch (d) {
+    case Device::left_motor: return "left motor";
+    case Device::right_motor: return "right motor";
+    case Device::touch: return "touch sensor";
+    case Device::colour: return "colour sensor";
+    case Device::ultrasonic: return "ultrasonic sensor";
+    case Device::gyro: return "gyro sensor";
+  }
+  return "?";
+}
+
+/// An action of the behaviour language (issue 15's actions). The value is the bit position in
+/// Model::actions. `repeat` is Repeat(n, ...): a state that runs its steps n times.
+enum class Action : std::uint8_t {
+  run = 0,    ///< RunForever: both wheels at a speed until something else happens
+  drive = 1,  ///< DriveDistance: straight ahead (or back) a distance
+  turn = 2,   ///< Turn: about the axle midpoint, wheels in opposite directions
+  stop = 3,   ///< Stop: coast, brake or hold
+  pause = 4,  ///< Pause: let the motors settle, then take a clean reading
+  repeat = 5, ///< Repeat(n, steps)
+};
+inline constexpr std::size_t kActionCount = 6;
+
+/// Bit of an action in an action mask.
+constexpr std::uint32_t bit(Action a) noexcept { return std::uint32_t{1} << static_cast<unsigned>(a); }
+
+/// The action's keyword in the language.
+constexpr std::string_view to_string(Action a) noexcept {
+  switch (a) {
+    case Action::run: return "run";
+    case Action::drive: return "drive";
+    case Action::turn: return "turn";
+    case Action::stop: return "stop";
+    case Action::pause: return "pause";
+    case Action::repeat: return "repeat";
+  }
+  return "?";
+}
+
+/// A robot model as the checker sees it.
+struct Model {
+  std::string_view name;       ///< as announced in AGENT ("A")
+  std::uint32_t devices = 0;   ///< devices the model is built with (bit(Device))
+  std::uint32_t actions = 0;   ///< actions it implements (bit(Action))
+  std::int32_t max_speed = 0;  ///< drive motors' max_speed, degrees of the wheel per second
+};
+
+/// Both drive motors.
+inline constexpr std::uint32_t kDriveMotors = bit(Device::left_motor) | bit(Device::right_motor);
+
+/// Model A, the thesis' test robot: two large motors, touch, colour and ultrasonic sensors; every
+/// action. (Clearly marked table, see the file comment: to be unified with issue 15's model A.)
+inline constexpr Model kModelA{
+    "A",
+    kDriveMotors | bit(Device::touch) | bit(Device::colour) | bit(Device::ultrasonic),
+    bit(Action::run) | bit(Action::drive) | bit(Action::turn) | bit(Action::stop) | bit(Action::pause) |
+        bit(Action::repeat),
+    1050,
+};
+
+}  // namespace ev3proto::behaviour
