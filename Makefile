@@ -7,7 +7,7 @@
 #   make arm       static armel (EV3) build in build/arm/
 #   make spec      SANY + TLC on the small models, broken variants refuted, diagram up to date
 #   make spec-full the full models (minutes)
-#   make diagrams  regenerate docs/lifecycle.svg from TLC's state graph
+#   make diagrams  regenerate docs/lifecycle.svg from TLC's state graph, docs/behaviours/*.svg
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
@@ -106,8 +106,9 @@ spec: deps
 spec-full: deps
 	@python3 tools/spec.py check --size full
 
-diagrams: deps
+diagrams: build
 	@python3 tools/spec.py diagram
+	@bash tools/behaviour/diagrams.sh
 
 clean:
 	rm -rf build

@@ -1,0 +1,81 @@
+// Built with -fno-exceptions -fno-rtti (as the agent is) and with the global operator new replaced by
+// one that aborts: parsing, checking, printing and drawing the built-ins and refusing bad definitions
+// must compile so and allocate nothing on the heap. A plain program (no gtest), also run under qemu-arm.
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <new>
+
+#include "ev3proto/behaviour/builtins.hpp"
+#include "ev3proto/behaviour/checker.hpp"
+#include "ev3proto/behaviour/dot.hpp"
+#include "ev3proto/behaviour/parser.hpp"
+#include "ev3proto/behaviour/print.hpp"
+
+#if defined(__cpp_exceptions) || defined(__EXCEPTIONS)
+#error "this file must be compiled with -fno-exceptions"
+#endif
+#if defined(__cpp_rtti) || defined(__GXX_RTTI)
+#error "this file must be compiled with -fno-rtti"
+#endif
+
+namespace {
+[[noreturn]] void heap_used() {
+  std::fputs("no_heap: the behaviour code allocated on the heap\n", stderr);
+  std::abort();
+}
+}  // namespace
+
+void* operator new(std::size_t) { heap_used(); }
+void* operator new[](std::size_t) { heap_used(); }
+void* operator new(std::size_t, const std::nothrow_t&) noexcept { heap_used(); }
+void* operator new[](std::size_t, const std::nothrow_t&) noexcept { heap_used(); }
+void operator delete(void*) noexcept {}
+void operator delete[](void*) noexcept {}
+void operator delete(void*, std::size_t) noexcept {}
+void operator delete[](void*, std::size_t) noexcept {}
+
+#define CHECK(cond)                                                                 \
+  do {                                                                              \
+    if (!(cond)) {                                                                  \
+      std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
+      return 1;                                                                     \
+    }                                                                               \
+  } while (0)
+
+using namespace ev3proto::behaviour;
+
+static Definition def, again;
+static char buf[1 << 14];
+
+int main() {
+  Diagnostic d;
+  Findings f;
+  for (const Builtin& b : kBuiltins) {
+    CHECK(parse(b.text, def, d));
+    CHECK(check(def, kModelA, f));
+    Text c(buf, sizeof buf);
+    compact(c, def);
+    CHECK(!c.overflow());
+    CHECK(parse(c.view(), again, d));
+    CHECK(equivalent(def, again));
+    Text g(buf, sizeof buf);
+    to_dot(g, def);
+    CHECK(!g.overflow());
+  }
+  // Refusals: a syntax error, a meaning error, a checker finding, a bad argument.
+  CHECK(!parse("behaviour x\nstate a = pause 1s ->", def, d));
+  CHECK(d.code == Code::syntax && d.pos.line == 2 && d.pos.col == 22);
+  CHECK(!parse("behaviour x\nstate a = trun 90 -> a", def, d));
+  CHECK(std::strcmp(d.text, "unknown action 'trun' (actions: run, drive, turn, stop, pause, repeat)") == 0);
+  CHECK(parse("behaviour x;state a = pause 1s -> b;state b = pause 1s -> a", def, d));
+  CHECK(!check(def, kModelA, f) && f.items[0].code == Code::no_stop);
+  CHECK(parse(find_builtin("explore")->text, def, d));
+  const std::string_view args[] = {"speed=2000"};
+  CHECK(apply_args(def, args, 1, d));
+  CHECK(!check(def, kModelA, f) && f.items[0].code == Code::range);
+  const std::string_view bad[] = {"speed"};
+  CHECK(!apply_args(def, bad, 1, d));
+  std::puts("no_heap: ok");
+  return 0;
+}
