@@ -12,7 +12,7 @@
 #include <string>
 #include <vector>
 
-#include "../datadriven/datadriven.hpp"
+#include "check_file.hpp"
 #include "ev3proto/behaviour/builtins.hpp"
 #include "ev3proto/behaviour/checker.hpp"
 #include "ev3proto/behaviour/dot.hpp"
@@ -43,23 +43,7 @@ std::string name_of(const ::testing::TestParamInfo<std::string>& p) {
 class BehaviourTranscript : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(BehaviourTranscript, Matches) {
-  std::string error;
-  const datadriven::File f = datadriven::parse(GetParam(), error);
-  ASSERT_TRUE(error.empty()) << error;
-  ASSERT_FALSE(f.cases.empty());
-  std::vector<std::vector<std::string>> actual;
-  for (const datadriven::Case& c : f.cases) {
-    const std::string got = bhvtest::run_case(c.input);
-    actual.push_back(datadriven::split_lines(got));
-    if (!datadriven::rewriting()) {
-      std::string want;
-      for (const auto& l : c.expected) want += l + "\n";
-      EXPECT_EQ(want, got) << c.file << ":" << c.line;
-    }
-  }
-  if (datadriven::rewriting()) {
-    ASSERT_TRUE(datadriven::rewrite(GetParam(), f, actual));
-  }
+  bhvtest::check_file(GetParam(), [](const datadriven::Case& c) { return bhvtest::run_case(c.input); });
 }
 
 INSTANTIATE_TEST_SUITE_P(Testdata, BehaviourTranscript, ::testing::ValuesIn(transcripts()), name_of);

@@ -13,7 +13,7 @@
 #include <unistd.h>
 #include <vector>
 
-#include "../datadriven/datadriven.hpp"
+#include "check_file.hpp"
 
 namespace {
 
@@ -49,28 +49,13 @@ std::string run_cli(const std::vector<std::string>& input, const std::string& di
 }
 
 TEST(BehaviourCli, Transcript) {
-  const std::string path = std::string(EV3_TESTDATA) + "/behaviour_cli.txt";
-  std::string error;
-  const datadriven::File f = datadriven::parse(path, error);
-  ASSERT_TRUE(error.empty()) << error;
-  ASSERT_FALSE(f.cases.empty());
   char tmpl[] = "/tmp/ev3bhvcli.XXXXXX";
   ASSERT_NE(mkdtemp(tmpl), nullptr);
   const std::string dir = tmpl;
-  std::vector<std::vector<std::string>> actual;
-  for (const datadriven::Case& c : f.cases) {
-    ASSERT_EQ(c.input[0].rfind("cli ", 0), 0u) << c.file << ":" << c.line << ": a case starts with cli";
-    const std::string got = run_cli(c.input, dir);
-    actual.push_back(datadriven::split_lines(got));
-    if (!datadriven::rewriting()) {
-      std::string want;
-      for (const auto& l : c.expected) want += l + "\n";
-      EXPECT_EQ(want, got) << c.file << ":" << c.line;
-    }
-  }
-  if (datadriven::rewriting()) {
-    ASSERT_TRUE(datadriven::rewrite(path, f, actual));
-  }
+  bhvtest::check_file(std::string(EV3_TESTDATA) + "/behaviour_cli.txt", [&](const datadriven::Case& c) {
+    EXPECT_EQ(c.input[0].rfind("cli ", 0), 0u) << c.file << ":" << c.line << ": a case starts with cli";
+    return run_cli(c.input, dir);
+  });
   std::system(("rm -rf '" + dir + "'").c_str());
 }
 
