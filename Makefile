@@ -2,7 +2,7 @@
 #   make demo      a master and three agents on this machine: sync, behaviour, master lost, election (~30 s)
 #   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel
 #   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec)
-#   make fuzz      long libFuzzer run (FUZZ_SECONDS, default 1800)
+#   make fuzz      long libFuzzer run (FUZZ_SECONDS per target, default 1800)
 #   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
 #   make arm       static armel (EV3) build in build/arm/
 #   make spec      SANY + TLC on the small models, broken variants refuted, diagram up to date
@@ -19,7 +19,7 @@ PY := $(CURDIR)/.venv/bin/python
 BIN := $(CURDIR)/build/bin
 JOBS ?= $(shell nproc)
 FUZZ_SECONDS ?= 1800
-FUZZ_SMOKE_SECONDS ?= 60
+FUZZ_SMOKE_SECONDS ?= 30
 BENCH_RUNS ?= 9
 CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
                 -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN)
@@ -76,7 +76,8 @@ fuzz-build: deps
 	   -DCMAKE_CXX_COMPILER=clang++-14 -DEV3_FUZZ=ON -DEV3_TESTS=OFF -DEV3_TOOLS=OFF >/dev/null
 	@ninja -C build/fuzz
 
-# A short fuzz run with ASan+UBSan over the committed corpus: part of `make test`.
+# A short fuzz run with ASan+UBSan over the committed corpus: part of `make test`. FUZZ_SMOKE_SECONDS
+# is per target: 30 s each for fuzz_decode and fuzz_behaviour (60 s in all, as with one target at 60 s).
 test-fuzz: fuzz-build
 	@bash tools/fuzz.sh smoke $(FUZZ_SMOKE_SECONDS)
 
