@@ -32,16 +32,16 @@ constexpr const char* kUsage =
     "check    parse and check each FILE as a robot checks a BEHAVIOUR custom definition on receipt;\n"
     "         prints 'FILE: ok: ...' with its size on the wire, or each problem as\n"
     "         'FILE: line L col C: message' (on stderr). --without DEVICE: the robot lacks it\n"
-    "         (left-motor, right-motor, touch, colour, ultrasonic, gyro); --set KEY=VALUE: a BEHAVIOUR\n"
+    "         (left, right, ultrasonic, touch, colour, gyro: robot/'s roles); --set KEY=VALUE: a BEHAVIOUR\n"
     "         argument over the params (as 'behaviour ID NAME KEY=VALUE' sends it).\n"
     "dot      the automaton in Graphviz's language on stdout (dot -Tsvg draws it).\n"
     "compact  the definition on one line, without comments (the form to send: ';' costs one byte on\n"
     "         the wire, a new line three).\n"
-    "list     the built-in behaviours' names; show NAME prints one's text.\n"
+    "list     the built-in behaviours' names; show NAME prints one's text (exit 2 if there is none).\n"
     "FILE - is stdin. Exit status: 0 ok, 1 a definition refused, 2 a bad command line or unreadable file.\n";
 
 int usage_error(const std::string& msg) {
-  std::cerr << "ev3-behaviour: " << msg << "\n" << kUsage;
+  std::cerr << "ev3-behaviour: " << msg << " (ev3-behaviour --help)\n";
   return 2;
 }
 
@@ -74,12 +74,9 @@ std::size_t datagram_size(std::string_view text) {
 }
 
 bool device_named(std::string_view n, Device& d) {
-  const std::pair<std::string_view, Device> names[] = {
-      {"left-motor", Device::left_motor}, {"right-motor", Device::right_motor}, {"touch", Device::touch},
-      {"colour", Device::colour},         {"ultrasonic", Device::ultrasonic},   {"gyro", Device::gyro}};
-  for (const auto& [name, dev] : names)
-    if (name == n) {
-      d = dev;
+  for (std::uint8_t k = 0; k < kDeviceCount; ++k)
+    if (role_name(static_cast<Device>(k)) == n) {
+      d = static_cast<Device>(k);
       return true;
     }
   return false;
@@ -148,7 +145,8 @@ int cmd_check(const std::vector<std::string>& args) {
     Text c(buf, sizeof buf);
     compact(c, def);
     std::cout << path << ": ok: behaviour " << def.name.view() << ", " << int{def.state_count}
-              << " states (end included), " << int{def.param_count} << " params; BEHAVIOUR custom datagram "
+              << " states (end included), " << int{def.param_count} << (def.param_count == 1 ? " param" : " params")
+              << "; BEHAVIOUR custom datagram "
               << datagram_size(text) << " bytes as written, " << datagram_size(c.view())
               << " compact (at most " << ev3proto::kMaxDatagram << ")\n";
   }
@@ -193,7 +191,7 @@ int main(int argc, char** argv) {
     const Builtin* b = find_builtin(args[0]);
     if (b == nullptr) {
       std::cerr << "ev3-behaviour: no built-in behaviour '" << args[0] << "' (ev3-behaviour list)\n";
-      return 1;
+      return 2;
     }
     std::cout << b->text;
     return 0;

@@ -127,11 +127,11 @@ TEST(Builtins, DotDrawsEveryStateAndTransition) {
   Diagnostic g;
   ASSERT_TRUE(parse(find_builtin("explore")->text, d, g));
   const std::string dot = bhvtest::with_text([&](Text& t) { to_dot(t, d); });
-  EXPECT_NE(dot.find("\"end\" [label=\"end\\nstop brake\\n(also after a failed motor action)\", shape=doubleoctagon"),
+  EXPECT_NE(dot.find("\"end\" [label=\"end\\nstop brake\\n(also after a failed action)\", shape=doubleoctagon"),
             std::string::npos);
   EXPECT_NE(dot.find("\"forward\" -> \"bumped\" [style=dashed, label=\"OBSTACLE_DETECTED\"];"), std::string::npos);
   EXPECT_NE(dot.find("\"forward\" -> \"rest\";"), std::string::npos);
-  EXPECT_NE(dot.find("ignores OBSTACLE_DETECTED, PROXIMITY_ALERT"), std::string::npos);
+  EXPECT_NE(dot.find("ignores PROXIMITY_ALERT, OBSTACLE_DETECTED"), std::string::npos);
   EXPECT_NE(dot.find("_start -> \"forward\""), std::string::npos);
 }
 

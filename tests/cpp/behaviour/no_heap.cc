@@ -67,8 +67,8 @@ int main() {
   CHECK(!parse("behaviour x\nstate a = pause 1s ->", def, d));
   CHECK(d.code == Code::syntax && d.pos.line == 2 && d.pos.col == 22);
   CHECK(!parse("behaviour x\nstate a = trun 90 -> a", def, d));
-  CHECK(std::strcmp(d.text, "unknown action 'trun' (actions: run, drive, turn, stop, pause, repeat)") == 0);
-  CHECK(parse("behaviour x;state a = pause 1s -> b;state b = pause 1s -> a", def, d));
+  CHECK(std::strcmp(d.text, "unknown action 'trun' (actions: run, drive, turn, stop, pause, wait, repeat)") == 0);
+  CHECK(parse("behaviour x;state a = wait 1s -> b;state b = wait 1s -> a", def, d));
   CHECK(!check(def, kModelA, f) && f.items[0].code == Code::no_stop);
   CHECK(parse(find_builtin("explore")->text, def, d));
   const std::string_view args[] = {"speed=2000"};

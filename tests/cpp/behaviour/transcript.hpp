@@ -2,8 +2,9 @@
 // native and armel tests. A case's first input line is the command, the other lines the definition:
 //
 //   parse                    the tables it parses into (dump below), or the error
-//   check [OPTION]...        the checker's findings, or ok. Options: --without DEVICE (the robot
-//                            lacks it), --lacks ACTION (the model lacks it), --set KEY=VALUE (an argument)
+//   check [OPTION]...        the checker's findings, or ok. Options: --without ROLE (the robot lacks
+//                            the device: left, right, ultrasonic, touch, colour, gyro), --lacks ACTION
+//                            (the model lacks it), --set KEY=VALUE (a BEHAVIOUR argument)
 //   compact                  the one-line form, and whether it parses back to the same tables
 //
 // Errors and findings are written `<code>: line L col C: message`.
@@ -101,16 +102,11 @@ inline std::string dump(const Definition& d) {
 }
 
 inline bool device_named(const std::string& n, Device& d) {
-  for (std::uint8_t k = 0; k < kDeviceCount; ++k) {
-    std::string s(to_string(static_cast<Device>(k)));
-    s = s.substr(0, s.find(' '));  // "touch sensor" -> touch, "left motor" -> left
-    if (s == "left") s = "left-motor";
-    if (s == "right") s = "right-motor";
-    if (s == n) {
+  for (std::uint8_t k = 0; k < kDeviceCount; ++k)
+    if (role_name(static_cast<Device>(k)) == n) {
       d = static_cast<Device>(k);
       return true;
     }
-  }
   return false;
 }
 

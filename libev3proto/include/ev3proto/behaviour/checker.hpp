@@ -3,13 +3,16 @@
 /// shows each defect, before it runs (docs/behaviours.md "The checker").
 ///
 /// The automaton's edges: a state's default transition (its action finished), its reactions and the
-/// behaviour-wide ones it does not override (events and conditions), and -- for the rule "a way to the
-/// stop state" only -- the failure of an action that drives the motors, which the runtime answers by
-/// going to the stop state. The normal course is what the start state reaches by default transitions.
+/// behaviour-wide ones it does not override (events and conditions). An action that fails ends in the
+/// stop state whatever the text says (the runtime's rule, ACTION_ERR): that is no edge here, so "a way
+/// to the stop state" is one the behaviour declares (`on DEVICE_ERROR -> end` before the first state
+/// gives every state one). The normal course is what the start state reaches by default transitions.
 /// Rules, in the order they are reported: actions the model lacks, devices the robot lacks, values
 /// outside the model's or the language's limits, unreachable states, moving states without a reaction
 /// to OBSTACLE_DETECTED or PROXIMITY_ALERT, reactions that never return to the normal course, states
-/// with no way to the stop state. No heap, no exceptions.
+/// with no way to the stop state. A reaction returns when its course (default transitions, conditions
+/// and reactions but those to DEVICE_ERROR) reaches the normal course or the stop state.
+/// No heap, no exceptions.
 #pragma once
 
 #include <cstddef>
@@ -28,6 +31,7 @@ inline constexpr std::size_t kMaxFindings = 8;
 inline constexpr std::int32_t kMaxDistance = 10000;  ///< mm, one drive (10 m)
 inline constexpr std::int32_t kMaxAngle = 3600;      ///< degrees, one turn (ten whole turns)
 inline constexpr std::int32_t kMaxPause = 3600000;   ///< ms, one pause (an hour)
+inline constexpr std::int32_t kMaxWait = 1000000000; ///< ms, one wait (10^6 s, robot/'s longest wait)
 inline constexpr std::int32_t kMaxUltrasonic = 2550; ///< mm, the ultrasonic sensor's range (255 cm)
 
 /// What check() found.
@@ -38,8 +42,8 @@ struct Findings {
   bool ok() const noexcept { return count == 0; }
 };
 
-/// The devices a behaviour needs from a robot of model @p model: the drive motors for run, drive, turn
-/// and stop; the sensor of every condition and report; the touch sensor (OBSTACLE_DETECTED) and the
+/// The devices a behaviour needs from a robot of model @p model: the drive motors for every action but
+/// wait (a pause brakes them first); the sensor of every condition and report; the touch sensor (OBSTACLE_DETECTED) and the
 /// ultrasonic sensor (PROXIMITY_ALERT) for a reaction that is not `ignore`, when the model has them (a
 /// model without the sensor never raises the event: thesis 6.1.2).
 inline std::uint32_t devices_needed(const Definition& def, const Model& model) noexcept {
@@ -48,7 +52,7 @@ inline std::uint32_t devices_needed(const Definition& def, const Model& model) n
     const State& st = def.states[s];
     if (st.implicit) continue;  // the predefined stop state needs nothing: no motors, nothing to stop
     for (std::uint8_t k = 0; k < st.step_count; ++k)
-      if (def.steps[st.first_step + k].action != Action::pause) need |= kDriveMotors;
+      if (def.steps[st.first_step + k].action != Action::wait) need |= kDriveMotors;
   }
   for (std::uint8_t k = 0; k < def.reaction_count; ++k) {
     const Reaction& r = def.reactions[k];
@@ -99,34 +103,28 @@ struct Checker {
   }
 
   /// Calls f(target, via) for each declared edge out of @p s (via: kNone for the default transition,
-  /// else the reaction's index). Reactions to `ignore` are no edge.
+  /// else the reaction's index). Reactions to `ignore` are no edge. With @p course, the reactions to
+  /// DEVICE_ERROR are left out: an error path is not the course a reaction takes back.
   template <typename F>
-  void edges(std::uint8_t s, F&& f) const noexcept {
+  void edges(std::uint8_t s, F&& f, bool course = false) const noexcept {
     if (s == def.stop) return;
     const State& st = def.states[s];
     if (st.next != kNone) f(st.next, kNone);
-    for (std::uint8_t k = 0; k < st.reaction_count; ++k) {
-      const std::uint8_t i = static_cast<std::uint8_t>(st.first_reaction + k);
-      if (def.reactions[i].target != kIgnore) f(def.reactions[i].target, i);
-    }
+    auto take = [&](std::uint8_t i) {
+      const Reaction& r = def.reactions[i];
+      if (r.target == kIgnore || (course && r.trigger == Trigger::event && r.event == Event::DEVICE_ERROR)) return;
+      f(r.target, i);
+    };
+    for (std::uint8_t k = 0; k < st.reaction_count; ++k) take(static_cast<std::uint8_t>(st.first_reaction + k));
     for (std::uint8_t i = 0; i < def.global_reactions; ++i) {
       const Reaction& r = def.reactions[i];
-      if (r.target == kIgnore) continue;
       if (r.trigger == Trigger::event && def.on_event(s, r.event) != &r) continue;  // overridden
-      f(r.target, i);
+      take(i);
     }
   }
 
-  /// True when the state's steps drive the motors (such an action can fail: then the stop state).
-  bool can_fail(std::uint8_t s) const noexcept {
-    const State& st = def.states[s];
-    for (std::uint8_t k = 0; k < st.step_count; ++k)
-      if (def.steps[st.first_step + k].action != Action::pause) return true;
-    return false;
-  }
-
-  /// Marks in @p seen what @p from reaches by declared edges (and failures, with @p failures).
-  void closure(std::uint8_t from, bool (&seen)[kMaxStates], bool failures) const noexcept {
+  /// Marks in @p seen what @p from reaches by declared edges (see edges() for @p course).
+  void closure(std::uint8_t from, bool (&seen)[kMaxStates], bool course = false) const noexcept {
     std::uint8_t stack[kMaxStates];
     std::size_t n = 0;
     for (bool& b : seen) b = false;
@@ -140,8 +138,7 @@ struct Checker {
           stack[n++] = t;
         }
       };
-      edges(s, visit);
-      if (failures && can_fail(s)) visit(def.stop, kNone);
+      edges(s, visit, course);
     }
   }
 
@@ -160,11 +157,6 @@ struct Checker {
           queue[tail++] = t;
         }
       });
-      if (can_fail(s) && !reach[def.stop]) {  // a failure reaches the stop state
-        reach[def.stop] = true;
-        parent[def.stop] = Hop{s, kNone};
-        queue[tail++] = def.stop;
-      }
     }
     for (std::uint8_t s = def.start; s != kNone && !normal[s]; s = def.states[s].next) normal[s] = true;
   }
@@ -252,7 +244,7 @@ struct Checker {
       };
       for (std::uint8_t k = 0; k < def.step_count; ++k) {
         const Step& s = def.steps[k];
-        if (s.action != Action::pause && (kDriveMotors & bit(dev)) && s.pos.line != 0)
+        if (s.action != Action::wait && (kDriveMotors & bit(dev)) && s.pos.line != 0)
           take(s.pos, [&](Text& t) { t << to_string(s.action); });
       }
       for (std::uint8_t k = 0; k < def.reaction_count; ++k) {
@@ -311,7 +303,7 @@ struct Checker {
       } else {
         write(m, a.num);
       }
-      if (outside) m << " is outside " << r.lo << ".." << r.hi << ' ' << r.unit << " (" << r.limit << ")";
+      if (outside) m << " is outside " << r.lo << ".." << r.hi << (*r.unit ? " " : "") << r.unit << " (" << r.limit << ")";
       else m << (lo == hi ? " is 0" : " can be 0") << " (" << who << " 0 does nothing)";
     });
   }
@@ -324,9 +316,10 @@ struct Checker {
     limit[lt.size()] = '\0';
     const Range speed{1, model.max_speed, false, "speed", "deg/s", limit};
     const Range run_speed{-model.max_speed, model.max_speed, true, "speed", "deg/s", limit};
-    const Range distance{-kMaxDistance, kMaxDistance, true, "distance", "mm", "the longest drive"};
-    const Range angle{-kMaxAngle, kMaxAngle, true, "angle", "degrees", "the largest turn"};
-    const Range pause{1, kMaxPause, false, "duration", "ms", "the longest pause"};
+    const Range distance{-kMaxDistance, kMaxDistance, true, "distance", "mm", "a drive is at most 10 m"};
+    const Range angle{-kMaxAngle, kMaxAngle, true, "angle", "degrees", "a turn is at most ten whole turns"};
+    const Range pause{1, kMaxPause, false, "duration", "ms", "a pause lasts 1 ms to an hour"};
+    const Range wait{1, kMaxWait, false, "duration", "ms", "a wait lasts 1 ms to 10^6 s"};
     for (std::uint8_t k = 0; k < def.step_count; ++k) {
       const Step& s = def.steps[k];
       const std::string_view who = to_string(s.action);
@@ -341,6 +334,7 @@ struct Checker {
           check_value(s.speed, speed, who, reported);
           break;
         case Action::pause: check_value(s.main, pause, who, reported); break;
+        case Action::wait: check_value(s.main, wait, who, reported); break;
         case Action::stop: case Action::repeat: break;
       }
     }
@@ -402,7 +396,7 @@ struct Checker {
       }
       if (source == kNone) continue;
       bool seen[kMaxStates];
-      closure(r.target, seen, false);
+      closure(r.target, seen, true);
       bool back = seen[def.stop];
       for (std::uint8_t s = 0; s < def.state_count; ++s) back = back || (seen[s] && normal[s]);
       if (back) continue;
@@ -427,7 +421,7 @@ struct Checker {
     for (std::uint8_t s = 0; s < def.state_count; ++s) {
       if (!reach[s] || s == def.stop || reported[s]) continue;
       bool seen[kMaxStates];
-      closure(s, seen, true);
+      closure(s, seen);
       if (seen[def.stop]) continue;
       for (std::uint8_t t = 0; t < def.state_count; ++t) reported[t] = reported[t] || seen[t];
       find(Code::no_stop, def.states[s].pos, [&](Text& m) {
@@ -439,7 +433,7 @@ struct Checker {
         write_defaults_from(m, s, on_path);
         m << " (from " << def.states[s].name.view() << " only ";
         write_set(m, seen);
-        m << ")";
+        m << "; `on DEVICE_ERROR -> end` before the first state gives every state one)";
       });
     }
   }

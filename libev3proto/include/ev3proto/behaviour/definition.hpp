@@ -87,15 +87,17 @@ enum class StopMode : std::uint8_t { coast, brake, hold };
 /// Colours of the colour sensor in COL-COLOR mode; the value is ev3dev's value0.
 enum class Colour : std::uint8_t { none, black, blue, green, yellow, red, white, brown };
 
-/// Events of the robot (issue 15, thesis 5.2.2; TO BE UNIFIED with robot/'s event enumeration).
+/// Events of the robot (issue 15, thesis 5.2.2), in the order and with the values of robot/events.hpp
+/// EventKind, so the runtime can convert one into the other.
 enum class Event : std::uint8_t {
-  OBSTACLE_DETECTED,   ///< the touch sensor (bumper) pressed
-  PROXIMITY_ALERT,     ///< the ultrasonic sensor below its threshold
   DEVICE_CONNECTED,    ///< a device appeared on a port
+  PROXIMITY_ALERT,     ///< the ultrasonic sensor below its threshold (once until it goes away)
+  OBSTACLE_DETECTED,   ///< the touch sensor (bumper) pressed (once per press)
+  DEVICE_ERROR,        ///< a device gave garbage or is not what the model expects
   DEVICE_DISCONNECTED, ///< critical: a device vanished (the lifecycle's, no reaction allowed)
   BATTERY_LOW,         ///< critical: voltage below the threshold (the lifecycle's)
 };
-inline constexpr std::size_t kEventCount = 5;
+inline constexpr std::size_t kEventCount = 6;
 
 /// True for the events the lifecycle handles (a behaviour may not react to them).
 constexpr bool is_critical(Event e) noexcept {
@@ -128,11 +130,14 @@ struct Arg {
 };
 
 /// One action of a state. Arguments by action: run (main = speed), drive (main = distance, speed),
-/// turn (main = angle, speed), stop (main = stop mode), pause (main = duration).
+/// turn (main = angle, speed), stop (main = stop mode), pause and wait (main = duration). `halt` is
+/// how run, drive and turn stop the motors when they end or are interrupted (option stop=, brake
+/// when not written).
 struct Step {
   Action action = Action::pause;
   Arg main;
   Arg speed;
+  Arg halt;
   Pos pos;
 };
 
@@ -306,7 +311,8 @@ struct Definition {
     return false;
   }
 
-  /// True when the state's action moves the robot (run, drive or turn among its steps).
+  /// True when the state's action moves the robot (run, drive or turn among its steps). The events a
+  /// moving state reacts to (a state, not ignore) are the ones that interrupt its action.
   bool moves(std::uint8_t s) const noexcept {
     const State& st = states[s];
     for (std::uint8_t k = 0; k < st.step_count; ++k) {
@@ -426,6 +432,7 @@ constexpr std::string_view to_string(Event e) noexcept {
     case Event::OBSTACLE_DETECTED: return "OBSTACLE_DETECTED";
     case Event::PROXIMITY_ALERT: return "PROXIMITY_ALERT";
     case Event::DEVICE_CONNECTED: return "DEVICE_CONNECTED";
+    case Event::DEVICE_ERROR: return "DEVICE_ERROR";
     case Event::DEVICE_DISCONNECTED: return "DEVICE_DISCONNECTED";
     case Event::BATTERY_LOW: return "BATTERY_LOW";
   }

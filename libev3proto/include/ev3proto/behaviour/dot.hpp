@@ -2,8 +2,8 @@
 /// @brief to_dot(): a behaviour's automaton for Graphviz. States are boxes (the normal course in bold),
 /// the start is marked by an arrow from a dot, the stop state is a double octagon; default transitions
 /// are solid, reactions dashed and labelled with their event or condition; `ignore`d events are listed
-/// in the state; a note gives the params and the report. The failure of a motor action (to the stop
-/// state) is not drawn: every such state has it.
+/// in the state; a note gives the params and the report. The failure of an action (to the stop state,
+/// the runtime's rule) is not drawn: every state has it.
 #pragma once
 
 #include <cstdint>
@@ -45,7 +45,7 @@ inline void to_dot(Text& out, const Definition& def) {
     const State& st = def.states[s];
     out << "  \"" << st.name.view() << "\" [label=\"" << st.name.view() << "\\n";
     write_action(out, def, st, ", ", true);
-    if (s == def.stop) out << "\\n(also after a failed motor action)";
+    if (s == def.stop) out << "\\n(also after a failed action)";
     bool first = true;
     for (std::uint8_t e = 0; e < kEventCount && s != def.stop; ++e) {
       const Reaction* r = def.on_event(s, static_cast<Event>(e));

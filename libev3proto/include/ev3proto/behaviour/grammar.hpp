@@ -108,9 +108,10 @@ struct line : pegtl::seq<sp, pegtl::opt<statement, sp>, pegtl::opt<comment>, sta
 struct definition : pegtl::seq<pegtl::list<line, sep>, end_of_text> {};
 
 // ---- What a failed rule was expected to be (syntax error messages) ---------------------------------
+// In the order a message lists them.
 enum class Expect : std::uint8_t {
-  none, statement, end_of_statement, name, param_name, state_name, value, number, sensor, action, option,
-  event, target, op, eq, arrow, comma, dotdot, lparen, rparen, every, count
+  none, statement, name, param_name, state_name, value, number, sensor, action, option, event, target, op, eq,
+  arrow, comma, dotdot, lparen, rparen, every, count, end_of_statement
 };
 inline constexpr std::size_t kExpectCount = 22;
 
@@ -119,15 +120,15 @@ constexpr const char* to_text(Expect e) noexcept {
     case Expect::none: return "";
     case Expect::statement: return "a statement (behaviour, param, report, state, on, when)";
     case Expect::end_of_statement: return "the end of the statement (';' or a new line)";
-    case Expect::name: return "a name";
+    case Expect::name: return "a behaviour name";
     case Expect::param_name: return "a param name";
     case Expect::state_name: return "a state name";
     case Expect::value: return "a value (a number, $param or a word)";
     case Expect::number: return "a number";
     case Expect::sensor: return "a sensor (distance, touch, colour, gyro)";
-    case Expect::action: return "an action (run, drive, turn, stop, pause, repeat)";
+    case Expect::action: return "an action (run, drive, turn, stop, pause, wait, repeat)";
     case Expect::option: return "an option (name=value)";
-    case Expect::event: return "an event (OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED)";
+    case Expect::event: return "an event (OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED, DEVICE_ERROR)";
     case Expect::target: return "a state name or ignore";
     case Expect::op: return "a comparison (<, <=, >, >=, =, !=)";
     case Expect::eq: return "'='";

@@ -15,14 +15,16 @@
 
 namespace ev3proto::behaviour {
 
-/// A device a behaviour may need. The value is the bit position in Model::devices.
+/// A device a behaviour may need. The value is the bit position in Model::devices: the same bits as
+/// issue 15's robot::Role (robot/model.hpp role_bit: left 1, right 2, ultrasonic 4, touch 8, colour 16)
+/// and the agent core's Capabilities::devices, so a robot's plugged mask can be passed as it is.
 enum class Device : std::uint8_t {
   left_motor = 0,  ///< large motor driving the left wheel (model A: outB)
   right_motor = 1, ///< large motor driving the right wheel (model A: outC)
-  touch = 2,       ///< touch sensor, the front bumper (model A: in1); raises OBSTACLE_DETECTED
-  colour = 3,      ///< colour sensor facing the floor (model A: in3)
-  ultrasonic = 4,  ///< ultrasonic sensor facing forward (model A: in4); raises PROXIMITY_ALERT
-  gyro = 5,        ///< gyro sensor (not on model A)
+  ultrasonic = 2,  ///< ultrasonic sensor facing forward (model A: in4); raises PROXIMITY_ALERT
+  touch = 3,       ///< touch sensor, the front bumper (model A: in1); raises OBSTACLE_DETECTED
+  colour = 4,      ///< colour sensor facing the floor (model A: in3)
+  gyro = 5,        ///< gyro sensor (not on model A; no role in robot/ yet)
 };
 inline constexpr std::size_t kDeviceCount = 6;
 
@@ -34,25 +36,41 @@ constexpr std::string_view to_string(Device d) noexcept {
   switch (d) {
     case Device::left_motor: return "left motor";
     case Device::right_motor: return "right motor";
+    case Device::ultrasonic: return "ultrasonic sensor";
     case Device::touch: return "touch sensor";
     case Device::colour: return "colour sensor";
-    case Device::ultrasonic: return "ultrasonic sensor";
     case Device::gyro: return "gyro sensor";
   }
   return "?";
 }
 
-/// An action of the behaviour language (issue 15's actions). The value is the bit position in
-/// Model::actions. `repeat` is Repeat(n, ...): a state that runs its steps n times.
+/// The device's role name as robot::Role and `--ports` spell it (left, right, ultrasonic, touch,
+/// colour; gyro).
+constexpr std::string_view role_name(Device d) noexcept {
+  switch (d) {
+    case Device::left_motor: return "left";
+    case Device::right_motor: return "right";
+    case Device::ultrasonic: return "ultrasonic";
+    case Device::touch: return "touch";
+    case Device::colour: return "colour";
+    case Device::gyro: return "gyro";
+  }
+  return "?";
+}
+
+/// An action of the behaviour language: issue 15's actions (robot/actions.hpp action::Kind). The
+/// value is the bit position in Model::actions. `repeat` is Repeat(n, ...): a state that runs its
+/// steps n times.
 enum class Action : std::uint8_t {
   run = 0,    ///< RunForever: both wheels at a speed until something else happens
   drive = 1,  ///< DriveDistance: straight ahead (or back) a distance
-  turn = 2,   ///< Turn: about the axle midpoint, wheels in opposite directions
+  turn = 2,   ///< Turn: in place about the axle midpoint, wheels opposite (positive: left)
   stop = 3,   ///< Stop: coast, brake or hold
-  pause = 4,  ///< Pause: let the motors settle, then take a clean reading
-  repeat = 5, ///< Repeat(n, steps)
+  pause = 4,  ///< Pause: stop, let the robot settle, then take a clean reading of the reported sensors
+  wait = 5,   ///< Wait: a time with the motors untouched
+  repeat = 6, ///< Repeat(n, steps)
 };
-inline constexpr std::size_t kActionCount = 6;
+inline constexpr std::size_t kActionCount = 7;
 
 /// Bit of an action in an action mask.
 constexpr std::uint32_t bit(Action a) noexcept { return std::uint32_t{1} << static_cast<unsigned>(a); }
@@ -65,6 +83,7 @@ constexpr std::string_view to_string(Action a) noexcept {
     case Action::turn: return "turn";
     case Action::stop: return "stop";
     case Action::pause: return "pause";
+    case Action::wait: return "wait";
     case Action::repeat: return "repeat";
   }
   return "?";
@@ -81,13 +100,14 @@ struct Model {
 /// Both drive motors.
 inline constexpr std::uint32_t kDriveMotors = bit(Device::left_motor) | bit(Device::right_motor);
 
-/// Model A, the thesis' test robot: two large motors, touch, colour and ultrasonic sensors; every
-/// action. (Clearly marked table, see the file comment: to be unified with issue 15's model A.)
+/// Model A, the thesis' test robot: two large motors, touch, colour and ultrasonic sensors (robot/'s
+/// kModelADevices); every action. max_speed is the large motor's (robot/ reads it from the motor).
+/// (Clearly marked table, see the file comment: to be unified with issue 15's model A.)
 inline constexpr Model kModelA{
     "A",
     kDriveMotors | bit(Device::touch) | bit(Device::colour) | bit(Device::ultrasonic),
     bit(Action::run) | bit(Action::drive) | bit(Action::turn) | bit(Action::stop) | bit(Action::pause) |
-        bit(Action::repeat),
+        bit(Action::wait) | bit(Action::repeat),
     1050,
 };
 

@@ -126,6 +126,16 @@ inline bool word_value(std::string_view w, Number& out) noexcept {
   return false;
 }
 
+/// A constant the text did not write (stop's brake).
+inline Arg implicit_arg(const Number& n, Pos pos) noexcept {
+  Arg a;
+  a.kind = Arg::Kind::constant;
+  a.num = n;
+  a.pos = pos;
+  a.implicit = true;
+  return a;
+}
+
 /// What an argument's place takes.
 enum class Slot : std::uint8_t { speed, distance, angle, duration, stop_mode, colour, count, touch };
 
@@ -461,7 +471,7 @@ struct Parser {
     while (k < kActionCount && to_string(static_cast<Action>(k)) != a.text) ++k;
     if (k == kActionCount || static_cast<Action>(k) == Action::repeat)
       return error(Code::meaning, a.pos, [&](Text& m) {
-        m << "unknown action '" << a.text << "' (actions: run, drive, turn, stop, pause, repeat)";
+        m << "unknown action '" << a.text << "' (actions: run, drive, turn, stop, pause, wait, repeat)";
       });
     if (raw.too_many_options)
       return error(Code::limit, options[3].name.pos, [&](Text& m) { m << a.text << " has too many options"; });
@@ -470,36 +480,41 @@ struct Parser {
     s.pos = a.pos;
     Slot main_slot = Slot::speed;
     bool main_needed = true;
-    bool takes_speed = false;
+    bool takes_speed = false;  // the option speed=
+    bool moves = true;         // the option stop=
     switch (s.action) {
       case Action::run: main_slot = Slot::speed; main_needed = false; break;
       case Action::drive: main_slot = Slot::distance; takes_speed = true; break;
       case Action::turn: main_slot = Slot::angle; takes_speed = true; break;
-      case Action::stop: main_slot = Slot::stop_mode; main_needed = false; break;
-      case Action::pause: main_slot = Slot::duration; break;
+      case Action::stop: main_slot = Slot::stop_mode; main_needed = false; moves = false; break;
+      case Action::pause: case Action::wait: main_slot = Slot::duration; moves = false; break;
       case Action::repeat: break;
     }
+    const Number brake{static_cast<std::int32_t>(StopMode::brake), Unit::none, Dim::stop_mode};
     if (has_main) {
       if (!make_arg(main, main_slot, a.text, s.main)) return false;
     } else if (main_needed) {
       return error(Code::meaning, a.pos, [&](Text& m) { m << a.text << " needs " << describe(main_slot); });
     } else if (s.action == Action::stop) {
-      s.main.kind = Arg::Kind::constant;
-      s.main.num = Number{static_cast<std::int32_t>(StopMode::brake), Unit::none, Dim::stop_mode};
-      s.main.pos = a.pos;
-      s.main.implicit = true;
+      s.main = implicit_arg(brake, a.pos);
     }
     for (std::size_t i = 0; i < option_count; ++i) {
       const Option& o = options[i];
-      if (!takes_speed || o.name.text != "speed")
+      const bool speed = takes_speed && o.name.text == "speed";
+      if (!speed && !(moves && o.name.text == "stop"))
         return error(Code::meaning, o.name.pos, [&](Text& m) {
           m << a.text << " has no option '" << o.name.text << "'";
-          if (takes_speed) m << " (its option: speed)";
+          if (takes_speed) m << " (its options: speed, stop)";
+          else if (moves) m << " (its option: stop)";
           else m << " (it takes no options)";
         });
-      if (s.speed.kind != Arg::Kind::none)
-        return error(Code::meaning, o.name.pos, [&](Text& m) { m << "speed is given twice"; });
-      if (!make_arg(o.value, Slot::speed, "speed=", s.speed)) return false;
+      Arg& into = speed ? s.speed : s.halt;
+      if (into.kind != Arg::Kind::none)
+        return error(Code::meaning, o.name.pos, [&](Text& m) { m << o.name.text << " is given twice"; });
+      if (!make_arg(o.value, speed ? Slot::speed : Slot::stop_mode, speed ? "speed=" : "stop=", into)) return false;
+    }
+    if (moves && s.halt.kind == Arg::Kind::none) {
+      s.halt = implicit_arg(brake, a.pos);
     }
     // The speed of run, drive and turn defaults to the param `speed`.
     Arg* speed = s.action == Action::run ? &s.main : takes_speed ? &s.speed : nullptr;
@@ -642,7 +657,8 @@ struct Parser {
       while (e < kEventCount && to_string(static_cast<Event>(e)) != t.text) ++e;
       if (e == kEventCount)
         return error(Code::meaning, t.pos, [&](Text& m) {
-          m << "unknown event '" << t.text << "' (events: OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED)";
+          m << "unknown event '" << t.text
+            << "' (events: OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED, DEVICE_ERROR)";
         });
       const Event ev = static_cast<Event>(e);
       if (is_critical(ev))
@@ -746,9 +762,7 @@ struct Parser {
     if (end == kNone) {  // the predefined stop state: stop brake
       Step s;
       s.action = Action::stop;
-      s.main.kind = Arg::Kind::constant;
-      s.main.num = Number{static_cast<std::int32_t>(StopMode::brake), Unit::none, Dim::stop_mode};
-      s.main.implicit = true;
+      s.main = implicit_arg(Number{static_cast<std::int32_t>(StopMode::brake), Unit::none, Dim::stop_mode}, Pos{});
       if (def.step_count >= kMaxSteps)
         return error(Code::limit, def.name_pos, [&](Text& m) { m << "too many actions (at most " << kMaxSteps << ", the stop state's included)"; });
       State& st = def.states[def.state_count];
@@ -815,7 +829,11 @@ struct Parser {
         if (w == kw) m << " (a keyword)";
       return;
     }
-    if (c >= 0x20 && c < 0x7F) {
+    if (c == ' ' || c == '\t') {
+      m << (c == ' ' ? "a space" : "a tab");
+      return;
+    }
+    if (c > 0x20 && c < 0x7F) {
       m << "'" << static_cast<char>(c) << "'";
       return;
     }
@@ -870,11 +888,9 @@ template <>
 struct Act<grammar::param_ref> {
   template <typename In>
   static void apply(const In& in, Parser& p) noexcept {
-    Tok t = tok(in);
+    Tok t = tok(in);  // its place is the '$' (or the '-'), its text the name
     const bool neg = t.text.front() == '-';
-    const std::size_t skip = neg ? 2 : 1;
-    t.text.remove_prefix(skip);
-    t.pos.col = static_cast<std::uint16_t>(t.pos.col + skip);
+    t.text.remove_prefix(neg ? 2 : 1);
     p.last_arg = RawArg{RawArg::Kind::param, neg, t};
   }
 };

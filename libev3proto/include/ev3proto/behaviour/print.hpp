@@ -62,6 +62,10 @@ inline void write(Text& out, const Definition& def, const Step& s, bool all = fa
     out << " speed=";
     write(out, def, s.speed);
   }
+  if (s.halt.kind != Arg::Kind::none && !s.halt.implicit) {
+    out << " stop=";
+    write(out, def, s.halt);
+  }
 }
 
 /// A state's action: its step, or "repeat N (step, step)".
@@ -195,7 +199,7 @@ inline bool equivalent(const Definition& a, const Definition& b) {
   }
   for (std::uint8_t i = 0; i < a.step_count; ++i) {
     const Step &x = a.steps[i], &y = b.steps[i];
-    if (x.action != y.action || !same(x.main, y.main) || !same(x.speed, y.speed)) return false;
+    if (x.action != y.action || !same(x.main, y.main) || !same(x.speed, y.speed) || !same(x.halt, y.halt)) return false;
   }
   for (std::uint8_t i = 0; i < a.reaction_count; ++i) {
     const Reaction &x = a.reactions[i], &y = b.reactions[i];
