@@ -1,7 +1,7 @@
 # libev3proto: the front door. Every target installs what is missing first (`make deps`).
 #   make demo      a master and three agents on this machine: sync, behaviour, master lost, election (~30 s)
 #   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel
-#   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec)
+#   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec, ev3-behaviour)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS per target, default 1800)
 #   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
 #   make arm       static armel (EV3) build in build/arm/

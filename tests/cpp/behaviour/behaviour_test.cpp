@@ -135,6 +135,45 @@ TEST(Builtins, DotDrawsEveryStateAndTransition) {
   EXPECT_NE(dot.find("_start -> \"forward\""), std::string::npos);
 }
 
+// ---- docs/behaviours.md ------------------------------------------------------------------------------
+
+// Every ```bhv block of the page parses and checks; a block that is a built-in's text is that text.
+TEST(Docs, ExamplesParseAndCheck) {
+  std::istringstream page(read(EV3_DOCS_BEHAVIOURS));
+  std::vector<std::string> blocks;
+  std::string indent, block;
+  bool in = false;
+  for (std::string line; std::getline(page, line);) {
+    const std::size_t at = line.find_first_not_of(' ');
+    const std::string body = at == std::string::npos ? "" : line.substr(at);
+    if (!in && body == "```bhv") {
+      in = true;
+      indent = line.substr(0, at);
+      block.clear();
+    } else if (in && body == "```") {
+      in = false;
+      blocks.push_back(block);
+    } else if (in) {
+      block += (line.rfind(indent, 0) == 0 ? line.substr(indent.size()) : line) + "\n";
+    }
+  }
+  EXPECT_GE(blocks.size(), 7u);
+  std::size_t builtins = 0;
+  for (const std::string& b : blocks) {
+    static Definition d;
+    Diagnostic g;
+    ASSERT_TRUE(parse(b, d, g)) << bhvtest::diag_line(g) << "\n" << b;
+    Findings f;
+    EXPECT_TRUE(check(d, kModelA, f)) << bhvtest::diag_line(f.items[0]) << "\n" << b;
+    const Builtin* builtin = find_builtin(d.name.view());
+    if (builtin != nullptr && b.rfind("# " + std::string(builtin->name) + ":", 0) == 0) {
+      EXPECT_EQ(b, builtin->text) << "docs/behaviours.md shows an old " << builtin->name;
+      ++builtins;
+    }
+  }
+  EXPECT_EQ(builtins, 3u);  // drive, explore, wait
+}
+
 // ---- Limits ----------------------------------------------------------------------------------------
 
 std::string states_text(int n) {
