@@ -224,6 +224,18 @@ TEST(Limits, ReactionsStepsAndParams) {
   EXPECT_EQ(bhvtest::diag_line(g), "limit: line 10 col 22: too many actions (at most 64)");
 }
 
+// CR LF line ends count as one line end (files written on Windows); a lone CR is refused.
+TEST(Text, CrLfLineEnds) {
+  static Definition d;
+  Diagnostic g;
+  EXPECT_TRUE(parse("behaviour x\r\nstate a = wait 1s -> end   # done\r\n", d, g)) << bhvtest::diag_line(g);
+  EXPECT_FALSE(parse("behaviour x\r\nstate a = wait 1s -> nowhere\r\n", d, g));
+  EXPECT_EQ(bhvtest::diag_line(g), "meaning: line 2 col 22: unknown state 'nowhere'");
+  EXPECT_FALSE(parse("behaviour x\rstate a = wait 1s -> end", d, g));
+  EXPECT_EQ(bhvtest::diag_line(g),
+            "syntax: line 1 col 12: expected the end of the statement (';' or a new line), found byte 0x0D");
+}
+
 // ---- BEHAVIOUR arguments ---------------------------------------------------------------------------
 
 TEST(Args, AUnitlessNumberTakesTheParamsUnit) {
