@@ -9,7 +9,6 @@
 #include <array>
 #include <cstddef>
 #include <cstdint>
-#include <cstring>
 #include <string_view>
 
 namespace ev3proto {
@@ -197,28 +196,6 @@ constexpr std::array<std::uint8_t, 256> make_type_index() noexcept {
 /// Type number -> index into kMessageTable, or kNoRow.
 inline constexpr std::array<std::uint8_t, 256> kTypeIndex = make_type_index();
 
-/// The kinds of a row's params as decode() checks them, built at compile time so that it need not
-/// read the row per param.
-struct RowKinds {
-  std::uint32_t checked = 0; ///< Bit i set where param i (i < kMaxParams = 32) is not text.
-  std::uint64_t kinds = 0;   ///< Bits 2i and 2i+1: param i's ParamKind (text 0 ... state 3).
-};
-static_assert(static_cast<unsigned>(ParamKind::state) < 4u, "ParamKind must fit in two bits");
-
-/// Builds kRowKinds from kMessageTable.
-constexpr std::array<RowKinds, kMessageTableSize> make_row_kinds() noexcept {
-  std::array<RowKinds, kMessageTableSize> rows{};
-  for (std::size_t r = 0; r < kMessageTableSize; ++r)
-    for (std::size_t i = 0; i < kMaxParams; ++i) {
-      const ParamKind k = kMessageTable[r].kind(i);
-      if (k != ParamKind::text) rows[r].checked |= std::uint32_t{1} << i;
-      rows[r].kinds |= std::uint64_t{static_cast<std::uint8_t>(k)} << (2u * i);
-    }
-  return rows;
-}
-/// Row index -> the kinds of its params (see RowKinds).
-inline constexpr std::array<RowKinds, kMessageTableSize> kRowKinds = make_row_kinds();
-
 /// Checks the table's invariants at compile time.
 constexpr bool table_is_sane() noexcept {
   for (std::size_t r = 0; r < kMessageTableSize; ++r) {
@@ -288,21 +265,9 @@ constexpr std::string_view to_string(AgentState s) noexcept {
 
 /// Parses a state's wire spelling; returns false (and leaves @p out alone) if it is not one.
 inline bool parse_state(std::string_view s, AgentState& out) noexcept {
-  // Every spelling has 4 to 7 bytes: compared as two overlapping 4-byte words against each of the
-  // five (the words of the names fold to constants), not with string_view's == (a memcmp call).
-  const std::size_t n = s.size();
-  if (n - 4u > 3u) return false;
-  std::uint32_t s0, s1;
-  std::memcpy(&s0, s.data(), 4);
-  std::memcpy(&s1, s.data() + n - 4u, 4);
   for (const AgentState a : {AgentState::IDLE, AgentState::ACTIVE, AgentState::WORKING, AgentState::PAUSED,
                              AgentState::PANIC}) {
-    const std::string_view name = to_string(a);
-    if (name.size() != n) continue;
-    std::uint32_t n0, n1;
-    std::memcpy(&n0, name.data(), 4);
-    std::memcpy(&n1, name.data() + n - 4u, 4);
-    if (s0 == n0 && s1 == n1) {
+    if (s == to_string(a)) {
       out = a;
       return true;
     }
