@@ -361,9 +361,9 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
 /// Number of bytes @p value takes as an escaped param on the wire (without its ':'): one per byte,
 /// three per byte that must be escaped.
 inline std::size_t escaped_size(std::string_view value) noexcept {
-  std::size_t n = value.size();
-  for (const char c : value) n += detail::must_escape(static_cast<unsigned char>(c)) ? 2u : 0u;
-  return n;
+  std::size_t escapes = 0;
+  for (const char c : value) escapes += detail::must_escape(static_cast<unsigned char>(c));
+  return value.size() + 2u * escapes;
 }
 
 namespace detail {
