@@ -254,11 +254,11 @@ constexpr DecodeResult fail(Reason r, std::size_t field) noexcept {
   return DecodeResult{r, static_cast<std::uint8_t>(field)};
 }
 
-/// True when every byte of [p, e) stands for itself in a param: none is '%' and none lies outside
-/// 0x20..0x7E (a ':' never does: it ends the param). Looks at every byte, without an early exit, so
-/// the compiler may check many at once.
+/// True when every byte of the param [p, e) (its ':' not included) stands for itself: none is '%'
+/// and none lies outside 0x20..0x7E. Looks at every byte, without an early exit, so that the
+/// compiler may check many at once.
 inline bool all_plain(const char* p, const char* e) noexcept {
-  unsigned char special = 0;  // a byte, as the bytes looked at: no widening
+  unsigned char special = 0;  // the width of the bytes looked at: the compiler need not widen them
   for (; p != e; ++p) {
     const unsigned char c = static_cast<unsigned char>(*p);
     special |= static_cast<unsigned char>((c < 0x20) | (c > 0x7E) | (c == '%'));
