@@ -97,7 +97,7 @@ class CoreW final : public Core {
 
   void advance(Millis now) override { a_.advance(now); }
   std::string recv(std::string_view bytes, ev3proto::Peer from, Millis now) override {
-    return std::string(to_string(a_.handle_datagram(bytes, from, now)));
+    return std::string(to_string(a_.handle_datagram(bytes, from, now).action));
   }
   bool event(const std::string& name, const Json& in, Millis now, std::string& err) override {
     if (name == "action_ok") return a_.action_ok(now);

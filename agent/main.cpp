@@ -237,7 +237,7 @@ class Program {
     // The elected master's part first (docs/core.md); like ev3-master, one copy of each (sender,
     // msgid) only: the Master core's registry does not dedupe PING copies.
     if (mc_ && copies_.first_time(rx_.sender, rx_.msgid)) mc_->handle_datagram(d, peer, now);
-    const ev3proto::Action a = agent_->handle_datagram(d, peer, now);
+    const ev3proto::Action a = agent_->handle_datagram(d, peer, now).action;
     if (a == ev3proto::Action::Ignore) {
       if (rx_.receiver != my_id && rx_.receiver != ev3proto::kBroadcastId)
         drop("misaddressed", d);

@@ -59,9 +59,12 @@ TEST(TransitionTable, EqualsSpecAllowedTransitions) {
 }
 
 TEST(TransitionTable, NextStateUsesTheTable) {
-  EXPECT_EQ(next_state(State::WORKING, Action::HeartbeatLost), State::PAUSED);
-  EXPECT_EQ(next_state(State::ACTIVE, Action::HeartbeatLost), State::PANIC);
-  EXPECT_EQ(next_state(State::WORKING, Action::RecvStart), State::WORKING);  // no row: unchanged
+  EXPECT_EQ(next_state(State::WORKING, Action::HeartbeatLost).to, State::PAUSED);
+  EXPECT_EQ(next_state(State::ACTIVE, Action::HeartbeatLost).to, State::PANIC);
+  EXPECT_EQ(next_state(State::WORKING, Action::RecvStart).to, State::WORKING);  // a stay row
+  EXPECT_FALSE(next_state(State::IDLE, Action::RecvStart));                     // no row: refused
+  EXPECT_TRUE(next_state(State::WORKING, Action::RecvContinue, Wait::CONTINUE));
+  EXPECT_FALSE(next_state(State::WORKING, Action::RecvContinue, Wait::RESTART));
   for (std::size_t s = 0; s < kStateCount; ++s) EXPECT_EQ(led_of(static_cast<State>(s)), led_of(static_cast<State>(s)));
   EXPECT_EQ(to_string(led_of(State::PAUSED)), "ORANGE");
 }
@@ -156,10 +159,10 @@ TEST(AgentNoHeap, CounterSeesAllocations) {  // the counter itself works
 TEST(AgentWindow, EvictedCommandIsActedOnAgain) {
   Agent<NoTrace, 2> a(config(), 0);
   a.handle_datagram("1:5:1:2:50001", 1, 1);
-  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 2), Action::RecvBehaviour);
-  EXPECT_EQ(a.handle_datagram("1:5:3:8", 1, 3), Action::RecvStart);  // window now {2, 3}: MASTER evicted
-  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 4), Action::RecvDuplicate);
-  EXPECT_EQ(a.handle_datagram("1:5:1:2:50001", 1, 5), Action::Ignore);  // evicted, not masterless
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 2).action, Action::RecvBehaviour);
+  EXPECT_EQ(a.handle_datagram("1:5:3:8", 1, 3).action, Action::RecvStart);  // window now {2, 3}: MASTER evicted
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 4).action, Action::RecvDuplicate);
+  EXPECT_EQ(a.handle_datagram("1:5:1:2:50001", 1, 5).action, Action::Ignore);  // evicted, not masterless
   EXPECT_EQ(a.window().size(), 2u);
 }
 
@@ -189,7 +192,7 @@ TEST(AgentBehaviour, ArgumentsBeyondCapacityAreRefused) {
   Agent<NoTrace, 50, 8, 512, 16, 4> a(config(), 0);
   a.handle_datagram("1:5:1:2:50001", 1, 1);
   drain(a);
-  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander:speed=3", 1, 2), Action::RecvBehaviour);
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander:speed=3", 1, 2).action, Action::RecvBehaviour);
   Transmit t;
   ASSERT_TRUE(a.poll_transmit(t));
   EXPECT_EQ(t.bytes, "5:1:2:4:2:unknown behaviour");
@@ -208,7 +211,7 @@ TEST(AgentTime, PastTimeChangesNothingAndDeadlineIsExact) {
   EXPECT_EQ(a.next_deadline(), Agent<>::kNever);
   a.advance(20000);
   EXPECT_EQ(a.now(), 20000u);
-  EXPECT_EQ(a.handle_datagram("1:50001:1:2:50001", 1, 20001), Action::Ignore);  // OFF: no step
+  EXPECT_EQ(a.handle_datagram("1:50001:1:2:50001", 1, 20001).action, Action::Ignore);  // OFF: no step
 }
 
 TEST(Timers, DefaultsAndSpecMapping) {
