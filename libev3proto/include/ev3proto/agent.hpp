@@ -6,8 +6,10 @@
 /// No heap, no exceptions, no RTTI, no clocks, no globals, no randomness (the temporary id is drawn
 /// by the caller). All memory is sized at compile time by the template parameters.
 ///
-/// Every spec action has one handler of the same name (RecvMaster ... BatteryLow); handle_datagram()
-/// dispatches like the spec's Handler(a, m): exactly one receive handler takes each message.
+/// Every spec action has one handler of the same name (RecvMaster ... BatteryLow, and Election.tla's:
+/// election.hpp holds their guards); a datagram enters through one prelude (Step: the handler chosen
+/// first, epochs handled once), the state table is the guard of every state change, roles change
+/// only in the become_* functions, and the armed deadlines are a TimerTable (docs/core.md).
 #pragma once
 
 #include <cstddef>
@@ -68,7 +70,8 @@ struct Transmit {
 /// An event for the robot program: a state change, a LED pattern, or a behaviour control.
 struct AgentEvent {
   /// Which field is meaningful.
-  /// (Election outputs are observers, not events: Agent::role(), Agent::durable(); docs/core.md.)
+  /// (Election changes are observers here, Agent::role(), Agent::durable(); the node reports them
+  /// as events: node.hpp.)
   enum class Kind : std::uint8_t { state, led, control } kind = Kind::state;
   State state = State::IDLE;               ///< New state (Kind::state).
   Led led = Led::YELLOW_BLINK;             ///< New LED pattern (Kind::led).

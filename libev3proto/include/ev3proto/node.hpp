@@ -142,8 +142,8 @@ class Node {
     NodeHandled h;
     h.agent.decode = decode(bytes, rx_);
     if (!h.agent.decode.ok()) {
-      agent_.advance(now);
       if (master_) master_->advance(now);
+      agent_.advance(now);
       ++rejected_;
       h.agent.why = Ignored::undecodable;
       settle(now);
