@@ -417,9 +417,11 @@ class Outcome:
 
 
 class Workspace:
-    """A copy of the sources (build/mutate/src) and one ninja tree (build/mutate/build)."""
+    """A copy of the sources (build/mutate/src) and one ninja tree (build/mutate/build): the library,
+    cmake/ and every top-level directory the top CMakeLists.txt adds (so a new program directory
+    does not break the copy); only ev3-agent and ev3-master are built."""
 
-    DIRS = ("cmake", "libev3proto", "io", "agent", "master", "tools/codec")
+    BASE_DIRS = ("cmake", "libev3proto")
 
     def __init__(self, root: Path, base: Path) -> None:
         self.root, self.base = root, base
@@ -431,12 +433,11 @@ class Workspace:
             if d.exists():
                 shutil.rmtree(d)
         self.src.mkdir(parents=True)
-        for d in self.DIRS:
-            shutil.copytree(self.root / d, self.src / d)
-        (self.src / "fuzz").mkdir()
-        for f in ("CMakeLists.txt", "fuzz_decode.cpp", "replay_main.cpp"):
-            shutil.copy2(self.root / "fuzz" / f, self.src / "fuzz" / f)
         top = (self.root / "CMakeLists.txt").read_text()
+        added = {a.split("/")[0] for a in re.findall(r"add_subdirectory\(\s*([\w./-]+)", top)}
+        for d in sorted(set(self.BASE_DIRS) | added):
+            if (self.root / d).is_dir():
+                shutil.copytree(self.root / d, self.src / d)
         # A mutant may leave a parameter unused: warnings stay on, but not as errors, in the copy.
         (self.src / "CMakeLists.txt").write_text(top.replace(" -Werror", ""))
         self.pristine = {p.name: p.read_text() for p in (self.src / INC).glob("*.hpp")}
