@@ -534,8 +534,8 @@ class Agent {
     const Action a = Handler(m, master);
     if (a != Action::Ignore) return Verdict{a};
     if (!AddressedTo(m)) return Verdict{Action::Ignore, Ignored::misaddressed};
-    if (!Answered(m) && m.type != MsgType::PONG) return Verdict{Action::Ignore, Ignored::not_for_agent};
     if (m.sender != master) return Verdict{Action::Ignore, Ignored::foreign_sender};
+    if (!Answered(m) && m.type != MsgType::PONG) return Verdict{Action::Ignore, Ignored::not_for_agent};
     return Verdict{Action::Ignore, Ignored::ignored_in_state};
   }
 

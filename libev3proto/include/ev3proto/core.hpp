@@ -264,8 +264,10 @@ enum class Ignored : std::uint8_t {
   off,                 ///< The agent is OFF (after BatteryLow): it takes no step at all.
   misaddressed,        ///< Its receiver is neither this agent's id nor 0.
   own_broadcast,       ///< This agent's own broadcast, heard back.
-  not_for_agent,       ///< A type agents never take (AGENT, ACK, PING, reports, RELAY_ROUTE, ...).
-  foreign_sender,      ///< A master's datagram from someone who is not the master followed.
+  foreign_sender,      ///< Not from the master followed (another agent's broadcast, a stranger's
+                       ///< command, an EPOCH_CMD that fails the fence).
+  not_for_agent,       ///< From the master, but a type agents never take (ACK, PING, reports), or
+                       ///< a master's own type (RELAY_ROUTE, HANDOVER).
   stale_epoch,         ///< A command of an older epoch than the agent's: answered EPOCH_STALE.
   election_off,        ///< A relay / election datagram while the election is off.
   ignored_in_state,    ///< No handler takes it in this state (spec Ignore; an Election rule's

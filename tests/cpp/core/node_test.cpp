@@ -53,7 +53,8 @@ TEST(NodeHandled, SaysWhyADatagramWasIgnored) {
   EXPECT_EQ(n.rejected(), 1u);
   EXPECT_EQ(n.handle_datagram("1:9:1:2:50002", 1, 2).why(), Ignored::misaddressed);
   EXPECT_EQ(n.handle_datagram("3:50001:1:2:50001", 3, 3).why(), Ignored::foreign_sender);
-  EXPECT_EQ(n.handle_datagram("3:0:1:19", 3, 4).why(), Ignored::not_for_agent);
+  EXPECT_EQ(n.handle_datagram("3:0:1:19", 3, 4).why(), Ignored::foreign_sender);  // another's PANIC
+  EXPECT_EQ(n.handle_datagram("1:50001:9:3:1", 1, 4).why(), Ignored::not_for_agent);  // an ACK
   EXPECT_EQ(n.handle_datagram("1:50001:2:6:1", 1, 5).why(), Ignored::ignored_in_state);  // PONG while IDLE
   EXPECT_EQ(n.handle_datagram("2:0:1:21:1:5", 2, 6).why(), Ignored::election_off);
   h = n.handle_datagram("1:7:3:2:50001", 1, 7);
@@ -111,7 +112,7 @@ TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
   h = n.handle_datagram("8:7:5:5:ACTIVE", 8, 7601);
   EXPECT_TRUE(h.copy);
   EXPECT_EQ(h.master, Action::Ignore);
-  EXPECT_EQ(h.why(), Ignored::not_for_agent);
+  EXPECT_EQ(h.why(), Ignored::foreign_sender);  // not from a master it follows (it is one)
   OperatorEvent oe;
   ASSERT_TRUE(n.poll_operator_event(oe));  // the Master core saw 8's state
   EXPECT_EQ(oe.kind, OperatorEvent::Kind::state);
