@@ -97,7 +97,7 @@ class CoreW final : public Core {
 
   void advance(Millis now) override { a_.advance(now); }
   std::string recv(std::string_view bytes, ev3proto::Peer from, Millis now) override {
-    return std::string(to_string(a_.handle_datagram(bytes, from, now)));
+    return std::string(to_string(a_.handle_datagram(bytes, from, now).action));
   }
   bool event(const std::string& name, const Json& in, Millis now, std::string& err) override {
     if (name == "action_ok") return a_.action_ok(now);
@@ -201,9 +201,19 @@ class Driver {
     } const rows[] = {{"sync", ev3proto::Timer::sync},
                       {"heartbeat", ev3proto::Timer::heartbeat},
                       {"loss", ev3proto::Timer::loss},
-                      {"paused", ev3proto::Timer::paused}};
+                      {"paused", ev3proto::Timer::paused},
+                      {"relay_retry", ev3proto::Timer::relay_retry},
+                      {"backoff", ev3proto::Timer::backoff},
+                      {"backoff_step", ev3proto::Timer::backoff_step},
+                      {"candidate", ev3proto::Timer::candidate}};
     for (const auto& r : rows)
       if (t.has(r.name)) c.timers.set(r.timer, static_cast<Millis>(t[r.name].num(1)));
+    // Relay and election (Election.tla): {"enabled", "score", "epoch", "voted_for"}.
+    const Json& el = in["election"];
+    c.election.enabled = el["enabled"].boolean(false);
+    if (el.has("score")) c.election.score = static_cast<std::uint32_t>(el["score"].num(0));
+    c.election.epoch = static_cast<std::uint32_t>(el["epoch"].num(1));
+    c.election.voted_for = static_cast<std::uint16_t>(el["voted_for"].num(0));
     if (!c.timers.valid()) {
       err = "timers: paused must be greater than loss";
       return false;

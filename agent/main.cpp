@@ -1,9 +1,10 @@
 // ev3-agent: one robot of the fleet. The I/O around the agent core (libev3proto agent.hpp): a UDP
 // socket, one event loop (ppoll) that sleeps until the next datagram or the next deadline (core,
 // behaviour runner, copy sends, log flush), the LEDs, the `wait` behaviour runner, logging and the
-// NDJSON trace. With --election: the election state on disk (--state-dir) and, while this agent is
-// the elected master, a Master core fed before the agent core (docs/core.md "An agent becomes
-// master"; tests/cpp/sim/election_sim.hpp does the same). docs/programs.md describes the command line.
+// NDJSON trace. The node (libev3proto node.hpp) composes the agent core with the Master core it runs
+// while elected; this program turns its inputs and outputs into I/O, logs and counts what it
+// reports, and with --election keeps the election state on disk (--state-dir). docs/programs.md
+// describes the command line.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -16,9 +17,7 @@
 #include <string>
 #include <vector>
 
-#include <ev3proto/agent.hpp>
-#include <ev3proto/dedupe.hpp>
-#include <ev3proto/master.hpp>
+#include <ev3proto/node.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
@@ -90,8 +89,7 @@ std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
   return s.empty() ? "none" : s;
 }
 
-using AgentCore = ev3proto::Agent<ev3proto::NdjsonTrace>;
-using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;  // run while this agent is the elected master
+using RobotNode = ev3proto::Node<ev3proto::NdjsonTrace, ev3proto::NdjsonTrace>;
 
 std::string role_name(ev3proto::Role r) {
   switch (r) {
@@ -154,17 +152,29 @@ class Program {
     if (opt_.model != "A")
       log_.log(kInfo, "model %s: using model A's capability table (wait)", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
-    agent_.emplace(cfg, now, trace_file_ != nullptr ? &trace_ : nullptr);
-    saved_rev_ = agent_->durable_rev();
-    seen_epoch_ = agent_->durable().epoch;
+    RobotNode::Config nc;
+    nc.agent = cfg;
+    if (trace_file_ != nullptr) {
+      // The Master core's records go to the same file, node "master:ID:EPOCH" (one Master core per
+      // epoch won; docs/spec.md "Election master traces").
+      nc.master_trace = [this](std::uint16_t id, std::uint32_t epoch) {
+        mtrace_.emplace("master:" + std::to_string(id) + ":" + std::to_string(epoch));
+        mtrace_->set_output([this](const std::string& line) {
+          std::fwrite(line.data(), 1, line.size(), trace_file_);
+          std::fputc('\n', trace_file_);
+        });
+        return &*mtrace_;
+      };
+    }
+    node_.emplace(nc, now, trace_file_ != nullptr ? &trace_ : nullptr);
     leds_.emplace(opt_.sysfs_root, log_);
-    leds_->set(agent_->led());
+    leds_->set(node_->agent().led());
     std::string bc;
     for (const auto& e : opt_.common.broadcast) bc += " " + e.str();
     log_.log(kInfo, "listening on %s (model %s, temporary id %u, broadcast to%s)", net_.local().str().c_str(),
              opt_.model.c_str(), cfg.temp_id, bc.c_str());
     if (opt_.election)
-      log_.log(kInfo, "election on: score %u, epoch %u, voted for %u, state %s", agent_->score(),
+      log_.log(kInfo, "election on: score %u, epoch %u, voted for %u, state %s", node_->agent().score(),
                cfg.election.epoch, cfg.election.voted_for,
                state_path_.empty() ? "in memory only (no --state-dir)" : state_path_.c_str());
     log_.log(kInfo, "state IDLE");
@@ -187,8 +197,7 @@ class Program {
       }
       now = ev3io::monotonic_ms();
       run_behaviour(now);
-      if (mc_) mc_->advance(now);
-      agent_->advance(now);
+      node_->advance(now);
       pump(now);
       run_script(now);
       net_.flush(now);
@@ -197,9 +206,8 @@ class Program {
         drops_changed_ = false;
         next_summary = now + 5000;
       }
-      Millis deadline = agent_->next_deadline();
-      if (mc_) deadline = std::min(deadline, mc_->next_deadline());
-      if (mc_ && script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
+      Millis deadline = node_->next_deadline();
+      if (node_->master() != nullptr && script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
       deadline = std::min(deadline, runner_.deadline());
       deadline = std::min(deadline, net_.next_send());
       deadline = std::min(deadline, log_.tick(now));
@@ -224,34 +232,20 @@ class Program {
                printable(d).c_str());
   }
 
+  /// The node takes the datagram; the program only logs and counts what it reports.
   void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
-    const ev3proto::DecodeResult dr = ev3proto::decode(d, rx_);
-    if (!dr.ok()) {
-      drop(reason_key(dr.reason), d);
-      agent_->handle_datagram(d, 0, now);  // the core counts it too (rejected())
-      return;
-    }
-    const std::uint16_t my_id = agent_->id();
-    const ev3proto::Peer peer = net_.peer_of(from);
-    log_.log(kDebug, "recv %s from %s", printable(d).c_str(), from.str().c_str());
-    // The elected master's part first (docs/core.md); like ev3-master, one copy of each (sender,
-    // msgid) only: the Master core's registry does not dedupe PING copies.
-    if (mc_ && copies_.first_time(rx_.sender, rx_.msgid)) mc_->handle_datagram(d, peer, now);
-    const ev3proto::Action a = agent_->handle_datagram(d, peer, now);
-    if (a == ev3proto::Action::Ignore) {
-      if (rx_.receiver != my_id && rx_.receiver != ev3proto::kBroadcastId)
-        drop("misaddressed", d);
-      else if (rx_.sender != ev3proto::kMasterId && !opt_.election)
-        drop("foreign_sender", d);
-      else if (mc_)
-        drop("for_the_master_core", d);
-      else if (agent_->window().contains(rx_.sender, rx_.msgid))
-        drop("stale", d);
-      else
-        drop("ignored_in_state", d);
-    } else if (a == ev3proto::Action::RecvDuplicate) {
-      ++drops_["duplicate_answered_again"];
-      log_.log(kDebug, "duplicate %s answered again", printable(d).c_str());
+    const ev3proto::NodeHandled h = node_->handle_datagram(d, net_.peer_of(from), now);
+    const ev3proto::Ignored why = h.why();
+    if (why == ev3proto::Ignored::undecodable) {
+      drop(reason_key(h.agent.decode.reason), d);
+    } else {
+      log_.log(kDebug, "recv %s from %s", printable(d).c_str(), from.str().c_str());
+      if (why != ev3proto::Ignored::no) {
+        drop(std::string(ev3proto::to_string(why)), d);
+      } else if (h.agent.action == ev3proto::Action::RecvDuplicate) {
+        ++drops_["duplicate_answered_again"];
+        log_.log(kDebug, "duplicate %s answered again", printable(d).c_str());
+      }
     }
     pump(now);
   }
@@ -261,25 +255,27 @@ class Program {
       case ev3agent::WaitRunner::Outcome::ok:
         log_.log(kInfo, "behaviour wait: %llu ms are up, ACTION_OK",
                  static_cast<unsigned long long>(runner_.total()));
-        agent_->action_ok(now);
+        node_->action_ok(now);
         pump(now);
         break;
       case ev3agent::WaitRunner::Outcome::failed:
         log_.log(kError, "behaviour cannot run: %s; ACTION_ERR", runner_.error().c_str());
-        agent_->action_failed(now);
+        node_->action_failed(now);
         pump(now);
         break;
       case ev3agent::WaitRunner::Outcome::none: break;
     }
   }
 
-  /// Drains the core's outputs after every call into it.
+  /// Drains the node's outputs after every call into it: events first (a durable change is on disk
+  /// before anything the call queued is sent: a VOTE must not outlive its votedFor).
   void pump(Millis now) {
-    save_state();  // before anything this call queued goes out (a VOTE must not outlive votedFor)
-    election_changes(now);
-    ev3proto::Transmit t;
-    while (agent_->poll_transmit(t)) {
-      log_.log(kDebug, "send %s to %s", printable(t.bytes).c_str(), std::string(to_string(t.dest)).c_str());
+    ev3proto::NodeEvent e;
+    while (node_->poll_event(e)) on_event(e, now);
+    ev3proto::NodeTransmit t;
+    while (node_->poll_transmit(t)) {
+      log_.log(kDebug, "%ssend %s to %s", t.from_master_core ? "master core: " : "", printable(t.bytes).c_str(),
+               std::string(to_string(t.dest)).c_str());
       if (t.dest == ev3proto::Dest::broadcast) {
         broadcast(t.bytes, now);
         continue;
@@ -294,27 +290,75 @@ class Program {
         drop("unknown_peer", t.bytes);
       }
     }
-    pump_master(now);
-    ev3proto::AgentEvent e;
-    while (agent_->poll_event(e)) {
-      switch (e.kind) {
-        case ev3proto::AgentEvent::Kind::state:
-          log_.log(kInfo, "state %s (id %u)", std::string(to_string(e.state)).c_str(), agent_->id());
-          break;
-        case ev3proto::AgentEvent::Kind::led: leds_->set(e.led); break;
-        case ev3proto::AgentEvent::Kind::control: {
-          const ev3proto::BehaviourView b = agent_->behaviour();
-          std::vector<std::string_view> args;
-          for (std::size_t i = 0; i < b.arg_count; ++i) args.push_back(b.arg(i));
-          const Millis left_before = runner_.left(now);
-          runner_.control(e.control, b.name, args, now);
-          log_.log(kInfo, "behaviour %s: %s (%llu ms left)", std::string(b.name).c_str(),
-                   std::string(to_string(e.control)).c_str(),
-                   static_cast<unsigned long long>(e.control == ev3proto::ControlKind::stop ? left_before
-                                                                                       : runner_.left(now)));
-          break;
-        }
+    ev3proto::OperatorEvent oe;
+    while (node_->poll_operator_event(oe)) {
+      std::string addr;
+      const auto& reg = node_->master()->registry();
+      const auto it = reg.find(oe.agent);
+      if (it != reg.end())
+        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
+      log_.log(kInfo, "master: %s", view_.on_event(oe, addr, now).c_str());
+    }
+  }
+
+  void on_event(const ev3proto::NodeEvent& e, Millis now) {
+    const ev3proto::Agent<ev3proto::NdjsonTrace>& a = node_->agent();
+    using K = ev3proto::NodeEvent::Kind;
+    // Without --election the master followed is always the PC: nothing to say about roles.
+    if (!opt_.election && (e.kind == K::role || e.kind == K::leader || e.kind == K::relays)) return;
+    switch (e.kind) {
+      case K::state: log_.log(kInfo, "state %s (id %u)", std::string(to_string(e.state)).c_str(), a.id()); break;
+      case K::led: leds_->set(e.led); break;
+      case K::control: {
+        const ev3proto::BehaviourView b = a.behaviour();
+        std::vector<std::string_view> args;
+        for (std::size_t i = 0; i < b.arg_count; ++i) args.push_back(b.arg(i));
+        const Millis left_before = runner_.left(now);
+        runner_.control(e.control, b.name, args, now);
+        log_.log(kInfo, "behaviour %s: %s (%llu ms left)", std::string(b.name).c_str(),
+                 std::string(to_string(e.control)).c_str(),
+                 static_cast<unsigned long long>(e.control == ev3proto::ControlKind::stop ? left_before
+                                                                                     : runner_.left(now)));
+        break;
       }
+      case K::durable:
+        save_state(e.durable);
+        if (e.durable.epoch != e.previous.epoch)
+          log_.log(kInfo, "epoch %u (was %u)", e.durable.epoch, e.previous.epoch);
+        break;
+      case K::role:
+        if (e.role == ev3proto::Role::candidate)
+          log_.log(kInfo, "election: standing as CANDIDATE in epoch %u (score %u)", e.epoch, a.score());
+        else if (e.role == ev3proto::Role::master)
+          log_.log(kInfo, "election: won epoch %u (score %u): role MASTER", e.epoch, a.score());
+        else
+          log_.log(kInfo, "election: role %s", role_name(e.role).c_str());
+        break;
+      case K::leader:
+        if (e.leader != 0 && e.via != 0)
+          log_.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", e.leader, a.epoch(), e.via);
+        else if (e.leader != 0)
+          log_.log(kInfo, "following master %u (epoch %u) directly", e.leader, a.epoch());
+        break;
+      case K::relays: {
+        std::string relays;
+        for (std::size_t i = 0; i < a.relay_count(); ++i) relays += " " + std::to_string(a.relayed(i));
+        log_.log(kInfo, "relaying for agents:%s", relays.empty() ? " none" : relays.c_str());
+        break;
+      }
+      case K::master_started: {
+        std::string m;
+        for (std::size_t i = 0; i < a.member_count(); ++i) m += " " + std::to_string(a.member(i));
+        log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", e.epoch, a.id(),
+                 m.c_str(), script_.empty() ? "" : "; running --master-script");
+        script_pos_ = 0;
+        script_at_ = now;
+        break;
+      }
+      case K::master_stopped:
+        log_.log(kInfo, "master of epoch %u stepped down (epoch %u is newer)%s; Master core dropped", e.epoch,
+                 a.epoch(), e.handed_over ? " (HANDOVER sent to the new master)" : "");
+        break;
     }
   }
 
@@ -326,11 +370,11 @@ class Program {
       runner_.control(ev3proto::ControlKind::stop, "", {}, now);
       log_.log(kInfo, "behaviour stopped, motors stopped");
     }
-    if (ev3proto::is_synced(agent_->state())) {
+    if (ev3proto::is_synced(node_->agent().state())) {
       // The protocol has no "leaving" message: an EVENT named LEAVING tells the master.
       char buf[64];
       const std::string_view p[1] = {"LEAVING"};
-      const auto r = ev3proto::encode_parts(agent_->id(), ev3proto::kMasterId, agent_->next_msgid(),
+      const auto r = ev3proto::encode_parts(node_->agent().id(), ev3proto::kMasterId, node_->agent().next_msgid(),
                                             static_cast<std::uint8_t>(ev3proto::MsgType::EVENT), p, 1, buf,
                                             sizeof buf);
       const ev3io::Endpoint* ep = net_.endpoint_of(master_peer_);
@@ -376,11 +420,8 @@ class Program {
     return true;
   }
 
-  /// Writes durable() when durable_rev() changed (before sending what the call queued).
-  void save_state() {
-    if (!agent_ || agent_->durable_rev() == saved_rev_) return;
-    saved_rev_ = agent_->durable_rev();
-    const ev3proto::Durable d = agent_->durable();
+  /// Writes the election state (epoch, voted_for) the node reported changed.
+  void save_state(const ev3proto::Durable& d) {
     log_.log(kDebug, "durable: epoch %u, voted for %u", d.epoch, d.voted_for);
     if (state_path_.empty()) return;
     std::string err;
@@ -389,96 +430,10 @@ class Program {
       log_.log(kError, "%s", err.c_str());
   }
 
-  /// Reads the election observers after every call: logs role / epoch / leader / relay changes,
-  /// starts the Master core when this agent won an epoch, drops it once it stepped down.
-  void election_changes(Millis now) {
-    if (!opt_.election) return;
-    const ev3proto::Role role = agent_->role();
-    const std::uint32_t epoch = agent_->durable().epoch;
-    if (epoch != seen_epoch_) {
-      log_.log(kInfo, "epoch %u (was %u)", epoch, seen_epoch_);
-      seen_epoch_ = epoch;
-    }
-    if (role != seen_role_) {
-      if (role == ev3proto::Role::candidate)
-        log_.log(kInfo, "election: standing as CANDIDATE in epoch %u (score %u)", epoch, agent_->score());
-      else if (role == ev3proto::Role::master)
-        log_.log(kInfo, "election: won epoch %u (score %u): role MASTER", agent_->master_epoch(), agent_->score());
-      else
-        log_.log(kInfo, "election: role %s", role_name(role).c_str());
-      seen_role_ = role;
-    }
-    if (agent_->leader() != seen_leader_ || agent_->via() != seen_via_) {
-      seen_leader_ = agent_->leader();
-      seen_via_ = agent_->via();
-      if (seen_leader_ != 0 && seen_via_ != 0)
-        log_.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", seen_leader_, epoch, seen_via_);
-      else if (seen_leader_ != 0)
-        log_.log(kInfo, "following master %u (epoch %u) directly", seen_leader_, epoch);
-    }
-    std::string relays;
-    for (std::size_t i = 0; i < agent_->relay_count(); ++i) relays += " " + std::to_string(agent_->relayed(i));
-    if (relays != seen_relays_) {
-      log_.log(kInfo, "relaying for agents:%s", relays.empty() ? " none" : relays.c_str());
-      seen_relays_ = relays;
-    }
-    if (role == ev3proto::Role::master && (!mc_ || mc_->epoch() != agent_->master_epoch())) {
-      std::vector<std::uint16_t> members;
-      for (std::size_t i = 0; i < agent_->member_count(); ++i) members.push_back(agent_->member(i));
-      // --trace: the Master core's records go to the same file, node "master:ID:EPOCH" (one Master core
-      // per epoch won; docs/spec.md "Election master traces").
-      mc_.reset();
-      mtrace_.reset();
-      if (trace_file_ != nullptr) {
-        mtrace_.emplace("master:" + std::to_string(agent_->id()) + ":" + std::to_string(agent_->master_epoch()));
-        mtrace_->set_output([this](const std::string& line) {
-          std::fwrite(line.data(), 1, line.size(), trace_file_);
-          std::fputc('\n', trace_file_);
-        });
-      }
-      mc_.emplace(ev3proto::MasterConfig::for_elected_agent(opt_.timers, agent_->id(), agent_->master_epoch(),
-                                                            members, agent_->next_msgid() + (1u << 30)),
-                  now, mtrace_ ? &*mtrace_ : nullptr);
-      std::string m;
-      for (std::uint16_t id : members) m += " " + std::to_string(id);
-      log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", mc_->epoch(),
-               agent_->id(), m.c_str(), script_.empty() ? "" : "; running --master-script");
-      script_pos_ = 0;
-      script_at_ = now;
-    }
-    if (mc_ && mc_->role() == ev3proto::MasterRole::stepped_down && role != ev3proto::Role::master) {
-      log_.log(kInfo, "master of epoch %u stepped down (epoch %u is newer)%s; Master core dropped",
-               agent_->master_epoch(), mc_->epoch(),
-               mc_->handed_over() ? " (HANDOVER sent to the new master)" : "");
-      mc_.reset();
-    }
-  }
-
-  /// Drains the Master core (when this agent runs one).
-  void pump_master(Millis now) {
-    if (!mc_) return;
-    ev3proto::MasterTransmit t;
-    while (mc_->poll_transmit(t)) {
-      log_.log(kDebug, "master core: send %s", printable(t.bytes).c_str());
-      if (t.dest == ev3proto::Dest::broadcast) {
-        broadcast(t.bytes, now);
-      } else if (const ev3io::Endpoint* ep = net_.endpoint_of(t.peer)) {
-        net_.send(*ep, t.bytes, now);
-      }
-    }
-    ev3proto::OperatorEvent e;
-    while (mc_->poll_event(e)) {
-      std::string addr;
-      const auto it = mc_->registry().find(e.agent);
-      if (it != mc_->registry().end())
-        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
-      log_.log(kInfo, "master: %s", view_.on_event(e, addr, now).c_str());
-    }
-  }
-
   /// --master-script: console commands for the Master core, from the moment this agent won.
   void run_script(Millis now) {
-    while (mc_ && mc_->role() == ev3proto::MasterRole::master && script_pos_ < script_.size() && now >= script_at_) {
+    while (node_->master() != nullptr && node_->master()->role() == ev3proto::MasterRole::master &&
+           script_pos_ < script_.size() && now >= script_at_) {
       const std::string line = script_[script_pos_++];
       ev3master::ConsoleCommand c;
       const std::string err = ev3master::parse_console_line(line, c);
@@ -489,10 +444,11 @@ class Program {
         script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
       } else if (c.kind == K::send) {
         log_.log(kInfo, "master script> %s", line.c_str());
-        mc_->command(c.agent, c.command, now);
+        node_->command(c.agent, c.command, now);
         pump(now);
       } else if (c.kind == K::list) {
-        for (const std::string& l : view_.table(mc_->registry(), drops_, now)) log_.log(kInfo, "master: %s", l.c_str());
+        for (const std::string& l : view_.table(node_->master()->registry(), drops_, now))
+          log_.log(kInfo, "master: %s", l.c_str());
       }
     }
   }
@@ -504,22 +460,15 @@ class Program {
   ev3proto::NdjsonTrace trace_{"agent"};
   std::FILE* trace_file_ = nullptr;
   Millis trace_flush_ = 0;
-  std::optional<AgentCore> agent_;
+  std::optional<RobotNode> node_;
   std::optional<ev3agent::Leds> leds_;
   ev3agent::WaitRunner runner_;
-  ev3proto::Message rx_;
   std::map<std::string, std::uint64_t> drops_;
   bool drops_changed_ = false;
   ev3proto::Peer master_peer_ = 0;  // the master's handle, as the core last sent to it
   // election
   std::string state_path_;
-  std::uint32_t saved_rev_ = 0, seen_epoch_ = 1;
-  ev3proto::Role seen_role_ = ev3proto::Role::none;
-  std::uint16_t seen_leader_ = 0, seen_via_ = 0;
-  std::string seen_relays_;
   std::optional<ev3proto::NdjsonTrace> mtrace_;  // the Master core's records (--trace)
-  std::optional<MasterCore> mc_;
-  ev3proto::DedupeWindow<4096> copies_;  // in front of mc_
   ev3master::FleetView view_;
   std::vector<std::string> script_;
   std::size_t script_pos_ = 0;

@@ -241,8 +241,11 @@ def _cmd_validate(args: argparse.Namespace) -> int:
 def _cmd_mutate(args: argparse.Namespace) -> int:
     from ev3conformance import graph, mutate
     if args.list:
+        headers = {p.name: p.read_text() for p in (graph.ROOT / mutate.INC).glob("*.hpp")}
         for m in mutate.MUTANTS:
-            print(f"{m.name:32} {m.kind:6} {m.file:10} {m.what}")
+            at = mutate.locate(mutate.headers_for(m.kind, headers), m)
+            where = at if isinstance(at, str) else at[3]
+            print(f"{m.name:38} {m.kind:8} {where:34} {m.what}")
         return 0
     t0 = time.monotonic()
     try:

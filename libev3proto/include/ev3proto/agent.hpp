@@ -6,8 +6,10 @@
 /// No heap, no exceptions, no RTTI, no clocks, no globals, no randomness (the temporary id is drawn
 /// by the caller). All memory is sized at compile time by the template parameters.
 ///
-/// Every spec action has one handler of the same name (RecvMaster ... BatteryLow); handle_datagram()
-/// dispatches like the spec's Handler(a, m): exactly one receive handler takes each message.
+/// Every spec action has one handler of the same name (RecvMaster ... BatteryLow, and Election.tla's:
+/// election.hpp holds their guards); a datagram enters through one prelude (Step: the handler chosen
+/// first, epochs handled once), the state table is the guard of every state change, roles change
+/// only in the become_* functions, and the armed deadlines are a TimerTable (docs/core.md).
 #pragma once
 
 #include <cstddef>
@@ -17,6 +19,7 @@
 
 #include "core.hpp"
 #include "dedupe.hpp"
+#include "election.hpp"
 #include "messages.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
@@ -35,26 +38,6 @@ struct Capabilities {
   const BehaviourSpec* behaviours = nullptr; ///< Behaviours it implements.
   std::size_t behaviour_count = 0;          ///< Entries of @c behaviours.
   std::uint32_t devices = 0;                ///< Device bits of the model, all plugged at start.
-};
-
-/// "Compute the score from the capabilities" (ElectionConfig::score).
-inline constexpr std::uint32_t kAutoScore = ~std::uint32_t{0};
-
-/// Relay and election (spec/tla/Election.tla). Off by default: the agent is then exactly the
-/// AgentLogic.tla agent (one master, epoch 1). epoch and voted_for are Election's persistent
-/// variables: pass back what durable() said last (SD card) after a restart.
-struct ElectionConfig {
-  bool enabled = false;           ///< Relay and election on.
-  std::uint32_t epoch = 1;        ///< Highest epoch seen (persisted).
-  std::uint16_t voted_for = 0;    ///< Vote in that epoch, 0 = none (persisted).
-  std::uint32_t score = kAutoScore; ///< Election Score (lower = weaker, stands first, wins).
-};
-
-/// What the firmware must keep on stable storage (Election's epoch and votedFor): write it before
-/// sending the datagrams polled after the call that changed it (AgentEvent::Kind::durable).
-struct Durable {
-  std::uint32_t epoch = 1;     ///< Highest epoch seen.
-  std::uint16_t voted_for = 0; ///< Whom the agent voted for in that epoch (0 = nobody).
 };
 
 /// Construction parameters of an Agent.
@@ -87,7 +70,8 @@ struct Transmit {
 /// An event for the robot program: a state change, a LED pattern, or a behaviour control.
 struct AgentEvent {
   /// Which field is meaningful.
-  /// (Election outputs are observers, not events: Agent::role(), Agent::durable(); docs/core.md.)
+  /// (Election changes are observers here, Agent::role(), Agent::durable(); the node reports them
+  /// as events: node.hpp.)
   enum class Kind : std::uint8_t { state, led, control } kind = Kind::state;
   State state = State::IDLE;               ///< New state (Kind::state).
   Led led = Led::YELLOW_BLINK;             ///< New LED pattern (Kind::led).
@@ -148,6 +132,26 @@ struct AgentTraceRecord {
   AgentVars after;              ///< Variables after.
 };
 
+/// What handle_datagram() did with one datagram: the spec action taken, or why none was.
+struct Handled {
+  Action action = Action::Ignore; ///< The spec action taken (Ignore: none; see why).
+  Ignored why = Ignored::no;      ///< Why no action took it (Ignored::no when one did).
+  Action inner = Action::Ignore;  ///< ApplyCommand: the receive handler of the inner datagram.
+  DecodeResult decode;            ///< Ignored::undecodable: the codec's reason and field.
+  /// True when a spec action took the datagram.
+  bool taken() const noexcept { return why == Ignored::no; }
+};
+
+/// The agent core's armed deadlines (one TimerTable entry each).
+enum class AgentTimer : std::uint8_t {
+  periodic,  ///< The heartbeat phase completes: AGENT / PING / PANIC (spec clk wraps).
+  lifecycle, ///< SyncTimeout (IDLE) or HeartbeatLost (ACTIVE, WORKING: loss; PAUSED: paused).
+  relay,     ///< PANIC: the next RELAY_REQ (Election RequestRelay).
+  stand,     ///< PANIC with a pre-vote quorum: the back-off is over (Election StartElection).
+};
+/// Number of agent timers.
+inline constexpr std::size_t kAgentTimerCount = 4;
+
 /// The agent core.
 /// @tparam Trace trace sink: NoTrace (default, compiles to nothing) or a type with
 ///         `static constexpr bool enabled = true` and `template <class A> void record(const
@@ -173,18 +177,22 @@ class Agent {
   static constexpr Millis kNever = ~Millis{0};
   /// The dedupe window type (payload: the recorded answer).
   using WindowType = DedupeWindow<Window, StoredAnswer>;
+  /// The election part (Election.tla's variables and guards).
+  using ElectionType = AgentElection<RelaySlots, kMaxMembers>;
 
   /// A fresh agent in IDLE at time @p now (spec Init with id = temp id).
   Agent(const AgentConfig& config, Millis now, Trace* trace = nullptr) noexcept
       : cfg_(config), trace_(trace), id_(config.temp_id), msgid_(config.first_msgid), now_(now),
-        heard_(now), periodic_at_(now + config.timers[Timer::heartbeat]),
-        plugged_(config.caps.devices), epoch_(config.election.epoch == 0 ? 1 : config.election.epoch),
-        voted_for_(config.election.voted_for) {}
+        heard_(now), plugged_(config.caps.devices), el_(config.election), durable_(el_.durable()) {
+    timers_.set(AgentTimer::periodic, now + cfg_.timers[Timer::heartbeat]);
+    arm_lifecycle();
+  }
 
   // ---------------------------------------------------------------- inputs
 
   /// Time moves to @p now: spec Ticks (periodic AGENT / PING / PANIC) and, before time moves past
-  /// them, due timeouts (SyncTimeout, HeartbeatLost). A @p now in the past changes nothing.
+  /// them, due timeouts (SyncTimeout, HeartbeatLost) and the election's timers. A @p now in the
+  /// past changes nothing.
   void advance(Millis now) noexcept {
     if (state_ == State::OFF) {
       if (now > now_) now_ = now;
@@ -192,11 +200,11 @@ class Agent {
     }
     for (;;) {
       if (SyncTimeoutOk()) {
-        SyncTimeout();
+        traced(Action::SyncTimeout, [this] { SyncTimeout(); });
         continue;
       }
       if (HeartbeatLostOk()) {
-        HeartbeatLost();
+        traced(Action::HeartbeatLost, [this] { HeartbeatLost(); });
         continue;
       }
       if (RequestRelayOk()) {
@@ -211,8 +219,7 @@ class Agent {
         traced(Action::BecomeMaster, [this] { BecomeMaster(); });
         continue;
       }
-      Millis due = periodic_at_ < timeout_at() ? periodic_at_ : timeout_at();
-      if (election_due() < due) due = election_due();
+      const Millis due = timers_.next();
       const Millis target = due < now ? due : now;
       if (target <= now_) break;
       Tick(target);
@@ -222,31 +229,34 @@ class Agent {
   /// Same as advance(): the name quinn-style callers expect.
   void handle_timeout(Millis now) noexcept { advance(now); }
 
-  /// A datagram @p bytes arrived from @p from at @p now. Time advances first; a datagram that does
-  /// not decode is dropped (counted in rejected(), not a spec step); otherwise exactly one receive
-  /// handler takes it (spec Handler). Returns the action taken (Ignore when dropped).
-  Action handle_datagram(std::string_view bytes, Peer from, Millis now) noexcept {
+  /// A datagram @p bytes arrived from @p from at @p now. Time advances first; the datagram is
+  /// decoded (a failure is no spec step: counted in rejected(), the reason in the result), then
+  /// handle_message(). Returns the action taken or why none was.
+  Handled handle_datagram(std::string_view bytes, Peer from, Millis now) noexcept {
     advance(now);
-    if (!decode(bytes, rx_).ok()) {
+    Handled h;
+    h.decode = decode(bytes, rx_);
+    if (!h.decode.ok()) {
       ++rejected_;
-      return Action::Ignore;
+      h.why = Ignored::undecodable;
+      return h;
     }
-    if (state_ == State::OFF) return Action::Ignore;  // OFF takes no step at all (Agent.tla)
-    const AgentVars before = vars();
-    cmd_ = Action::Ignore;
-    const Action h = Dispatch(rx_, from);
-    record(h, before, bytes, {}, 0);
-    if (BecomeMasterOk()) traced(Action::BecomeMaster, [this] { BecomeMaster(); });
-    return h;
+    return Step(rx_, bytes, from);
+  }
+
+  /// The decoded datagram @p m (its bytes @p bytes, for the trace) arrived from @p from at @p now:
+  /// exactly one receive handler takes it (spec Handler, Election's rules), or none (the result says
+  /// why). For a caller that decoded it already (Node): each datagram is decoded once.
+  Handled handle_message(const Message& m, std::string_view bytes, Peer from, Millis now) noexcept {
+    advance(now);
+    return Step(m, bytes, from);
   }
 
   /// The running action finished (spec ActionOk). Returns false (nothing done) unless Running.
   bool action_ok(Millis now) noexcept {
     advance(now);
     if (!ActionOkOk()) return false;
-    const AgentVars before = vars();
-    ActionOk();
-    record(Action::ActionOk, before, {}, {}, 0);
+    traced(Action::ActionOk, [this] { ActionOk(); });
     return true;
   }
 
@@ -265,9 +275,7 @@ class Agent {
   bool action_failed(Millis now) noexcept {
     advance(now);
     if (!ActionFailedOk()) return false;
-    const AgentVars before = vars();
-    ActionFailed();
-    record(Action::ActionFailed, before, {}, {}, 0);
+    traced(Action::ActionFailed, [this] { ActionFailed(); });
     return true;
   }
 
@@ -317,9 +325,7 @@ class Agent {
   bool battery_low(Millis now) noexcept {
     advance(now);
     if (!BatteryLowOk()) return false;
-    const AgentVars before = vars();
-    BatteryLow();
-    record(Action::BatteryLow, before, {}, {}, 0);
+    traced(Action::BatteryLow, [this] { BatteryLow(); });
     return true;
   }
 
@@ -346,13 +352,9 @@ class Agent {
     return true;
   }
 
-  /// When the caller must call advance() next at the latest (kNever in OFF).
-  Millis next_deadline() const noexcept {
-    if (state_ == State::OFF) return kNever;
-    Millis t = timeout_at();
-    if (election_due() < t) t = election_due();
-    return periodic_at_ < t ? periodic_at_ : t;
-  }
+  /// When the caller must call advance() next at the latest (kNever in OFF): the earliest armed
+  /// timer.
+  Millis next_deadline() const noexcept { return state_ == State::OFF ? kNever : timers_.next(); }
 
   // ---------------------------------------------------------------- observers
 
@@ -386,48 +388,49 @@ class Agent {
   std::uint32_t next_msgid() const noexcept { return msgid_; }
   /// Datagrams or events dropped because the caller did not drain the queues.
   std::uint32_t overflowed() const noexcept { return overflowed_; }
+  /// The armed deadline of timer @p t (kNever when stopped).
+  Millis deadline(AgentTimer t) const noexcept { return timers_.get(t); }
 
   // ------------------------------------------------------ election observers
 
   /// Election role (CANDIDATE / MASTER of Election.tla; the state is then PANIC).
-  Role role() const noexcept { return role_; }
+  Role role() const noexcept { return el_.role; }
   /// Highest epoch seen (Election epoch).
-  std::uint32_t epoch() const noexcept { return epoch_; }
+  std::uint32_t epoch() const noexcept { return el_.epoch; }
   /// What to keep on stable storage (epoch, votedFor): write it when durable_rev() changed, before
   /// sending what the call that changed it queued (a VOTE must not outlive a lost votedFor).
-  Durable durable() const noexcept { return Durable{epoch_, voted_for_}; }
+  Durable durable() const noexcept { return el_.durable(); }
   /// Changes whenever durable() changes.
   std::uint32_t durable_rev() const noexcept { return durable_rev_; }
-  /// The epoch this agent last became master of (0 = never): with role() == master, the program
-  /// runs a Master core seeded with it and members() (docs/core.md, "An agent becomes master").
-  std::uint32_t master_epoch() const noexcept { return master_epoch_; }
+  /// The epoch this agent last became master of (0 = never): with role() == master, a Master core
+  /// runs for it seeded with it and the membership (node.hpp).
+  std::uint32_t master_epoch() const noexcept { return el_.master_epoch; }
   /// The master followed (Election leader; 0 = none). Before any election: 1 (the PC) when synced.
-  std::uint16_t leader() const noexcept { return leader_; }
+  std::uint16_t leader() const noexcept { return el_.leader; }
   /// The epoch of that master (Election following; 0 = none).
-  std::uint32_t following() const noexcept { return following_; }
+  std::uint32_t following() const noexcept { return el_.following; }
   /// The relay's id when relayed (Election via; 0 = direct).
-  std::uint16_t via() const noexcept { return via_; }
+  std::uint16_t via() const noexcept { return el_.via; }
   /// Agents this agent relays for (Election relays).
-  std::size_t relay_count() const noexcept { return relay_count_; }
+  std::size_t relay_count() const noexcept { return el_.relays.size(); }
   /// The i-th relayed agent's id.
-  std::uint16_t relayed(std::size_t i) const noexcept { return i < relay_count_ ? relays_[i].id : 0; }
+  std::uint16_t relayed(std::size_t i) const noexcept { return el_.relays.id(i); }
   /// Agents offered a relay since the master last changed (Election offered).
-  std::size_t offered_count() const noexcept { return offered_count_; }
+  std::size_t offered_count() const noexcept { return el_.offered.size(); }
   /// The i-th offered agent's id.
-  std::uint16_t offered(std::size_t i) const noexcept { return i < offered_count_ ? offered_[i].id : 0; }
-  /// Votes counted as a candidate / master (Election votes).
-  std::size_t vote_count() const noexcept { return vote_count_; }
+  std::uint16_t offered(std::size_t i) const noexcept { return el_.offered.id(i); }
+  /// Votes counted as a candidate (Election votes).
+  std::size_t vote_count() const noexcept { return el_.votes.size(); }
   /// The i-th vote.
-  std::uint16_t vote(std::size_t i) const noexcept { return i < vote_count_ ? votes_[i] : 0; }
-  /// PREVOTE_OKs counted for standing in the next epoch (Election prevotes; those of an older
-  /// epoch no longer count).
-  std::size_t prevote_count() const noexcept { return prevote_epoch_ == epoch_ ? prevote_count_ : 0; }
+  std::uint16_t vote(std::size_t i) const noexcept { return el_.votes[i]; }
+  /// PREVOTE_OKs counted for standing in the next epoch (Election prevotes).
+  std::size_t prevote_count() const noexcept { return el_.prevotes.size(); }
   /// The i-th pre-vote's sender.
-  std::uint16_t prevote(std::size_t i) const noexcept { return i < prevote_count() ? prevotes_[i] : 0; }
+  std::uint16_t prevote(std::size_t i) const noexcept { return el_.prevotes[i]; }
   /// The fleet membership last published by the followed master (LEADER), quorums count against it.
-  std::size_t member_count() const noexcept { return member_count_; }
+  std::size_t member_count() const noexcept { return el_.members.size(); }
   /// The i-th member id.
-  std::uint16_t member(std::size_t i) const noexcept { return i < member_count_ ? members_[i] : 0; }
+  std::uint16_t member(std::size_t i) const noexcept { return el_.members[i]; }
   /// The score this agent announces when it stands (ElectionConfig::score, or computed: 16 x the
   /// behaviours it can run now + the devices plugged; lower = weaker).
   std::uint32_t score() const noexcept {
@@ -450,25 +453,323 @@ class Agent {
     v.wait = wait_;
     v.motors = motors_;
     v.dev_ok = dev_ok();
-    v.silence = state_ == State::PANIC ? 0 : now_ - heard_;
+    v.silence = silence();
     v.clk = (now_ - clk_origin()) % cfg_.timers[Timer::heartbeat];
     v.win_rev = win_rev_;
-    v.election = cfg_.election.enabled;
-    v.role = role_;
-    v.epoch = epoch_;
-    v.voted_for = voted_for_;
-    v.leader = leader_;
-    v.following = following_;
-    v.via = via_;
-    v.relay_rev = relay_rev_;
+    v.election = el_.enabled;
+    v.role = el_.role;
+    v.epoch = el_.epoch;
+    v.voted_for = el_.voted_for;
+    v.leader = el_.leader;
+    v.following = el_.following;
+    v.via = el_.via;
+    v.relay_rev = el_.sets_rev();
     return v;
   }
 
-  /// The receive handler the spec's Handler(a, m) picks for @p m (at most one applies).
-  Action Handler(const Message& m) const noexcept {
-    if (RecvMasterOk(m)) return Action::RecvMaster;
-    if (RecvPongOk(m)) return Action::RecvPong;
-    if (FromMaster(m) && Fresh(m)) {
+  /// The receive handler the spec's Handler(a, m) picks for @p m from the master followed (at most
+  /// one applies).
+  Action Handler(const Message& m) const noexcept { return Handler(m, master_id()); }
+
+ private:
+  struct TxSlot {
+    Dest dest = Dest::broadcast;
+    Peer peer = 0;
+    std::size_t size = 0;
+    char bytes[TxBytes];
+  };
+
+  // ------------------------------------------------------------ the Step prelude
+
+  /// Every decoded datagram enters here (raft's Step): the handler that takes it is chosen before
+  /// anything changes (Choose: the guards, the fence); a sender in an older epoch is answered
+  /// EPOCH_STALE and nothing else happens; a newer epoch is adopted (stepping down) before the
+  /// handler runs; then the handler; one trace record.
+  Handled Step(const Message& m, std::string_view bytes, Peer from) noexcept {
+    Handled h;
+    if (state_ == State::OFF) {  // OFF takes no step at all (Agent.tla)
+      h.why = Ignored::off;
+      return h;
+    }
+    const AgentVars before = vars();
+    const Message* inner = nullptr;
+    if ((m.type == MsgType::RELAY || m.type == MsgType::EPOCH_CMD) && decode(m.param(1), inner_).ok())
+      inner = &inner_;
+    const Verdict v = Choose(m, inner);
+    if (v.stale) {
+      Stale(m.sender, from);
+    } else {
+      if (v.epoch > el_.epoch) NewerEpoch(v.epoch, v.action);
+      Run(v, m, inner, from);
+    }
+    record(v.action, before, bytes, {}, 0, v.inner);
+    if (BecomeMasterOk()) traced(Action::BecomeMaster, [this] { BecomeMaster(); });
+    h.action = v.action;
+    h.why = v.why;
+    h.inner = v.inner;
+    return h;
+  }
+
+  /// Which handler takes @p m (@p inner: the datagram inside a RELAY / EPOCH_CMD, nullptr when it
+  /// does not decode): relay / election types by Election's rules, EPOCH_CMD through the fence,
+  /// a bare command after an election (epoch > 1) is stale, the rest by AgentLogic's Handler.
+  Verdict Choose(const Message& m, const Message* inner) const noexcept {
+    if (m.type >= MsgType::RELAY_REQ && m.type <= MsgType::PREVOTE_OK) {
+      if (!el_.enabled) return Verdict{Action::Ignore, Ignored::election_off};
+      if (m.sender == id_) return Verdict{Action::Ignore, Ignored::own_broadcast};
+      if (m.type == MsgType::EPOCH_CMD) return ApplyCommandOk(m, inner);
+      return el_.Choose(m, inner, lifecycle());
+    }
+    if (el_.enabled && el_.epoch > 1 && Answered(m) && AddressedTo(m)) {
+      // A bare command counts as epoch 1, older than ours: fenced, the sender learns our epoch.
+      Verdict v{Action::Ignore, Ignored::stale_epoch};
+      v.stale = true;
+      return v;
+    }
+    return ChooseReceive(m, master_id());
+  }
+
+  /// AgentLogic's Handler for @p m from master @p master, with the reason when it is Ignore.
+  Verdict ChooseReceive(const Message& m, std::uint16_t master) const noexcept {
+    const Action a = Handler(m, master);
+    if (a != Action::Ignore) return Verdict{a};
+    if (!AddressedTo(m)) return Verdict{Action::Ignore, Ignored::misaddressed};
+    if (m.sender != master) return Verdict{Action::Ignore, Ignored::foreign_sender};
+    if (!Answered(m) && m.type != MsgType::PONG) return Verdict{Action::Ignore, Ignored::not_for_agent};
+    return Verdict{Action::Ignore, Ignored::ignored_in_state};
+  }
+
+  /// Spec ApplyCommand's enabling condition, on the outer EPOCH_CMD(e, inner): the inner datagram
+  /// decodes and is the sender's; e older than ours: stale. The master of epoch e syncs a
+  /// masterless agent (MASTER inside), or commands the agent that follows it in e (Election Obeys).
+  Verdict ApplyCommandOk(const Message& m, const Message* inner) const noexcept {
+    const auto e = m.param_u32(0);
+    if (!e || inner == nullptr || inner->sender != m.sender || inner->type == MsgType::EPOCH_CMD ||
+        inner->type == MsgType::RELAY)
+      return Verdict{Action::Ignore, Ignored::ignored_in_state};
+    Verdict v{Action::ApplyCommand};
+    if (*e < el_.epoch) {  // no spec step (ApplyCommand is not enabled); answered EPOCH_STALE
+      v = Verdict{Action::Ignore, Ignored::stale_epoch};
+      v.stale = true;
+      return v;
+    }
+    v.inner = Handler(*inner, m.sender);
+    if (inner->type == MsgType::MASTER) {
+      if (v.inner == Action::RecvMaster) v.epoch = *e;
+      if (v.inner == Action::RecvMaster || v.inner == Action::RecvDuplicate) return v;
+      return Verdict{Action::Ignore, Ignored::ignored_in_state};
+    }
+    if (!el_.Obeys(m.sender, *e)) return Verdict{Action::Ignore, Ignored::foreign_sender};
+    return v;
+  }
+
+  /// Runs the handler @p v chose.
+  void Run(const Verdict& v, const Message& m, const Message* inner, Peer from) noexcept {
+    switch (v.action) {
+      case Action::OfferRelay: OfferRelay(m, from); break;
+      case Action::GrantPreVote: GrantPreVote(m, from); break;
+      case Action::HandlePreVote: HandlePreVote(m); break;
+      case Action::AcceptRelay: AcceptRelay(m, from); break;
+      case Action::HandleAccept: HandleAccept(m, from); break;
+      case Action::Forward: Forward(m); break;
+      case Action::RelayDropped: RelayDropped(m); break;
+      case Action::HandleElect: HandleElect(m, from); break;
+      case Action::HandleVote: HandleVote(m); break;
+      case Action::HandleHeartbeat: HandleHeartbeat(m, from); break;
+      case Action::HandleStale: HandleStale(m); break;
+      case Action::ApplyCommand: ApplyCommand(v.inner, *inner, from, m.sender, *m.param_u32(0)); break;
+      default: Receive(v.action, m, from, master_id(), 1); break;
+    }
+  }
+
+  /// AgentLogic's Receive: the receive handler @p h on @p m from master @p master of epoch @p e.
+  void Receive(Action h, const Message& m, Peer from, std::uint16_t master, std::uint32_t e) noexcept {
+    switch (h) {
+      case Action::RecvMaster: RecvMaster(m, from, master, e); break;
+      case Action::RecvPong: RecvPong(m); break;
+      case Action::RecvBehaviour:
+      case Action::RecvStart:
+      case Action::RecvStop:
+      case Action::RecvPause:
+      case Action::RecvResume:
+      case Action::RecvStandby:
+      case Action::RecvContinue:
+      case Action::RecvRestart: Command(h, m); break;
+      case Action::RecvDuplicate: RecvDuplicate(m); break;
+      default: Ignore(m); break;
+    }
+  }
+
+  /// A fresh command from the master: the state table is the guard. With no row for the state
+  /// (and wait) it is refused "wrong state"; otherwise its handler runs towards the row's state.
+  void Command(Action h, const Message& m) noexcept {
+    const Next next = next_state(state_, h, wait_);
+    if (!next) return Refuse(m, Refusal::wrong_state);
+    switch (h) {
+      case Action::RecvBehaviour: RecvBehaviour(m); break;
+      case Action::RecvStart: RecvStart(m, next.to); break;
+      case Action::RecvStop: RecvStop(m, next.to); break;
+      case Action::RecvPause: RecvPause(m, next.to); break;
+      case Action::RecvResume: RecvResume(m, next.to); break;
+      case Action::RecvStandby: RecvStandby(m, next.to); break;
+      case Action::RecvContinue: RecvContinue(m); break;
+      case Action::RecvRestart: RecvRestart(m, next.to); break;
+      default: break;
+    }
+  }
+
+  /// A newer epoch than ours, seen in a datagram a handler takes: Election SteppedDown (a WORKING
+  /// agent pauses, a master or candidate goes back to plain PANIC, nobody is followed any more),
+  /// then the epoch is adopted with no vote and no pre-votes in it.
+  void NewerEpoch(std::uint32_t e, Action by) noexcept {
+    step_down(by);
+    el_.epoch = e;
+    el_.voted_for = 0;
+    clear_prevotes();
+    durable_changed();
+  }
+
+  // ------------------------------------------------------------ role changes (raft's become*)
+
+  /// Follow master @p leader of epoch @p e, through relay @p via (0: directly) at peer @p peer: no
+  /// role, no relay requests, no standing, no pre-votes; the master counts as heard.
+  void become_follower(std::uint16_t leader, std::uint32_t e, std::uint16_t via, Peer peer) noexcept {
+    set_role(Role::none);
+    el_.leader = leader;
+    el_.following = e;
+    el_.via = via;
+    master_peer_ = peer;
+    hear();
+    timers_.stop(AgentTimer::relay);
+    stand_at_ = kNever;
+    clear_prevotes();
+  }
+  /// Without a master (PANIC, or a candidate / master stepping down): no role; with the election on
+  /// and an assigned id, relay requests at once and standing after the back-off.
+  void become_masterless() noexcept {
+    set_role(Role::none);
+    clear_prevotes();
+    if (!el_.enabled) return;
+    const bool can = is_assigned_id(id_);
+    timers_.set(AgentTimer::relay, can ? now_ : kNever);
+    stand_at_ = can && el_.members.size() > 0 ? now_ + backoff() : kNever;
+    arm_stand();
+  }
+  /// Stand in the next epoch: vote for itself, count its own vote, ask again (pre-votes for the
+  /// epoch after) if this candidacy stalls, then stand again after the back-off.
+  void become_candidate() noexcept {
+    ++el_.epoch;
+    el_.voted_for = id_;
+    durable_changed();
+    el_.votes.restart();
+    if (el_.members.contains(id_)) el_.votes.add(id_);
+    set_role(Role::candidate);
+    clear_prevotes();
+    timers_.set(AgentTimer::relay, now_ + cfg_.timers[Timer::candidate]);
+    stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
+    arm_stand();
+  }
+  /// Master of its epoch: a Master core runs for it (node.hpp); no relay requests, no standing.
+  void become_master() noexcept {
+    set_role(Role::master);
+    timers_.stop(AgentTimer::relay);
+    stand_at_ = kNever;
+    arm_stand();
+  }
+  /// The lifecycle enters PANIC by action @p by (SyncTimeout, HeartbeatLost, RelayDropped): the
+  /// behaviour stops, PANIC is broadcast at once (spec !.clk = 0), the master is no longer
+  /// followed (the relay table is dropped with RELAY_DROP), then become_masterless().
+  void enter_panic(Action by) noexcept {
+    Stopped();
+    Goto(next_state(state_, by).to);
+    hear();
+    reset_clk();
+    emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
+    unfollow();
+    become_masterless();
+  }
+  /// Election SteppedDown(n, s) by action @p by: WORKING pauses (motors off, progress kept), a
+  /// candidate or master is masterless again, the old master is not followed.
+  void step_down(Action by) noexcept {
+    if (state_ == State::WORKING) {
+      Goto(next_state(state_, by).to);
+      motors_pause();
+    }
+    if (el_.role != Role::none) become_masterless();
+    unfollow();
+  }
+  /// leader, following, via cleared; relays dropped (RELAY_DROP), offers forgotten.
+  void unfollow() noexcept {
+    el_.leader = 0;
+    el_.following = 0;
+    el_.via = 0;
+    drop_relays();
+  }
+  /// Every relayed agent gets RELAY_DROP(epoch); the relay table and the offers are forgotten.
+  void drop_relays() noexcept {
+    for (std::size_t i = 0; i < el_.relays.size(); ++i) {
+      char num[10];
+      const std::string_view p[1] = {number(el_.epoch, num)};
+      emit_to(el_.relays[i].peer, el_.relays[i].id, MsgType::RELAY_DROP, p, 1);
+    }
+    el_.relays.clear();
+    el_.offered.clear();
+  }
+  /// The role changes (only through the become_* functions above): a candidate's votes are
+  /// forgotten when it is one no more; becoming master records the epoch won.
+  void set_role(Role r) noexcept {
+    if (r == el_.role) return;
+    if (r == Role::master) el_.master_epoch = el_.epoch;
+    el_.role = r;
+    if (r != Role::candidate) el_.votes.clear();
+  }
+  void clear_prevotes() noexcept {
+    el_.prevotes.clear();
+    arm_stand();
+  }
+
+  // ------------------------------------------------------------ spec helpers
+
+  /// AgentLogic AddressedTo: to its id, to everyone, or a MASTER naming its id while masterless.
+  bool AddressedTo(const Message& m) const noexcept {
+    if (m.receiver == id_ || m.receiver == kBroadcastId) return true;
+    return is_masterless(state_) && m.type == MsgType::MASTER && ref_of(m) == id_ &&
+           is_assigned_id(m.receiver);
+  }
+  /// AgentLogic FromMaster, with @p master the sender a command must come from.
+  bool FromMaster(const Message& m, std::uint16_t master) const noexcept {
+    return state_ != State::OFF && m.sender == master && AddressedTo(m);
+  }
+  /// AgentLogic Fresh: (src, msgid) not in the window.
+  bool Fresh(const Message& m) const noexcept { return !win_.contains(m.sender, m.msgid); }
+  /// AgentLogic Answered: types answered with ACK / NOT.
+  static bool Answered(const Message& m) noexcept {
+    return m.type == MsgType::MASTER || (m.type >= MsgType::BEHAVIOUR && m.type <= MsgType::RESTART);
+  }
+  /// Messages.tla ref: the numeric first param of the RefTypes, else 0.
+  static std::uint32_t ref_of(const Message& m) noexcept {
+    switch (m.type) {
+      case MsgType::MASTER:
+      case MsgType::ACK:
+      case MsgType::NOT:
+      case MsgType::PONG:
+      case MsgType::ACTION_OK:
+      case MsgType::ACTION_INTERR:
+      case MsgType::ACTION_ERR: return m.param_u32(0).value_or(0);
+      default: return 0;
+    }
+  }
+  /// The state table allows action @p a now (in this state and wait).
+  bool Allowed(Action a) const noexcept { return static_cast<bool>(next_state(state_, a, wait_)); }
+  /// Spec silence (0 in PANIC).
+  Millis silence() const noexcept { return state_ == State::PANIC ? 0 : now_ - heard_; }
+
+  /// AgentLogic Handler(a, m) with @p master the sender commands must come from: exactly one
+  /// receive handler, in the spec's CASE order.
+  Action Handler(const Message& m, std::uint16_t master) const noexcept {
+    if (RecvMasterOk(m, master)) return Action::RecvMaster;
+    if (RecvPongOk(m, master)) return Action::RecvPong;
+    if (FromMaster(m, master) && Fresh(m)) {
       switch (m.type) {
         case MsgType::BEHAVIOUR: return Action::RecvBehaviour;
         case MsgType::START: return Action::RecvStart;
@@ -481,71 +782,9 @@ class Agent {
         default: break;
       }
     }
-    if (RecvDuplicateOk(m)) return Action::RecvDuplicate;
+    if (RecvDuplicateOk(m, master)) return Action::RecvDuplicate;
     return Action::Ignore;
   }
-
- private:
-  struct TxSlot {
-    Dest dest = Dest::broadcast;
-    Peer peer = 0;
-    std::size_t size = 0;
-    char bytes[TxBytes];
-  };
-  struct PeerEntry {
-    std::uint16_t id = 0;
-    Peer peer = 0;
-  };
-
-  // ------------------------------------------------------------ spec helpers
-
-  /// AgentLogic AddressedTo: to its id, to everyone, or a MASTER naming its id while masterless.
-  bool AddressedTo(const Message& m) const noexcept {
-    if (m.receiver == id_ || m.receiver == kBroadcastId) return true;
-    return is_masterless(state_) && m.type == MsgType::MASTER && ref_of(m) == id_ &&
-           is_assigned_id(m.receiver);
-  }
-  /// AgentLogic FromMaster.
-  bool FromMaster(const Message& m) const noexcept {
-    return state_ != State::OFF && m.sender == cur_master_ && AddressedTo(m);
-  }
-  /// AgentLogic Fresh: (src, msgid) not in the window.
-  bool Fresh(const Message& m) const noexcept { return !win_.contains(m.sender, m.msgid); }
-  /// AgentLogic Answered: types answered with ACK / NOT.
-  static bool Answered(const Message& m) noexcept {
-    return m.type == MsgType::MASTER ||
-           (m.type >= MsgType::BEHAVIOUR && m.type <= MsgType::RESTART);
-  }
-  /// Messages.tla ref: the numeric first param of the RefTypes, else 0.
-  static std::uint32_t ref_of(const Message& m) noexcept {
-    switch (m.type) {
-      case MsgType::MASTER:
-      case MsgType::ACK:
-      case MsgType::NOT:
-      case MsgType::PONG:
-      case MsgType::ACTION_OK:
-      case MsgType::ACTION_INTERR:
-      case MsgType::ACTION_ERR: {
-        const auto v = m.param_u32(0);
-        return v ? *v : 0u;
-      }
-      default: return 0;
-    }
-  }
-  bool Running() const noexcept { return state_ == State::WORKING && wait_ == Wait::NONE; }
-
-  Millis timeout_at() const noexcept {
-    switch (state_) {
-      case State::IDLE: return heard_ + cfg_.timers[Timer::sync];
-      case State::ACTIVE:
-      case State::WORKING: return heard_ + cfg_.timers[Timer::loss];
-      case State::PAUSED: return heard_ + cfg_.timers[Timer::paused];
-      default: return kNever;
-    }
-  }
-  Millis clk_origin() const noexcept { return periodic_at_ - cfg_.timers[Timer::heartbeat]; }
-  /// Spec `!.clk = 0`: the periodic phase restarts now.
-  void reset_clk() noexcept { periodic_at_ = now_ + cfg_.timers[Timer::heartbeat]; }
 
   /// Spec Goto(a, s): enter @p s (the LED follows); emits state and LED events on change.
   void Goto(State s) noexcept {
@@ -555,6 +794,7 @@ class Agent {
       if (state_ == State::PANIC) clear_prevotes();
       state_ = s;
       push_event(AgentEvent{AgentEvent::Kind::state, s, Led::DARK, ControlKind::stop});
+      arm_lifecycle();
     }
     const Led l = led_of(s);
     if (l != led_) {
@@ -562,12 +802,8 @@ class Agent {
       push_event(AgentEvent{AgentEvent::Kind::led, s, l, ControlKind::stop});
     }
   }
-  /// Enter the state the transition table gives for @p by from the current state.
-  void GotoBy(Action by) noexcept { Goto(next_state(state_, by)); }
 
-  void control(ControlKind k) noexcept {
-    push_event(AgentEvent{AgentEvent::Kind::control, state_, led_, k});
-  }
+  void control(ControlKind k) noexcept { push_event(AgentEvent{AgentEvent::Kind::control, state_, led_, k}); }
   /// Motors on: a fresh run (@p from_start) or the paused one continues.
   void motors_on(bool from_start, ControlKind start_kind = ControlKind::start) noexcept {
     if (from_start || !instance_) {
@@ -590,9 +826,9 @@ class Agent {
     motors_ = false;
     wait_ = Wait::NONE;
   }
-  /// Spec RunFrom0(a): WORKING from the first action, motors on.
-  void RunFrom0(Action by, ControlKind kind) noexcept {
-    GotoBy(by);
+  /// Spec RunFrom0(a): WORKING (@p to) from the first action, motors on.
+  void RunFrom0(State to, ControlKind kind) noexcept {
+    Goto(to);
     step_ = 0;
     wait_ = Wait::NONE;
     motors_on(true, kind);
@@ -613,7 +849,7 @@ class Agent {
     a.reason = reason;
     win_.insert(m.sender, m.msgid, a);
     ++win_rev_;
-    heard_ = now_;
+    hear();
     send_answer(a);
   }
   void Refuse(const Message& m, Refusal r) noexcept { Answer(m, false, r); }
@@ -630,39 +866,35 @@ class Agent {
     }
   }
 
-  // ------------------------------------------------------- receive handlers
+  // ------------------------------------------------------- receive handlers (AgentLogic)
 
-  /// Spec RecvMasterOk: masterless agent, fresh MASTER naming its id, to an assignable id.
-  bool RecvMasterOk(const Message& m) const noexcept {
-    return FromMaster(m) && m.type == MsgType::MASTER && Fresh(m) && is_masterless(state_) &&
+  /// Spec RecvMasterOk: masterless agent (the table: IDLE, PANIC), fresh MASTER naming its id, to
+  /// an assignable id.
+  bool RecvMasterOk(const Message& m, std::uint16_t master) const noexcept {
+    return FromMaster(m, master) && m.type == MsgType::MASTER && Fresh(m) && Allowed(Action::RecvMaster) &&
            ref_of(m) == id_ && is_assigned_id(m.receiver);
   }
-  /// Spec RecvMaster: ACK from the new id, ACTIVE with the id from the receiver field, new session.
-  void RecvMaster(const Message& m, Peer from) noexcept {
-    GotoBy(Action::RecvMaster);
+  /// Spec RecvMaster: ACK from the new id, ACTIVE with the id from the receiver field, new session,
+  /// following @p master of epoch @p e.
+  void RecvMaster(const Message& m, Peer from, std::uint16_t master, std::uint32_t e) noexcept {
+    Goto(next_state(state_, Action::RecvMaster).to);
     id_ = m.receiver;
-    master_peer_ = from;
-    adopt_epoch(cmd_epoch_);
-    leader_ = cur_master_;
-    following_ = cmd_epoch_;
-    via_ = 0;
-    relay_at_ = stand_at_ = kNever;
+    become_follower(master, e, 0, from);
     Stopped();
     unload();
     reset_clk();
     Answer(m, true);
   }
 
-  /// Spec RecvPongOk: PONG from the master while synced.
-  bool RecvPongOk(const Message& m) const noexcept {
-    return FromMaster(m) && m.type == MsgType::PONG && is_synced(state_);
+  /// Spec RecvPongOk: PONG from the master while synced (the table: ACTIVE, WORKING, PAUSED).
+  bool RecvPongOk(const Message& m, std::uint16_t master) const noexcept {
+    return FromMaster(m, master) && m.type == MsgType::PONG && Allowed(Action::RecvPong);
   }
   /// Spec RecvPong: the master is heard.
-  void RecvPong(const Message&) noexcept { heard_ = now_; }
+  void RecvPong(const Message&) noexcept { hear(); }
 
   /// Spec RecvBehaviour: ACK and load it if it can be run, else NOT with the reason.
   void RecvBehaviour(const Message& m) noexcept {
-    if (!is_synced(state_)) return Refuse(m, Refusal::wrong_state);
     const BehaviourSpec* b = find_behaviour(m.param(0));
     if (b == nullptr || !fits(m)) return Refuse(m, Refusal::unknown_behaviour);
     if (!dev_ok() || (b->devices & ~plugged_) != 0) return Refuse(m, Refusal::missing_device);
@@ -674,64 +906,58 @@ class Agent {
     Answer(m, true);
   }
 
-  /// Spec RecvStart: run the loaded behaviour from its start (ACTIVE, PAUSED, WORKING).
-  void RecvStart(const Message& m) noexcept {
-    if (!is_synced(state_)) return Refuse(m, Refusal::wrong_state);
+  /// Spec RecvStart: run the loaded behaviour from its start (ACTIVE, PAUSED, WORKING -> WORKING).
+  void RecvStart(const Message& m, State to) noexcept {
     if (beh_len_ == 0) return Refuse(m, Refusal::no_behaviour);
-    RunFrom0(Action::RecvStart, ControlKind::start);
+    RunFrom0(to, ControlKind::start);
     Answer(m, true);
   }
 
   /// Spec RecvStop: WORKING / PAUSED -> ACTIVE, behaviour stopped and kept loaded.
-  void RecvStop(const Message& m) noexcept {
-    if (state_ != State::WORKING && state_ != State::PAUSED) return Refuse(m, Refusal::wrong_state);
+  void RecvStop(const Message& m, State to) noexcept {
     Stopped();
-    GotoBy(Action::RecvStop);
+    Goto(to);
     Answer(m, true);
   }
 
   /// Spec RecvPause: WORKING -> PAUSED, motors stopped, progress kept.
-  void RecvPause(const Message& m) noexcept {
-    if (state_ != State::WORKING) return Refuse(m, Refusal::wrong_state);
-    GotoBy(Action::RecvPause);
+  void RecvPause(const Message& m, State to) noexcept {
+    Goto(to);
     motors_pause();
     Answer(m, true);
   }
 
   /// Spec RecvResume: PAUSED -> WORKING where it was (still waiting if it was waiting).
-  void RecvResume(const Message& m) noexcept {
-    if (state_ != State::PAUSED) return Refuse(m, Refusal::wrong_state);
-    GotoBy(Action::RecvResume);
+  void RecvResume(const Message& m, State to) noexcept {
+    Goto(to);
     if (wait_ == Wait::NONE) motors_on(false);
     Answer(m, true);
   }
 
   /// Spec RecvStandby: WORKING -> ACTIVE, behaviour stopped and kept loaded.
-  void RecvStandby(const Message& m) noexcept {
-    if (state_ != State::WORKING) return Refuse(m, Refusal::wrong_state);
+  void RecvStandby(const Message& m, State to) noexcept {
     Stopped();
-    GotoBy(Action::RecvStandby);
+    Goto(to);
     Answer(m, true);
   }
 
-  /// Spec RecvContinue: after ACTION_INTERR, go on with the behaviour.
+  /// Spec RecvContinue: after ACTION_INTERR (the table: WORKING waiting for CONTINUE), go on.
   void RecvContinue(const Message& m) noexcept {
-    if (state_ != State::WORKING || wait_ != Wait::CONTINUE) return Refuse(m, Refusal::wrong_state);
     wait_ = Wait::NONE;
     motors_on(false);
     Answer(m, true);
   }
 
-  /// Spec RecvRestart: after ACTION_ERR, the same behaviour again from its start.
-  void RecvRestart(const Message& m) noexcept {
-    if (state_ != State::WORKING || wait_ != Wait::RESTART) return Refuse(m, Refusal::wrong_state);
-    RunFrom0(Action::RecvRestart, ControlKind::restart);
+  /// Spec RecvRestart: after ACTION_ERR (the table: WORKING waiting for RESTART), the same
+  /// behaviour again from its start.
+  void RecvRestart(const Message& m, State to) noexcept {
+    RunFrom0(to, ControlKind::restart);
     Answer(m, true);
   }
 
   /// Spec RecvDuplicateOk: a copy of an answered command or MASTER from the master.
-  bool RecvDuplicateOk(const Message& m) const noexcept {
-    return FromMaster(m) && Answered(m) && !Fresh(m);
+  bool RecvDuplicateOk(const Message& m, std::uint16_t master) const noexcept {
+    return FromMaster(m, master) && Answered(m) && !Fresh(m);
   }
   /// Spec RecvDuplicate: the stored answer again, nothing else.
   void RecvDuplicate(const Message& m) noexcept {
@@ -744,24 +970,22 @@ class Agent {
 
   // ---------------------------------------------------------------- time
 
-  /// Spec TickOk: alive and no timeout due.
-  bool TickOk() const noexcept { return state_ != State::OFF && !SyncTimeoutOk() && !HeartbeatLostOk(); }
   /// Spec Tick, repeated up to @p target (one record for the run of ticks): silence grows, the
   /// periodic message goes out when the heartbeat phase completes (at most once per run).
   void Tick(Millis target) noexcept {
     const AgentVars before = vars();
     const Millis ticks = target - now_;
     now_ = target;
-    if (state_ == State::PANIC) heard_ = now_;  // silence stays 0 in PANIC
-    if (now_ == periodic_at_) {
+    if (state_ == State::PANIC) hear();  // silence stays 0 in PANIC
+    if (timers_.due(AgentTimer::periodic, now_)) {
       Periodic();
-      periodic_at_ += cfg_.timers[Timer::heartbeat];
+      timers_.set(AgentTimer::periodic, timers_.get(AgentTimer::periodic) + cfg_.timers[Timer::heartbeat]);
     }
     record(Action::Tick, before, {}, {}, ticks);
   }
   /// Spec Periodic(a): AGENT (IDLE), PANIC (PANIC) or PING(state).
   void Periodic() noexcept {
-    if (role_ == Role::master) return;  // the Master core run for it sends LEADER
+    if (el_.role == Role::master) return;  // the Master core run for it sends LEADER
     if (state_ == State::IDLE) {
       const std::string_view p[1] = {cfg_.caps.model};
       emit(Dest::broadcast, kBroadcastId, MsgType::AGENT, p, 1);
@@ -773,342 +997,138 @@ class Agent {
     }
   }
 
-  /// Spec SyncTimeoutOk (SyncDue).
-  bool SyncTimeoutOk() const noexcept {
-    return state_ == State::IDLE && now_ - heard_ >= cfg_.timers[Timer::sync];
-  }
-  /// Spec SyncTimeout: IDLE without MASTER -> PANIC, PANIC broadcast.
-  void SyncTimeout() noexcept {
-    const AgentVars before = vars();
-    GotoBy(Action::SyncTimeout);
-    heard_ = now_;
-    reset_clk();
-    emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
-    record(Action::SyncTimeout, before, {}, {}, 0);
-  }
-
-  /// Spec HeartbeatLostOk (LossDue).
-  bool HeartbeatLostOk() const noexcept {
-    switch (state_) {
+  /// The timer that ends a silence in state @p s (AgentLogic SyncDue / LossDue), or none.
+  static bool lifecycle_timer(State s, Timer& t) noexcept {
+    switch (s) {
+      case State::IDLE: t = Timer::sync; return true;
       case State::ACTIVE:
-      case State::WORKING: return now_ - heard_ >= cfg_.timers[Timer::loss];
-      case State::PAUSED: return now_ - heard_ >= cfg_.timers[Timer::paused];
+      case State::WORKING: t = Timer::loss; return true;
+      case State::PAUSED: t = Timer::paused; return true;
       default: return false;
     }
   }
-  /// Spec HeartbeatLost: WORKING -> PAUSED (motors off, progress kept); ACTIVE, PAUSED -> PANIC.
+  /// Spec SyncTimeoutOk (SyncDue): IDLE (the table) silent for TSync.
+  bool SyncTimeoutOk() const noexcept {
+    return Allowed(Action::SyncTimeout) && silence() >= cfg_.timers[Timer::sync];
+  }
+  /// Spec SyncTimeout: IDLE without MASTER -> PANIC, PANIC broadcast.
+  void SyncTimeout() noexcept { enter_panic(Action::SyncTimeout); }
+
+  /// Spec HeartbeatLostOk (LossDue): ACTIVE / WORKING silent for TLoss, PAUSED for TPaused.
+  bool HeartbeatLostOk() const noexcept {
+    Timer t = Timer::loss;
+    return Allowed(Action::HeartbeatLost) && lifecycle_timer(state_, t) && silence() >= cfg_.timers[t];
+  }
+  /// Spec HeartbeatLost: WORKING -> PAUSED (motors off, progress kept); ACTIVE, PAUSED -> PANIC
+  /// (Election Timeout: nobody followed, the relay table dropped).
   void HeartbeatLost() noexcept {
-    const AgentVars before = vars();
-    if (state_ == State::WORKING) {
-      GotoBy(Action::HeartbeatLost);
+    const State to = next_state(state_, Action::HeartbeatLost).to;
+    if (to == State::PAUSED) {
+      Goto(to);
       motors_pause();
     } else {
-      Stopped();
-      GotoBy(Action::HeartbeatLost);
-      heard_ = now_;
-      reset_clk();
-      emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
-      Unfollow();  // Election Timeout: leader, following, via cleared; relays dropped
-      enter_panic();
+      enter_panic(Action::HeartbeatLost);
     }
-    record(Action::HeartbeatLost, before, {}, {}, 0);
   }
 
   // ------------------------------------------------ relay and election (Election.tla)
 
-  /// Routes a decoded datagram to its spec handler: relay / election types to Election's, an
-  /// EPOCH_CMD through the fence to ApplyCommand, everything else to AgentLogic's Handler().
-  Action Dispatch(const Message& m, Peer from) noexcept {
-    cur_master_ = leader_ != 0 ? leader_ : kMasterId;
-    cmd_epoch_ = 1;
-    if (m.type >= MsgType::RELAY_REQ && m.type <= MsgType::PREVOTE_OK) {
-      const Action e = cfg_.election.enabled && m.sender != id_ ? ElectionHandler(m) : Action::Ignore;
-      switch (e) {
-        case Action::OfferRelay: OfferRelay(m, from); break;
-        case Action::GrantPreVote: GrantPreVote(m, from); break;
-        case Action::HandlePreVote: HandlePreVote(m); break;
-        case Action::AcceptRelay: AcceptRelay(m, from); break;
-        case Action::HandleAccept: HandleAccept(m, from); break;
-        case Action::Forward: Forward(m); break;
-        case Action::RelayDropped: RelayDropped(m); break;
-        case Action::HandleElect: HandleElect(m, from); break;
-        case Action::HandleVote: HandleVote(m); break;
-        case Action::HandleHeartbeat: HandleHeartbeat(m, from); break;
-        case Action::HandleStale:
-          if (m.type == MsgType::EPOCH_CMD) {
-            Stale(m.sender, from);
-            return Action::Ignore;
-          }
-          HandleStale(m);
-          break;
-        case Action::ApplyCommand: ApplyCommand(m, from); break;
-        default: Ignore(m); break;
-      }
-      return e;
-    }
-    if (cfg_.election.enabled && epoch_ > 1 && Answered(m) && AddressedTo(m)) {
-      // A bare command counts as epoch 1, older than ours: fenced, the sender learns our epoch.
-      Stale(m.sender, from);
-      return Action::Ignore;
-    }
-    const Action h = Handler(m);
-    Run(h, m, from);
-    return h;
+  /// What the election's guards need from the lifecycle.
+  Lifecycle lifecycle() const noexcept {
+    Lifecycle l;
+    l.state = state_;
+    l.id = id_;
+    l.score = score();
+    l.hears_master = el_.Following(state_) && now_ - heard_ < cfg_.timers[Timer::loss];
+    return l;
   }
-
-  /// The AgentLogic receive handler @p h on @p m.
-  void Run(Action h, const Message& m, Peer from) noexcept {
-    switch (h) {
-      case Action::RecvMaster: RecvMaster(m, from); break;
-      case Action::RecvPong: RecvPong(m); break;
-      case Action::RecvBehaviour: RecvBehaviour(m); break;
-      case Action::RecvStart: RecvStart(m); break;
-      case Action::RecvStop: RecvStop(m); break;
-      case Action::RecvPause: RecvPause(m); break;
-      case Action::RecvResume: RecvResume(m); break;
-      case Action::RecvStandby: RecvStandby(m); break;
-      case Action::RecvContinue: RecvContinue(m); break;
-      case Action::RecvRestart: RecvRestart(m); break;
-      case Action::RecvDuplicate: RecvDuplicate(m); break;
-      default: Ignore(m); break;
-    }
-  }
-
-  /// Which Election handler takes relay / election datagram @p m (Ignore when none is enabled).
-  Action ElectionHandler(const Message& m) noexcept {
-    switch (m.type) {
-      case MsgType::RELAY_REQ:
-        if (OfferRelayOk(m)) return Action::OfferRelay;
-        return GrantPreVoteOk(m) ? Action::GrantPreVote : Action::Ignore;
-      case MsgType::PREVOTE_OK: return HandlePreVoteOk(m) ? Action::HandlePreVote : Action::Ignore;
-      case MsgType::RELAY_OFFER: return AcceptRelayOk(m) ? Action::AcceptRelay : Action::Ignore;
-      case MsgType::RELAY_ACCEPT: return HandleAcceptOk(m) ? Action::HandleAccept : Action::Ignore;
-      case MsgType::RELAY: return ForwardOk(m) ? Action::Forward : Action::Ignore;
-      case MsgType::RELAY_DROP: return RelayDroppedOk(m) ? Action::RelayDropped : Action::Ignore;
-      case MsgType::ELECT: return HandleElectOk(m) ? Action::HandleElect : Action::Ignore;
-      case MsgType::VOTE: return HandleVoteOk(m) ? Action::HandleVote : Action::Ignore;
-      case MsgType::LEADER: return HandleHeartbeatOk(m) ? Action::HandleHeartbeat : Action::Ignore;
-      case MsgType::EPOCH_STALE: return HandleStaleOk(m) ? Action::HandleStale : Action::Ignore;
-      case MsgType::EPOCH_CMD:
-        if (!ApplyCommandOk(m)) return Action::Ignore;
-        // An older epoch: no spec step (ApplyCommand is not enabled); answered EPOCH_STALE.
-        return *m.param_u32(0) < epoch_ ? Action::HandleStale : Action::ApplyCommand;
-      default: return Action::Ignore;  // RELAY_ROUTE, HANDOVER: the master's
-    }
-  }
-
-  bool ToMe(const Message& m) const noexcept { return m.receiver == id_ && is_assigned_id(id_); }
-  bool Following() const noexcept { return is_synced(state_) && leader_ != 0; }
-  /// Election HeartbeatOK, as the agent sees it: it follows a master heard within the loss timeout.
-  bool HeartbeatOK() const noexcept {
-    return Following() && now_ - heard_ < cfg_.timers[Timer::loss];
-  }
-  /// Election: p follows a master in its current epoch over a direct link (may offer / relay).
-  bool DirectFollower() const noexcept { return Following() && following_ == epoch_ && via_ == 0; }
 
   /// Spec RequestRelay's enabling condition: PANIC (or a candidate), the retry period is due.
   bool RequestRelayOk() const noexcept {
-    return cfg_.election.enabled && state_ == State::PANIC && role_ != Role::master && relay_at_ <= now_;
+    return el_.RequestRelayOk(state_) && timers_.due(AgentTimer::relay, now_);
   }
   /// Spec RequestRelay: RELAY_REQ(epoch, score) broadcast, again after relay_retry. It is also the
   /// pre-vote request: peers without a master answer PREVOTE_OK.
   void RequestRelay() noexcept {
-    relay_at_ = now_ + cfg_.timers[Timer::relay_retry];
+    timers_.set(AgentTimer::relay, now_ + cfg_.timers[Timer::relay_retry]);
     char num[10], sc[10];
-    const std::string_view p[2] = {number(epoch_, num), number(score(), sc)};
+    const std::string_view p[2] = {number(el_.epoch, num), number(score(), sc)};
     emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 2);
   }
 
-  /// Spec GrantPreVote's enabling condition: no master here (PANIC or candidate), the asker's epoch
-  /// not older than ours and its score (RELAY_REQ's second param) not higher than ours.
-  bool GrantPreVoteOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    const auto sc = m.param_u32(1);
-    return m.receiver == kBroadcastId && is_assigned_id(m.sender) && is_assigned_id(id_) &&
-           state_ == State::PANIC && role_ != Role::master && e && sc && *e >= epoch_ && *sc <= score();
-  }
   /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else changes.
   void GrantPreVote(const Message& m, Peer from) noexcept {
     const std::string_view p[1] = {m.param(0)};
     emit_to(from, m.sender, MsgType::PREVOTE_OK, p, 1);
   }
 
-  /// Spec HandlePreVote's enabling condition: still without a master, for our current epoch, from a
-  /// member not counted yet.
-  bool HandlePreVoteOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    if (!ToMe(m) || state_ != State::PANIC || role_ == Role::master || !e || *e != epoch_) return false;
-    for (std::size_t i = 0; i < prevote_count(); ++i)
-      if (prevotes_[i] == m.sender) return false;
-    return is_member(m.sender);
-  }
   /// Spec HandlePreVote: one more pre-vote for standing in the next epoch.
   void HandlePreVote(const Message& m) noexcept {
-    if (prevote_epoch_ != epoch_) {
-      prevote_epoch_ = epoch_;
-      prevote_count_ = 0;
-    }
-    if (prevote_count_ < kMaxMembers) prevotes_[prevote_count_++] = m.sender;
-    ++relay_rev_;
-  }
-  void clear_prevotes() noexcept {
-    if (prevote_count_ != 0) ++relay_rev_;
-    prevote_count_ = 0;
+    el_.prevotes.add(m.sender);
+    arm_stand();
   }
 
-  /// Spec OfferRelay's enabling condition (one hop: only a direct follower offers). An agent already
-  /// in the relay table is offered to again: it asks only after losing its relay state.
-  bool OfferRelayOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    return m.receiver == kBroadcastId && is_assigned_id(m.sender) && DirectFollower() && e &&
-           *e <= epoch_;
-  }
   /// Spec OfferRelay: RELAY_OFFER(epoch, master) to the requester, remembered in offered.
   void OfferRelay(const Message& m, Peer from) noexcept {
-    add(offered_, offered_count_, m.sender, from);
+    el_.offered.add(m.sender, from);
     char num[10], who[10];
-    const std::string_view p[2] = {number(epoch_, num), number(leader_, who)};
+    const std::string_view p[2] = {number(el_.epoch, num), number(el_.leader, who)};
     emit_to(from, m.sender, MsgType::RELAY_OFFER, p, 2);
   }
 
-  /// Spec AcceptRelay's enabling condition: PANIC (not standing), the offer's epoch not older.
-  bool AcceptRelayOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    const auto x = m.param_u16(1);
-    return ToMe(m) && state_ == State::PANIC && role_ == Role::none && e && x && *x != 0 &&
-           *x != id_ && *e >= epoch_ && is_assigned_id(m.sender);
-  }
   /// Spec AcceptRelay: follow the relay's master in its epoch through it (ACTIVE), RELAY_ACCEPT.
   void AcceptRelay(const Message& m, Peer from) noexcept {
-    const std::uint32_t e = *m.param_u32(0);
-    GotoBy(Action::AcceptRelay);
-    adopt_epoch(e);
-    leader_ = *m.param_u16(1);
-    following_ = e;
-    via_ = m.sender;
-    master_peer_ = from;
-    heard_ = now_;
+    Goto(next_state(state_, Action::AcceptRelay).to);
+    become_follower(*m.param_u16(1), *m.param_u32(0), m.sender, from);
     reset_clk();
-    relay_at_ = stand_at_ = kNever;
-    clear_prevotes();
     const std::string_view p[2] = {m.param(0), m.param(1)};
     emit_to(from, m.sender, MsgType::RELAY_ACCEPT, p, 2);
   }
 
-  /// Spec HandleAccept's enabling condition: answers an offer made since the master last changed,
-  /// and the relay still follows that master in that epoch directly.
-  bool HandleAcceptOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    const auto x = m.param_u16(1);
-    return ToMe(m) && Following() && via_ == 0 && e && x && *e == following_ && *x == leader_ &&
-           find(offered_, offered_count_, m.sender) != nullptr && relay_count_ < RelaySlots;
-  }
   /// Spec HandleAccept: the agent enters the relay table; RELAY_ROUTE(epoch, agent) to the master.
   void HandleAccept(const Message& m, Peer from) noexcept {
-    remove(offered_, offered_count_, m.sender);
-    add(relays_, relay_count_, m.sender, from);
+    el_.offered.remove(m.sender);
+    el_.relays.add(m.sender, from);
     char num[10], who[10];
-    const std::string_view p[2] = {number(epoch_, num), number(m.sender, who)};
-    emit(Dest::master, leader_, MsgType::RELAY_ROUTE, p, 2);
+    const std::string_view p[2] = {number(el_.epoch, num), number(m.sender, who)};
+    emit(Dest::master, el_.leader, MsgType::RELAY_ROUTE, p, 2);
   }
 
-  /// Spec Forward's enabling condition: a direct follower relaying for the target (master -> agent)
-  /// or for the sender (agent -> master); the inner datagram decodes and is not itself a RELAY.
-  bool ForwardOk(const Message& m) noexcept {
-    const auto target = m.param_u16(0);
-    if (!ToMe(m) || !Following() || via_ != 0 || !target) return false;
-    if (!decode(m.param(1), inner_).ok() || inner_.type == MsgType::RELAY) return false;
-    if (m.sender == leader_) return find(relays_, relay_count_, *target) != nullptr;
-    return *target == leader_ && find(relays_, relay_count_, m.sender) != nullptr &&
-           inner_.sender == m.sender;
-  }
   /// Spec Forward: the inner datagram goes on unchanged (sender, msgid: dedupe end to end).
   void Forward(const Message& m) noexcept {
-    if (m.sender == leader_) {
-      emit_raw(Dest::peer, find(relays_, relay_count_, *m.param_u16(0))->peer, m.param(1));
+    if (m.sender == el_.leader) {
+      emit_raw(Dest::peer, el_.relays.find(*m.param_u16(0))->peer, m.param(1));
     } else {
       emit_raw(Dest::master, 0, m.param(1));
     }
   }
 
-  /// Spec RelayDropped's enabling condition: from our relay while following through it.
-  bool RelayDroppedOk(const Message& m) const noexcept {
-    return ToMe(m) && via_ != 0 && m.sender == via_ && is_synced(state_);
-  }
   /// Spec RelayDropped: back to PANIC (behaviour stopped), then relay requests / standing.
-  void RelayDropped(const Message&) noexcept {
-    Stopped();
-    GotoBy(Action::RelayDropped);
-    Unfollow();
-    heard_ = now_;
-    reset_clk();
-    emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
-    enter_panic();
-  }
+  void RelayDropped(const Message&) noexcept { enter_panic(Action::RelayDropped); }
 
-  /// Spec StartElection's enabling condition: PANIC (or a candidate whose timeout passed), an
-  /// assigned id, a known membership, the back-off over, and pre-votes of a majority of the
-  /// membership (itself included).
+  /// Spec StartElection's enabling condition: Election's, and the back-off over.
   bool StartElectionOk() const noexcept {
-    return cfg_.election.enabled && state_ == State::PANIC && role_ != Role::master &&
-           stand_at_ <= now_ && member_count_ > 0 && is_assigned_id(id_) && epoch_ < 0xFFFFFFFFu &&
-           prevote_quorum();
+    return el_.StartElectionOk(lifecycle()) && timers_.due(AgentTimer::stand, now_);
   }
-  /// The pre-votes of the current epoch and our own make a strict majority of the membership.
-  bool prevote_quorum() const noexcept {
-    return 2 * (prevote_count() + (is_member(id_) ? 1u : 0u)) > member_count_;
-  }
-  /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, records) broadcast.
+  /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, 0) broadcast.
   void StartElection() noexcept {
-    ++epoch_;
-    voted_for_ = id_;
-    durable_changed();
-    vote_count_ = 0;
-    if (is_member(id_)) votes_[vote_count_++] = id_;
-    ++relay_rev_;
-    records_ = 0;
-    set_role(Role::candidate);
-    clear_prevotes();
-    // If this candidacy stalls, ask again (pre-votes for the next epoch) before standing again.
-    relay_at_ = now_ + cfg_.timers[Timer::candidate];
-    stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
-    char e[10], sc[10], rc[10];
-    const std::string_view p[3] = {number(epoch_, e), number(score(), sc), number(records_, rc)};
+    become_candidate();
+    char e[10], sc[10];
+    const std::string_view p[3] = {number(el_.epoch, e), number(score(), sc), "0"};
     emit(Dest::broadcast, kBroadcastId, MsgType::ELECT, p, 3);
   }
 
-  /// Spec HandleElect's enabling condition (the CASE arms that change something).
-  bool HandleElectOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    const auto sc = m.param_u32(1);
-    if (m.receiver != kBroadcastId || !e || !sc || state_ == State::IDLE || !is_assigned_id(id_))
-      return false;
-    if (*e < epoch_) return true;                                    // EPOCH_STALE
-    if (HeartbeatOK() && m.sender != kMasterId) return false;        // a healthy follower
-    const bool newer = *e > epoch_;
-    const bool grant = (newer || voted_for_ == 0 || voted_for_ == m.sender) && *sc <= score();
-    return newer || grant;
-  }
-  /// Spec HandleElect: adopt a newer epoch (stepping down), grant the one vote of the epoch to a
-  /// candidate not stronger than us (VOTE), or tell an older candidate our epoch (EPOCH_STALE).
+  /// Spec HandleElect (a newer epoch was adopted by the prelude): grant the one vote of the epoch
+  /// to a candidate not stronger than us (VOTE), and give it time to win before standing ourselves.
   void HandleElect(const Message& m, Peer from) noexcept {
     const std::uint32_t e = *m.param_u32(0);
-    if (e < epoch_) return Stale(m.sender, from);
-    const bool newer = e > epoch_;
-    const bool grant = (newer || voted_for_ == 0 || voted_for_ == m.sender) && *m.param_u32(1) <= score();
-    if (newer) {
-      StepDown(Action::HandleElect);
-      epoch_ = e;
-      clear_prevotes();
-      voted_for_ = 0;
-      records_ = 0;
-    }
-    ++records_;
+    const bool grant = el_.ElectGrant(m.sender, e, *m.param_u32(1), score());
     if (grant) {
-      voted_for_ = m.sender;
-      // Give the candidate time to win before standing ourselves.
-      if (state_ == State::PANIC && role_ == Role::none)
+      el_.voted_for = m.sender;
+      if (state_ == State::PANIC && el_.role == Role::none) {
         stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
+        arm_stand();
+      }
     }
     durable_changed();
     if (grant) {
@@ -1118,232 +1138,99 @@ class Agent {
     }
   }
 
-  /// Spec HandleVote's enabling condition: a candidate's vote of its epoch, not counted yet.
-  bool HandleVoteOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    const auto c = m.param_u16(1);
-    if (!ToMe(m) || role_ != Role::candidate || !e || !c || *e != epoch_ || *c != id_) return false;
-    for (std::size_t i = 0; i < vote_count_; ++i)
-      if (votes_[i] == m.sender) return false;
-    return is_member(m.sender);
-  }
   /// Spec HandleVote: one more vote.
-  void HandleVote(const Message& m) noexcept {
-    votes_[vote_count_++] = m.sender;
-    ++relay_rev_;
-  }
+  void HandleVote(const Message& m) noexcept { el_.votes.add(m.sender); }
 
   /// Spec BecomeMaster's enabling condition: a candidate with votes of a strict majority.
-  bool BecomeMasterOk() const noexcept {
-    return role_ == Role::candidate && member_count_ > 0 && 2 * vote_count_ > member_count_;
-  }
-  /// Spec BecomeMaster: master of its epoch; first LEADER(epoch, id, members) broadcast; the
-  /// program starts a Master core (AgentEvent role master).
+  bool BecomeMasterOk() const noexcept { return el_.BecomeMasterOk(); }
+  /// Spec BecomeMaster: master of its epoch; first LEADER(epoch, id, members) broadcast; a Master
+  /// core runs for it from now on (node.hpp).
   void BecomeMaster() noexcept {
-    stand_at_ = kNever;
-    set_role(Role::master);
+    become_master();
     char e[10], me[10], ids[kMaxMembers][10];
     std::string_view p[kMaxParams];
-    p[0] = number(epoch_, e);
+    p[0] = number(el_.epoch, e);
     p[1] = number(id_, me);
-    for (std::size_t i = 0; i < member_count_; ++i) p[2 + i] = number(members_[i], ids[i]);
-    emit(Dest::broadcast, kBroadcastId, MsgType::LEADER, p, 2 + member_count_);
+    for (std::size_t i = 0; i < el_.members.size(); ++i) p[2 + i] = number(el_.members[i], ids[i]);
+    emit(Dest::broadcast, kBroadcastId, MsgType::LEADER, p, 2 + el_.members.size());
   }
 
-  /// Spec HandleHeartbeat's enabling condition: a master's LEADER (not an IDLE agent's business).
-  bool HandleHeartbeatOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    const auto s = m.param_u16(1);
-    if (m.receiver != kBroadcastId || !e || !s || *s != m.sender || state_ == State::IDLE ||
-        !is_assigned_id(id_))
-      return false;
-    if (*e < epoch_) return true;  // EPOCH_STALE
-    return role_ != Role::master || *e > epoch_;
-  }
-  /// Spec HandleHeartbeat: an older master is told our epoch; otherwise follow this one directly
+  /// Spec HandleHeartbeat (a newer epoch was adopted by the prelude): follow this master directly
   /// (PANIC / candidate / master -> ACTIVE; WORKING whose master changed -> PAUSED), learn the
   /// membership, and drop the relay table when the master changed.
   void HandleHeartbeat(const Message& m, Peer from) noexcept {
     const std::uint32_t e = *m.param_u32(0);
-    if (e < epoch_) return Stale(m.sender, from);
-    const bool change = leader_ != m.sender || following_ != e;
-    if (change) {
-      DropRelays();
+    if (el_.leader != m.sender || el_.following != e) {
+      drop_relays();
       if (state_ == State::WORKING) {
-        GotoBy(Action::HandleHeartbeat);
+        Goto(next_state(state_, Action::HandleHeartbeat).to);
         motors_pause();
       }
     }
     if (state_ == State::PANIC) {
-      GotoBy(Action::HandleHeartbeat);
+      Goto(next_state(state_, Action::HandleHeartbeat).to);
       reset_clk();
     }
-    set_role(Role::none);
-    adopt_epoch(e);
-    leader_ = m.sender;
-    following_ = e;
-    via_ = 0;
-    master_peer_ = from;
-    heard_ = now_;
-    relay_at_ = stand_at_ = kNever;
-    clear_prevotes();
-    member_count_ = 0;
-    for (std::size_t i = 2; i < m.param_count() && member_count_ < kMaxMembers; ++i) {
+    become_follower(m.sender, e, 0, from);
+    el_.members.clear();
+    for (std::size_t i = 2; i < m.param_count() && el_.members.size() < kMaxMembers; ++i) {
       const auto id = m.param_u16(i);
-      if (id && is_assigned_id(*id)) members_[member_count_++] = *id;
+      if (id && is_assigned_id(*id)) el_.members.add(*id);
     }
   }
 
-  /// Spec HandleStale's enabling condition: a newer epoch than ours.
-  bool HandleStaleOk(const Message& m) const noexcept {
-    const auto e = m.param_u32(0);
-    return ToMe(m) && e && *e > epoch_;
-  }
-  /// Spec HandleStale: adopt the epoch, step down (master / candidate -> PANIC, WORKING ->
-  /// PAUSED), stop following an older master, drop the relay table.
-  void HandleStale(const Message& m) noexcept {
-    StepDown(Action::HandleStale);
-    epoch_ = *m.param_u32(0);
-    clear_prevotes();
-    voted_for_ = 0;
-    durable_changed();
+  /// Spec HandleStale: the newer epoch is all it brings; the prelude adopted it (stepping down).
+  void HandleStale(const Message&) noexcept {}
+
+  /// Spec ApplyCommand: the inner datagram @p inner of master @p master in epoch @p e is handled as
+  /// AgentLogic's Handler picked (@p h: RecvStart, a refusal, RecvDuplicate...); the answer goes to
+  /// the master followed.
+  void ApplyCommand(Action h, const Message& inner, Peer from, std::uint16_t master, std::uint32_t e) noexcept {
+    Receive(h, inner, from, master, e);
   }
 
-  /// Spec ApplyCommand's enabling condition, checked on the outer EPOCH_CMD: the inner datagram
-  /// decodes and is the sender's; the epoch is not older than ours (older ones: EPOCH_STALE).
-  bool ApplyCommandOk(const Message& m) noexcept {
-    const auto e = m.param_u32(0);
-    if (!e || !decode(m.param(1), inner_).ok() || inner_.sender != m.sender ||
-        inner_.type == MsgType::EPOCH_CMD || inner_.type == MsgType::RELAY)
-      return false;
-    if (*e < epoch_) return true;  // answered EPOCH_STALE
-    cur_master_ = m.sender;
-    cmd_epoch_ = *e;
-    // The master of epoch e syncs a masterless agent (MASTER inside EPOCH_CMD).
-    if (inner_.type == MsgType::MASTER) return RecvMasterOk(inner_) || RecvDuplicateOk(inner_);
-    return leader_ == m.sender && following_ == *e && *e == epoch_;  // the fence
-  }
-  /// Spec ApplyCommand: the inner datagram is handled as AgentLogic's Handler picks (RecvStart,
-  /// a refusal, RecvDuplicate...), the answer goes to the master we follow.
-  void ApplyCommand(const Message&, Peer from) noexcept {
-    cmd_ = Handler(inner_);
-    Run(cmd_, inner_, from);
-  }
-
-  // ------------------------------------------------------------ election plumbing
-
-  /// EPOCH_STALE(epoch) to @p to at @p peer.
+  /// EPOCH_STALE(epoch) to @p to at @p peer: the sender is behind.
   void Stale(std::uint16_t to, Peer peer) noexcept {
     char num[10];
-    const std::string_view p[1] = {number(epoch_, num)};
+    const std::string_view p[1] = {number(el_.epoch, num)};
     emit_to(peer, to, MsgType::EPOCH_STALE, p, 1);
   }
-  /// Election SteppedDown and the clearing that goes with a newer epoch.
-  void StepDown(Action by) noexcept {
-    if (state_ == State::WORKING) {
-      GotoBy(by);
-      motors_pause();
-    }
-    if (role_ != Role::none) {
-      set_role(Role::none);
-      enter_panic();
-    }
-    Unfollow();
-  }
-  /// leader, following, via cleared; relays dropped (RELAY_DROP), offers forgotten.
-  void Unfollow() noexcept {
-    leader_ = 0;
-    following_ = 0;
-    via_ = 0;
-    DropRelays();
-  }
-  void DropRelays() noexcept {
-    for (std::size_t i = 0; i < relay_count_; ++i) {
-      char num[10];
-      const std::string_view p[1] = {number(epoch_, num)};
-      emit_to(relays_[i].peer, relays_[i].id, MsgType::RELAY_DROP, p, 1);
-    }
-    if (relay_count_ + offered_count_ != 0) ++relay_rev_;
-    relay_count_ = 0;
-    offered_count_ = 0;
-  }
-  /// PANIC without a master: relay requests at once, standing after the back-off.
-  void enter_panic() noexcept {
-    clear_prevotes();
-    if (!cfg_.election.enabled) return;
-    relay_at_ = now_;
-    stand_at_ = member_count_ > 0 && is_assigned_id(id_) ? now_ + backoff() : kNever;
-  }
+
   /// Back-off before standing: backoff + score x backoff_step, spread by id (ties stand apart).
   Millis backoff() const noexcept {
     const std::uint32_t sc = score() < 1000u ? score() : 1000u;
     const Millis step = cfg_.timers[Timer::backoff_step];
     return cfg_.timers[Timer::backoff] + sc * step + (id_ % 16u) * step / 16u;
   }
-  Millis election_due() const noexcept {
-    if (!cfg_.election.enabled || state_ != State::PANIC) return kNever;
-    const Millis r = role_ != Role::master ? relay_at_ : kNever;
-    // Standing waits for the pre-votes too: without them the next event is a relay request's retry
-    // or a PREVOTE_OK arriving, not the back-off's end.
-    const Millis st = role_ != Role::master && member_count_ > 0 && prevote_quorum() ? stand_at_ : kNever;
-    return r < st ? r : st;
-  }
-  void adopt_epoch(std::uint32_t e) noexcept {
-    if (e > epoch_) {
-      epoch_ = e;
-      clear_prevotes();
-      voted_for_ = 0;
-      durable_changed();
-    }
-  }
   void durable_changed() noexcept {
-    if (epoch_ == durable_.epoch && voted_for_ == durable_.voted_for) return;
-    durable_ = Durable{epoch_, voted_for_};
+    if (el_.durable() == durable_) return;
+    durable_ = el_.durable();
     ++durable_rev_;
   }
-  void set_role(Role r) noexcept {
-    if (r == role_) return;
-    if (r == Role::master) master_epoch_ = epoch_;
-    role_ = r;
-    if (r != Role::candidate) {
-      if (vote_count_ != 0) ++relay_rev_;
-      vote_count_ = 0;
-    }
-  }
-  bool is_member(std::uint16_t id) const noexcept {
-    for (std::size_t i = 0; i < member_count_; ++i)
-      if (members_[i] == id) return true;
-    return false;
-  }
-  static const PeerEntry* find(const PeerEntry* t, std::size_t n, std::uint16_t id) noexcept {
-    for (std::size_t i = 0; i < n; ++i)
-      if (t[i].id == id) return &t[i];
-    return nullptr;
-  }
-  void add(PeerEntry* t, std::size_t& n, std::uint16_t id, Peer peer) noexcept {
-    ++relay_rev_;
-    for (std::size_t i = 0; i < n; ++i)
-      if (t[i].id == id) {
-        t[i].peer = peer;
-        return;
-      }
-    if (n == RelaySlots) {  // full (offers only): the oldest is forgotten
-      for (std::size_t i = 1; i < n; ++i) t[i - 1] = t[i];
-      --n;
-    }
-    t[n++] = PeerEntry{id, peer};
-  }
-  void remove(PeerEntry* t, std::size_t& n, std::uint16_t id) noexcept {
-    for (std::size_t i = 0; i < n; ++i)
-      if (t[i].id == id) {
-        for (std::size_t j = i + 1; j < n; ++j) t[j - 1] = t[j];
-        --n;
-        ++relay_rev_;
-        return;
-      }
-  }
   /// The master's id for answers and reports: the one followed, else the PC.
-  std::uint16_t master_id() const noexcept { return leader_ != 0 ? leader_ : kMasterId; }
+  std::uint16_t master_id() const noexcept { return el_.leader != 0 ? el_.leader : kMasterId; }
+
+  // ------------------------------------------------------------ the timer table
+
+  /// The master is heard now (silence 0): the lifecycle timeout starts again.
+  void hear() noexcept {
+    heard_ = now_;
+    arm_lifecycle();
+  }
+  /// Lifecycle timer: heard + the timeout of the state (none in PANIC and OFF).
+  void arm_lifecycle() noexcept {
+    Timer t = Timer::sync;
+    timers_.set(AgentTimer::lifecycle, lifecycle_timer(state_, t) ? heard_ + cfg_.timers[t] : kNever);
+  }
+  /// Stand timer: the back-off's end, armed once the pre-votes make a quorum (without them the
+  /// next event is a relay request's retry or a PREVOTE_OK arriving, not the back-off's end).
+  void arm_stand() noexcept { timers_.set(AgentTimer::stand, el_.PreVoteQuorum(id_) ? stand_at_ : kNever); }
+  Millis clk_origin() const noexcept {
+    return timers_.get(AgentTimer::periodic) - cfg_.timers[Timer::heartbeat];
+  }
+  /// Spec `!.clk = 0`: the periodic phase restarts now.
+  void reset_clk() noexcept { timers_.set(AgentTimer::periodic, now_ + cfg_.timers[Timer::heartbeat]); }
+
   /// Runs internal action @p f as spec action @p a with a trace record.
   template <typename F>
   void traced(Action a, F&& f) noexcept {
@@ -1354,8 +1241,8 @@ class Agent {
 
   // ------------------------------------------------------ behaviour, devices
 
-  /// Spec ActionOkOk: Running.
-  bool ActionOkOk() const noexcept { return Running(); }
+  /// Spec ActionOkOk: Running (the table: WORKING, wait NONE).
+  bool ActionOkOk() const noexcept { return Allowed(Action::ActionOk); }
   /// Spec ActionOk: ACTION_OK(step), next action. The cycle length is the caller's business: the
   /// step counts up (spec: modulo Steps, the model's bound).
   void ActionOk() noexcept {
@@ -1366,7 +1253,7 @@ class Agent {
   }
 
   /// Spec ActionInterruptedOk: Running (the warning is one of Warnings by type).
-  bool ActionInterruptedOk() const noexcept { return Running(); }
+  bool ActionInterruptedOk() const noexcept { return Allowed(Action::ActionInterrupted); }
   /// Spec ActionInterrupted: motors stop, ACTION_INTERR(step, event), wait for CONTINUE.
   void ActionInterrupted(Warning w) noexcept {
     wait_ = Wait::CONTINUE;
@@ -1377,7 +1264,7 @@ class Agent {
   }
 
   /// Spec ActionFailedOk: Running.
-  bool ActionFailedOk() const noexcept { return Running(); }
+  bool ActionFailedOk() const noexcept { return Allowed(Action::ActionFailed); }
   /// Spec ActionFailed: motors stop, ACTION_ERR(step, "error"), wait for RESTART.
   void ActionFailed() noexcept {
     wait_ = Wait::RESTART;
@@ -1388,7 +1275,7 @@ class Agent {
   }
 
   /// Spec SensorReportOk: Running.
-  bool SensorReportOk() const noexcept { return Running(); }
+  bool SensorReportOk() const noexcept { return Allowed(Action::SensorReport); }
   /// Spec SensorReport: SENSOR_VALUE(port, mode, value...).
   bool SensorReport(std::string_view port, std::string_view mode, const std::string_view* values,
                     std::size_t count) noexcept {
@@ -1399,22 +1286,22 @@ class Agent {
     return emit(Dest::master, master_id(), MsgType::SENSOR_VALUE, p, count + 2);
   }
 
-  /// Spec DeviceUnpluggedOk: alive and all devices present.
-  bool DeviceUnpluggedOk() const noexcept { return state_ != State::OFF && dev_ok(); }
+  /// Spec DeviceUnpluggedOk: alive (the table) and all devices present.
+  bool DeviceUnpluggedOk() const noexcept { return Allowed(Action::DeviceUnplugged) && dev_ok(); }
   /// Spec DeviceUnplugged: behaviour stopped and unloaded, WORKING / PAUSED -> ACTIVE, EVENT.
   void DeviceUnplugged() noexcept {
     const State was = state_;
     Stopped();
     unload();
-    GotoBy(Action::DeviceUnplugged);
+    Goto(next_state(state_, Action::DeviceUnplugged).to);
     if (is_synced(was)) {
       const std::string_view p[1] = {"DEVICE_DISCONNECTED"};
       emit(Dest::master, master_id(), MsgType::EVENT, p, 1);
     }
   }
 
-  /// Spec DevicePluggedOk: alive and a device missing.
-  bool DevicePluggedOk() const noexcept { return state_ != State::OFF && !dev_ok(); }
+  /// Spec DevicePluggedOk: alive (the table) and a device missing.
+  bool DevicePluggedOk() const noexcept { return Allowed(Action::DevicePlugged) && !dev_ok(); }
   /// Spec DevicePlugged: EVENT(DEVICE_CONNECTED) when synced.
   void DevicePlugged() noexcept {
     if (is_synced(state_)) {
@@ -1423,8 +1310,8 @@ class Agent {
     }
   }
 
-  /// Spec BatteryLowOk: alive.
-  bool BatteryLowOk() const noexcept { return state_ != State::OFF; }
+  /// Spec BatteryLowOk: alive (the table: every state but OFF).
+  bool BatteryLowOk() const noexcept { return Allowed(Action::BatteryLow); }
   /// Spec BatteryLow: EVENT(BATTERY_LOW) when synced, stop, OFF.
   void BatteryLow() noexcept {
     if (is_synced(state_)) {
@@ -1432,7 +1319,7 @@ class Agent {
       emit(Dest::master, master_id(), MsgType::EVENT, p, 1);
     }
     Stopped();
-    GotoBy(Action::BatteryLow);
+    Goto(next_state(state_, Action::BatteryLow).to);
   }
 
   // ---------------------------------------------------------------- plumbing
@@ -1487,12 +1374,12 @@ class Agent {
     EncodeResult r = encode_parts(from, to, msgid_, static_cast<std::uint8_t>(type), params,
                                   count, s.bytes, TxBytes);
     if (!r.ok()) return false;
-    if (dest == Dest::master && via_ != 0) {
+    if (dest == Dest::master && el_.via != 0) {
       char inner[TxBytes];
       std::memcpy(inner, s.bytes, r.size);
       char num[10];
       const std::string_view p[2] = {number(to, num), std::string_view(inner, r.size)};
-      r = encode_parts(from, via_, msgid_, static_cast<std::uint8_t>(MsgType::RELAY), p, 2, s.bytes,
+      r = encode_parts(from, el_.via, msgid_, static_cast<std::uint8_t>(MsgType::RELAY), p, 2, s.bytes,
                        TxBytes);
       if (!r.ok()) return false;
     }
@@ -1530,7 +1417,7 @@ class Agent {
   }
 
   void record(Action a, const AgentVars& before, std::string_view msg, std::string_view event,
-              Millis ticks) noexcept {
+              Millis ticks, Action cmd = Action::Ignore) noexcept {
     if constexpr (Trace::enabled) {
       if (trace_ == nullptr) return;
       AgentTraceRecord r;
@@ -1539,12 +1426,12 @@ class Agent {
       r.event = event;
       r.ticks = ticks;
       r.now = now_;
-      r.cmd = cmd_;
+      r.cmd = cmd;
       r.before = before;
       r.after = vars();
       trace_->record(r, *this);
     } else {
-      (void)a, (void)before, (void)msg, (void)event, (void)ticks;
+      (void)a, (void)before, (void)msg, (void)event, (void)ticks, (void)cmd;
     }
   }
 
@@ -1555,9 +1442,9 @@ class Agent {
   std::uint16_t id_;
   std::uint32_t msgid_;
   Millis now_;
-  Millis heard_;        // spec silence = now_ - heard_ (0 in PANIC)
-  Millis periodic_at_;  // next periodic send; spec clk = (now_ - (periodic_at_ - heartbeat)) % heartbeat
+  Millis heard_;  // spec silence = now_ - heard_ (0 in PANIC)
   std::uint32_t plugged_;
+  TimerTable<AgentTimer, kAgentTimerCount> timers_;  // periodic: spec clk = (now - (periodic - heartbeat)) % heartbeat
   Peer master_peer_ = 0;
   bool motors_ = false;
   bool instance_ = false;  // the behaviour runner holds a run (started, maybe paused)
@@ -1575,35 +1462,12 @@ class Agent {
   AgentEvent ev_[EventSlots];
   std::size_t ev_head_ = 0, ev_count_ = 0;
   std::uint32_t rejected_ = 0, overflowed_ = 0;
-  // Election.tla (fixed capacity, no heap).
-  Role role_ = Role::none;
-  std::uint32_t epoch_;
-  std::uint16_t voted_for_;
-  Durable durable_{epoch_, voted_for_};
+  ElectionType el_;               // Election.tla's variables (fixed capacity, no heap)
+  Durable durable_;               // durable() when durable_rev_ last changed
   std::uint32_t durable_rev_ = 0;
-  std::uint32_t master_epoch_ = 0;
-  std::uint16_t leader_ = 0;
-  std::uint32_t following_ = 0;
-  std::uint16_t via_ = 0;
-  PeerEntry relays_[RelaySlots] = {};
-  std::size_t relay_count_ = 0;
-  PeerEntry offered_[RelaySlots] = {};
-  std::size_t offered_count_ = 0;
-  std::uint16_t members_[kMaxMembers] = {};
-  std::size_t member_count_ = 0;
-  std::uint16_t votes_[kMaxMembers] = {};
-  std::size_t vote_count_ = 0;
-  std::uint16_t prevotes_[kMaxMembers] = {};  // PREVOTE_OK senders, for standing in prevote_epoch_ + 1
-  std::size_t prevote_count_ = 0;
-  std::uint32_t prevote_epoch_ = 0;
-  std::uint16_t records_ = 0;
-  std::uint32_t relay_rev_ = 0;
-  Millis relay_at_ = kNever, stand_at_ = kNever;
-  std::uint16_t cur_master_ = kMasterId;  // the sender FromMaster accepts for this datagram
-  std::uint32_t cmd_epoch_ = 1;           // the epoch of the command being handled (bare: 1)
-  Action cmd_ = Action::Ignore;           // ApplyCommand: the inner handler (trace)
-  Message rx_;
-  Message inner_;
+  Millis stand_at_ = kNever;      // the back-off's end (the stand timer, once a pre-vote quorum holds)
+  Message rx_;                    // the datagram handle_datagram() decoded
+  Message inner_;                 // the datagram inside a RELAY / EPOCH_CMD
 };
 
 }  // namespace ev3proto

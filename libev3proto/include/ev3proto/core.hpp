@@ -148,15 +148,24 @@ constexpr std::string_view to_string(Action a) noexcept {
   return i < kActionCount ? kNames[i] : std::string_view{};
 }
 
-/// One allowed state change: from, to, and the action that causes it.
+/// The waits (WORKING's sub-state) a table row applies to: a bit per Wait value.
+using WaitSet = std::uint8_t;
+/// Every wait: the row does not depend on it.
+inline constexpr WaitSet kAnyWait = 0b111;
+/// Only wait @p w.
+constexpr WaitSet only(Wait w) noexcept { return static_cast<WaitSet>(1u << static_cast<unsigned>(w)); }
+
+/// One row of the state table: in state @c from (and, in WORKING, one of the waits @c waits) action
+/// @c by is taken and leads to @c to (which may equal @c from).
 struct Transition {
-  State from; ///< State before.
-  State to;   ///< State after.
-  Action by;  ///< The action taking it.
+  State from;               ///< State before.
+  State to;                 ///< State after.
+  Action by;                ///< The action taking it.
+  WaitSet waits = kAnyWait; ///< The waits it applies to (RecvContinue: only CONTINUE).
 };
 
-/// The allowed state changes (AgentLogic `AllowedTransitions`, brief sec. 2). The agent core takes
-/// every state change from this table (next_state()); a unit test checks it equals the spec's set.
+/// The allowed state changes (AgentLogic `AllowedTransitions`, brief sec. 2). A unit test checks it
+/// equals the spec's set.
 inline constexpr Transition kTransitions[] = {
     {State::IDLE, State::ACTIVE, Action::RecvMaster},
     {State::IDLE, State::PANIC, Action::SyncTimeout},
@@ -180,10 +189,41 @@ inline constexpr Transition kTransitions[] = {
     {State::PANIC, State::OFF, Action::BatteryLow},
 };
 
+/// Where an action is taken without a state change (AgentLogic's TransitionOk allows every action
+/// to keep the state; these rows say in which states each one is enabled, or accepted: a command
+/// with no row in either table is refused "wrong state"). The spec's conditions they encode:
+/// RecvPong and RecvBehaviour while Synced, RecvStart also in WORKING, RecvContinue / RecvRestart
+/// in WORKING waiting for them, the behaviour events while Running (WORKING, wait NONE), a device
+/// change in any state but OFF.
+inline constexpr Transition kStays[] = {
+    {State::ACTIVE, State::ACTIVE, Action::RecvPong},
+    {State::WORKING, State::WORKING, Action::RecvPong},
+    {State::PAUSED, State::PAUSED, Action::RecvPong},
+    {State::ACTIVE, State::ACTIVE, Action::RecvBehaviour},
+    {State::WORKING, State::WORKING, Action::RecvBehaviour},
+    {State::PAUSED, State::PAUSED, Action::RecvBehaviour},
+    {State::WORKING, State::WORKING, Action::RecvStart},
+    {State::WORKING, State::WORKING, Action::RecvContinue, only(Wait::CONTINUE)},
+    {State::WORKING, State::WORKING, Action::RecvRestart, only(Wait::RESTART)},
+    {State::WORKING, State::WORKING, Action::ActionOk, only(Wait::NONE)},
+    {State::WORKING, State::WORKING, Action::ActionInterrupted, only(Wait::NONE)},
+    {State::WORKING, State::WORKING, Action::ActionFailed, only(Wait::NONE)},
+    {State::WORKING, State::WORKING, Action::SensorReport, only(Wait::NONE)},
+    {State::IDLE, State::IDLE, Action::DeviceUnplugged},
+    {State::ACTIVE, State::ACTIVE, Action::DeviceUnplugged},
+    {State::PANIC, State::PANIC, Action::DeviceUnplugged},
+    {State::IDLE, State::IDLE, Action::DevicePlugged},
+    {State::ACTIVE, State::ACTIVE, Action::DevicePlugged},
+    {State::WORKING, State::WORKING, Action::DevicePlugged},
+    {State::PAUSED, State::PAUSED, Action::DevicePlugged},
+    {State::PANIC, State::PANIC, Action::DevicePlugged},
+};
+
 /// The state changes Election.tla adds, refined to the core's states (its CANDIDATE and MASTER are
 /// PANIC with a Role; docs/election.md sec. 5): relay accepted or a master's LEADER followed
 /// (PANIC -> ACTIVE), the relay dropped us (ACTIVE / WORKING / PAUSED -> PANIC), the master changed
-/// or a newer epoch seen while WORKING (-> PAUSED until the new master resumes it).
+/// or a newer epoch seen while WORKING (-> PAUSED until the new master resumes it). The election's
+/// guards are Election.tla's (election.hpp); these rows give the state each change leads to.
 inline constexpr Transition kElectionTransitions[] = {
     {State::PANIC, State::ACTIVE, Action::AcceptRelay},
     {State::PANIC, State::ACTIVE, Action::HandleHeartbeat},
@@ -195,14 +235,62 @@ inline constexpr Transition kElectionTransitions[] = {
     {State::PAUSED, State::PANIC, Action::RelayDropped},
 };
 
-/// The state action @p by leads to from @p from when it succeeds: the row of kTransitions or
-/// kElectionTransitions, or @p from itself when neither has one (the action keeps the state).
-constexpr State next_state(State from, Action by) noexcept {
+/// The state table's answer for one action: taken (leading to @c to) or refused (no row).
+struct Next {
+  bool allowed = false;    ///< A row exists: the action is taken.
+  State to = State::OFF;   ///< The state it leads to (meaningful when allowed).
+  /// True when allowed.
+  constexpr explicit operator bool() const noexcept { return allowed; }
+};
+
+/// The state table as the guard: the row of kTransitions, kStays or kElectionTransitions for action
+/// @p by in state @p from with wait @p wait, or refused when none has one.
+constexpr Next next_state(State from, Action by, Wait wait = Wait::NONE) noexcept {
+  const WaitSet w = only(wait);
   for (const Transition& t : kTransitions)
-    if (t.from == from && t.by == by) return t.to;
+    if (t.from == from && t.by == by && (t.waits & w) != 0) return Next{true, t.to};
+  for (const Transition& t : kStays)
+    if (t.from == from && t.by == by && (t.waits & w) != 0) return Next{true, t.to};
   for (const Transition& t : kElectionTransitions)
-    if (t.from == from && t.by == by) return t.to;
-  return from;
+    if (t.from == from && t.by == by && (t.waits & w) != 0) return Next{true, t.to};
+  return Next{};
+}
+
+/// Why a received datagram changed nothing (the agent core's and the node's handle_datagram()).
+/// The spellings are the programs' drop counter names (docs/programs.md).
+enum class Ignored : std::uint8_t {
+  no,                  ///< It was handled (a spec action took it).
+  undecodable,         ///< It does not decode (the result carries the codec's reason and field).
+  off,                 ///< The agent is OFF (after BatteryLow): it takes no step at all.
+  misaddressed,        ///< Its receiver is neither this agent's id nor 0.
+  own_broadcast,       ///< This agent's own broadcast, heard back.
+  foreign_sender,      ///< Not from the master followed (another agent's broadcast, a stranger's
+                       ///< command, an EPOCH_CMD that fails the fence).
+  not_for_agent,       ///< From the master, but a type agents never take (ACK, PING, reports), or
+                       ///< a master's own type (RELAY_ROUTE, HANDOVER).
+  stale_epoch,         ///< A command of an older epoch than the agent's: answered EPOCH_STALE.
+  election_off,        ///< A relay / election datagram while the election is off.
+  ignored_in_state,    ///< No handler takes it in this state (spec Ignore; an Election rule's
+                       ///< guard does not hold).
+  for_the_master_core, ///< (Node) The agent core ignored it; the Master core this node runs took it.
+};
+
+/// The drop counter name of a reason ("misaddressed").
+constexpr std::string_view to_string(Ignored i) noexcept {
+  switch (i) {
+    case Ignored::no: return "handled";
+    case Ignored::undecodable: return "decode";
+    case Ignored::off: return "off";
+    case Ignored::misaddressed: return "misaddressed";
+    case Ignored::own_broadcast: return "own_broadcast";
+    case Ignored::not_for_agent: return "not_for_agent";
+    case Ignored::foreign_sender: return "foreign_sender";
+    case Ignored::stale_epoch: return "stale_epoch";
+    case Ignored::election_off: return "election_off";
+    case Ignored::ignored_in_state: return "ignored_in_state";
+    case Ignored::for_the_master_core: return "for_the_master_core";
+  }
+  return {};
 }
 
 /// An agent's part in the election (Election.tla life CANDIDATE / MASTER; both are the core's PANIC).
@@ -223,19 +311,22 @@ constexpr std::string_view to_string(Role r) noexcept {
 }
 
 namespace detail {
-/// Each (from, action) pair has at most one row, so next_state() is a function.
-constexpr bool transitions_are_a_function() noexcept {
-  constexpr std::size_t n = sizeof(kTransitions) / sizeof(kTransitions[0]);
-  for (std::size_t i = 0; i < n; ++i)
-    for (std::size_t j = i + 1; j < n; ++j)
-      if (kTransitions[i].from == kTransitions[j].from && kTransitions[i].by == kTransitions[j].by)
-        return false;
-  for (const Transition& e : kElectionTransitions)
-    for (const Transition& t : kTransitions)
-      if (t.from == e.from && t.by == e.by) return false;
+/// Each (state, action, wait) has at most one row across the three tables, so next_state() is a
+/// function and the order of the tables does not matter.
+template <std::size_t A, std::size_t B>
+constexpr bool disjoint(const Transition (&a)[A], const Transition (&b)[B], bool same) noexcept {
+  for (std::size_t i = 0; i < A; ++i)
+    for (std::size_t j = same ? i + 1 : 0; j < B; ++j)
+      if (a[i].from == b[j].from && a[i].by == b[j].by && (a[i].waits & b[j].waits) != 0) return false;
   return true;
 }
-static_assert(transitions_are_a_function(), "kTransitions has two rows for one (state, action)");
+constexpr bool transitions_are_a_function() noexcept {
+  return disjoint(kTransitions, kTransitions, true) && disjoint(kStays, kStays, true) &&
+         disjoint(kElectionTransitions, kElectionTransitions, true) &&
+         disjoint(kTransitions, kStays, false) && disjoint(kTransitions, kElectionTransitions, false) &&
+         disjoint(kStays, kElectionTransitions, false);
+}
+static_assert(transitions_are_a_function(), "the state table has two rows for one (state, action, wait)");
 }  // namespace detail
 
 /// Why an agent refuses a command (AgentLogic `Reasons`), carried in NOT.

@@ -98,4 +98,38 @@ constexpr std::string_view to_string(Timer t) noexcept {
 
 static_assert(Timers{}.valid(), "the default timers must satisfy the spec's assumptions");
 
+/// A core's armed deadlines, one per kind (quinn-proto's TimerTable): an array indexed by @p Kind
+/// (an enum whose values are 0..N-1). Arming, stopping and reading a timer are O(1); the earliest
+/// deadline is O(N). No heap.
+template <typename Kind, std::size_t N>
+class TimerTable {
+ public:
+  /// "Not armed".
+  static constexpr Millis kNever = ~Millis{0};
+
+  /// Every timer stopped.
+  constexpr TimerTable() noexcept {
+    for (Millis& t : at_) t = kNever;
+  }
+  /// Arms timer @p k for time @p at (kNever stops it).
+  constexpr void set(Kind k, Millis at) noexcept { at_[index(k)] = at; }
+  /// Stops timer @p k.
+  constexpr void stop(Kind k) noexcept { at_[index(k)] = kNever; }
+  /// When timer @p k is due (kNever when stopped).
+  constexpr Millis get(Kind k) const noexcept { return at_[index(k)]; }
+  /// True when timer @p k is armed and due at @p now.
+  constexpr bool due(Kind k, Millis now) const noexcept { return at_[index(k)] <= now; }
+  /// The earliest armed deadline (kNever when none is armed).
+  constexpr Millis next() const noexcept {
+    Millis t = kNever;
+    for (Millis a : at_)
+      if (a < t) t = a;
+    return t;
+  }
+
+ private:
+  static constexpr std::size_t index(Kind k) noexcept { return static_cast<std::size_t>(k); }
+  std::array<Millis, N> at_{};
+};
+
 }  // namespace ev3proto

@@ -1,16 +1,22 @@
 // Drives one Agent from transcript commands (tests/cpp/testdata/agent_*.txt) and prints what it
-// did, one line per output. Shared by the transcript test and the trace test.
+// did. Shared by the transcript test and the trace test.
 //
 // Inputs:
 //   agent [temp=N] [model=M] [behaviours=name:devbits,...] [devices=bits] [sync=ms] [heartbeat=ms]
-//         [loss=ms] [paused=ms] [at=ms]          (re)create the agent at time `at` (default 0)
+//         [loss=ms] [paused=ms] [at=ms] [election=1 score=N epoch=N voted=N relay_retry=ms
+//         backoff=ms backoff_step=ms candidate=ms]   (re)create the agent at time `at` (default 0)
 //   advance MS                                   time moves MS milliseconds
-//   recv DATAGRAM [from=PEER]                    a datagram arrives
+//   recv DATAGRAM [from=PEER]                    a datagram arrives (symbolic: 1->7 START #3, or
+//                                                wire bytes: 1:7:3:8); PEER defaults to 1
 //   event obstacle|proximity|action_ok|action_failed|battery_low|unplug BITS|plug BITS
 //   event sensor PORT MODE VALUE...
+//   show                                         the election variables
 //   trace                                        print the NDJSON trace lines of this case
-// Outputs (in this order): `action X` per spec action other than Tick; `send master|broadcast D`;
-// `state S`, `led L`, `control K [name args...]` in order; `deadline T` (or `deadline none`).
+// Outputs: each spec action the agent took, by name (`Ignore: REASON` when a datagram was not
+// taken, `ApplyCommand: RecvStart` with the inner handler; a run of Ticks only when it sent
+// something), followed, indented, by what that action did: `send master|broadcast|peer=P DATAGRAM`
+// (symbolic, tests/cpp/core/symbolic.hpp), `state S`, `led L`, `control K [name args...]`. A
+// datagram no action saw: `ignored: REASON`. Last: `deadline T` (or `deadline none`).
 #pragma once
 
 #include <memory>
@@ -20,24 +26,39 @@
 
 #include "ev3proto/agent.hpp"
 #include "ev3proto/trace.hpp"
+#include "symbolic.hpp"
 
 namespace ev3test {
 
 using namespace ev3proto;
 
-/// Trace sink keeping action names and NDJSON lines.
+class AgentDriver;
+
+/// Trace sink: each action's name, followed by what it sent and emitted (the driver drains the
+/// agent's queues at every record), and the NDJSON lines.
 struct LogTrace {
   static constexpr bool enabled = true;
-  std::vector<std::string> actions;
+  AgentDriver* driver = nullptr;
   std::vector<std::string> json;
   template <typename A>
-  void record(const AgentTraceRecord& r, const A& a) {
-    if (r.action != Action::Tick) actions.push_back("action " + std::string(to_string(r.action)));
-    json.push_back(to_ndjson(r, a));
-  }
+  void record(const AgentTraceRecord& r, const A& a);
 };
 
 using TracedAgent = Agent<LogTrace>;
+
+/// The transcript line of one transmit.
+inline std::string send_line(Dest dest, Peer peer, std::string_view bytes) {
+  return "  send " + std::string(to_string(dest)) + (dest == Dest::peer ? "=" + std::to_string(peer) : std::string()) +
+         " " + symbolic(bytes);
+}
+
+/// The wire bytes of a transcript's datagram (symbolic or raw); "" and @p error when malformed.
+inline std::string datagram_arg(const std::string& text, std::string& error) {
+  if (!is_symbolic(text)) return text;
+  std::string bytes;
+  if (!parse_symbolic(text, bytes, error)) return {};
+  return bytes;
+}
 
 inline std::vector<std::string> words(const std::string& line) {
   std::istringstream in(line);
@@ -51,58 +72,81 @@ class AgentDriver {
  public:
   /// Runs one case's input lines; returns the output lines.
   std::vector<std::string> run(const std::vector<std::string>& input) {
-    out_.clear();
-    trace_.actions.clear();
+    lines_.clear();
     trace_.json.clear();
+    trace_.driver = this;
     bool show_trace = false;
-    std::vector<std::string> lines;
-    for (const std::string& line : input) {
-      step(line, show_trace);
-      flush(lines);  // per input line, so a control names the behaviour it was emitted for
-    }
+    for (const std::string& line : input) step(line, show_trace);
     if (show_trace)
-      for (const auto& j : trace_.json) lines.push_back("trace " + j);
+      for (const auto& j : trace_.json) lines_.push_back("trace " + j);
     const Millis d = agent_ ? agent_->next_deadline() : TracedAgent::kNever;
-    lines.push_back(d == TracedAgent::kNever ? "deadline none" : "deadline " + std::to_string(d));
-    return lines;
+    lines_.push_back(d == TracedAgent::kNever ? "deadline none" : "deadline " + std::to_string(d));
+    return lines_;
   }
 
   TracedAgent* agent() { return agent_.get(); }
 
- private:
-  void flush(std::vector<std::string>& lines) {
-    for (auto& a : trace_.actions) lines.push_back(a);
-    trace_.actions.clear();
-    drain(lines);
-    for (auto& e : out_) lines.push_back(e);
-    out_.clear();
+  /// Called by the trace sink after each action: its name, then what it queued.
+  void on_record(const AgentTraceRecord& r) {
+    std::vector<std::string> out = drain();
+    if (r.action == Action::Tick && out.empty()) return;
+    std::string name(to_string(r.action));
+    if (r.action == Action::ApplyCommand) name += ": " + std::string(to_string(r.cmd));
+    lines_.push_back(name);
+    for (auto& l : out) lines_.push_back(std::move(l));
   }
 
+ private:
   void step(const std::string& line, bool& show_trace) {
-    {
-      const auto w = words(line);
-      if (w.empty()) return;
-      if (w[0] == "agent") {
-        create(w);
-      } else if (!agent_) {
-        out_.push_back("error: no agent (start the file with `agent`)");
-      } else if (w[0] == "advance" && w.size() == 2) {
-        now_ += std::stoull(w[1]);
-        agent_->advance(now_);
-      } else if (w[0] == "recv" && w.size() >= 2) {
-        Peer from = 1;
-        if (w.size() == 3 && w[2].rfind("from=", 0) == 0) from = static_cast<Peer>(std::stoul(w[2].substr(5)));
-        agent_->handle_datagram(w[1], from, now_);
-      } else if (w[0] == "event" && w.size() >= 2) {
-        event(w);
-      } else if (w[0] == "trace") {
-        show_trace = true;
-      } else if (w[0] == "show") {
-        out_.push_back(show());
-      } else {
-        out_.push_back("error: bad input: " + line);
-      }
+    const auto w = words(line);
+    if (w.empty()) return;
+    if (w[0] == "agent") {
+      create(w);
+    } else if (!agent_) {
+      lines_.push_back("error: no agent (start the file with `agent`)");
+    } else if (w[0] == "advance" && w.size() == 2) {
+      now_ += std::stoull(w[1]);
+      agent_->advance(now_);
+    } else if (w[0] == "recv" && w.size() >= 2) {
+      recv(line);
+    } else if (w[0] == "event" && w.size() >= 2) {
+      event(w);
+    } else if (w[0] == "trace") {
+      show_trace = true;
+    } else if (w[0] == "show") {
+      lines_.push_back(show());
+    } else {
+      lines_.push_back("error: bad input: " + line);
     }
+  }
+
+  /// recv DATAGRAM [from=PEER]: the datagram's action line gets the reason when it was not taken.
+  void recv(const std::string& line) {
+    std::string text = line.substr(line.find(' ') + 1);
+    Peer from = 1;
+    const auto f = text.rfind(" from=");
+    if (f != std::string::npos) {
+      from = static_cast<Peer>(std::stoul(text.substr(f + 6)));
+      text = text.substr(0, f);
+    }
+    std::string error;
+    const std::string bytes = datagram_arg(text, error);
+    if (!error.empty()) {
+      lines_.push_back("error: " + error);
+      return;
+    }
+    agent_->advance(now_);  // the records of time moving come first
+    const std::size_t at = lines_.size();
+    const Handled h = agent_->handle_datagram(bytes, from, now_);
+    if (h.why == Ignored::undecodable) {
+      lines_.push_back("ignored: undecodable (" + std::string(to_string(h.decode.reason)) + ", field " +
+                       std::to_string(h.decode.field) + ")");
+    } else if (h.why == Ignored::off) {
+      lines_.push_back("ignored: off");
+    } else if (!h.taken() && at < lines_.size()) {
+      lines_[at] += ": " + std::string(to_string(h.why));
+    }
+    for (auto& l : drain()) lines_.push_back(std::move(l));  // nothing, unless a record was missed
   }
 
   void create(const std::vector<std::string>& w) {
@@ -134,7 +178,7 @@ class AgentDriver {
       else if (k == "score") c.election.score = static_cast<std::uint32_t>(std::stoul(v));
       else if (k == "epoch") c.election.epoch = static_cast<std::uint32_t>(std::stoul(v));
       else if (k == "voted") c.election.voted_for = static_cast<std::uint16_t>(std::stoul(v));
-      else out_.push_back("error: bad agent option " + w[i]);
+      else lines_.push_back("error: bad agent option " + w[i]);
     }
     model_ = model;
     std::istringstream in(behaviours);
@@ -147,6 +191,7 @@ class AgentDriver {
     c.caps = Capabilities{model_, behs_.data(), behs_.size(), devices};
     now_ = at;
     agent_ = std::make_unique<TracedAgent>(c, now_, &trace_);
+    for (auto& l : drain()) lines_.push_back(std::move(l));
   }
 
   void event(const std::vector<std::string>& w) {
@@ -160,9 +205,9 @@ class AgentDriver {
     else if (e == "plug" && w.size() == 3) agent_->device_plugged(static_cast<std::uint32_t>(std::stoul(w[2])), now_);
     else if (e == "sensor" && w.size() >= 5) {
       std::vector<std::string_view> v(w.begin() + 4, w.end());
-      if (!agent_->sensor_report(w[2], w[3], v.data(), v.size(), now_)) out_.push_back("sensor refused");
+      if (!agent_->sensor_report(w[2], w[3], v.data(), v.size(), now_)) lines_.push_back("sensor refused");
     } else {
-      out_.push_back("error: bad event " + e);
+      lines_.push_back("error: bad event " + e);
     }
   }
 
@@ -186,19 +231,18 @@ class AgentDriver {
            " master_epoch=" + std::to_string(a.master_epoch());
   }
 
-  void drain(std::vector<std::string>& lines) {
+  /// What the agent queued since the last drain: datagrams, then state, LED and control events.
+  std::vector<std::string> drain() {
+    std::vector<std::string> lines;
     Transmit t;
-    while (agent_ && agent_->poll_transmit(t))
-      lines.push_back("send " + std::string(to_string(t.dest)) +
-                      (t.dest == Dest::peer ? "=" + std::to_string(t.peer) : std::string()) + " " +
-                      std::string(t.bytes));
+    while (agent_ && agent_->poll_transmit(t)) lines.push_back(send_line(t.dest, t.peer, t.bytes));
     AgentEvent e;
     while (agent_ && agent_->poll_event(e)) {
       switch (e.kind) {
-        case AgentEvent::Kind::state: lines.push_back("state " + std::string(to_string(e.state))); break;
-        case AgentEvent::Kind::led: lines.push_back("led " + std::string(to_string(e.led))); break;
+        case AgentEvent::Kind::state: lines.push_back("  state " + std::string(to_string(e.state))); break;
+        case AgentEvent::Kind::led: lines.push_back("  led " + std::string(to_string(e.led))); break;
         case AgentEvent::Kind::control: {
-          std::string l = "control " + std::string(to_string(e.control));
+          std::string l = "  control " + std::string(to_string(e.control));
           if (e.control == ControlKind::start || e.control == ControlKind::restart) {
             const BehaviourView b = agent_->behaviour();
             l += " " + std::string(b.name);
@@ -209,6 +253,7 @@ class AgentDriver {
         }
       }
     }
+    return lines;
   }
 
   LogTrace trace_;
@@ -217,7 +262,13 @@ class AgentDriver {
   std::string model_;
   std::vector<std::string> names_;
   std::vector<BehaviourSpec> behs_;
-  std::vector<std::string> out_;
+  std::vector<std::string> lines_;
 };
+
+template <typename A>
+void LogTrace::record(const AgentTraceRecord& r, const A& a) {
+  json.push_back(to_ndjson(r, a));
+  if (driver != nullptr) driver->on_record(r);
+}
 
 }  // namespace ev3test

@@ -56,17 +56,17 @@ int main() {
   agent.advance(1000);
   CHECK(drain(agent, last) == 1 && std::strcmp(last, "50007:0:1:1:A") == 0);  // AGENT broadcast
 
-  CHECK(agent.handle_datagram("1:7:10:2:50007", 1, 1100) == Action::RecvMaster);
+  CHECK(agent.handle_datagram("1:7:10:2:50007", 1, 1100).action == Action::RecvMaster);
   CHECK(agent.state() == State::ACTIVE && agent.id() == 7);
   CHECK(drain(agent, last) == 1 && std::strcmp(last, "7:1:2:3:10") == 0);  // ACK from the new id
 
-  CHECK(agent.handle_datagram("1:7:11:7:explore:speed=3", 1, 1200) == Action::RecvBehaviour);
+  CHECK(agent.handle_datagram("1:7:11:7:explore:speed=3", 1, 1200).action == Action::RecvBehaviour);
   CHECK(drain(agent, last) == 1 && std::strcmp(last, "7:1:3:3:11") == 0);
-  CHECK(agent.handle_datagram("1:7:12:8", 1, 1300) == Action::RecvStart);
+  CHECK(agent.handle_datagram("1:7:12:8", 1, 1300).action == Action::RecvStart);
   CHECK(agent.state() == State::WORKING && agent.motors());
   CHECK(agent.behaviour().name == "explore" && agent.behaviour().arg(0) == "speed=3");
   drain(agent, last);
-  CHECK(agent.handle_datagram("1:7:12:8", 1, 1301) == Action::RecvDuplicate);  // copy: answered again
+  CHECK(agent.handle_datagram("1:7:12:8", 1, 1301).action == Action::RecvDuplicate);  // copy: answered again
   CHECK(drain(agent, last) == 1 && std::strcmp(last, "7:1:5:3:12") == 0);
 
   // The master goes silent: WORKING -> PAUSED at loss, PANIC at paused.
@@ -78,7 +78,7 @@ int main() {
   CHECK(std::strncmp(last, "7:0:", 4) == 0);  // PANIC broadcast from the old id
 
   // The master returns and gives the id back.
-  CHECK(agent.handle_datagram("1:7:40:2:7", 2, 9000) == Action::RecvMaster);
+  CHECK(agent.handle_datagram("1:7:40:2:7", 2, 9000).action == Action::RecvMaster);
   CHECK(agent.state() == State::ACTIVE && agent.behaviour().name.empty());
   std::printf("agent core, -fno-exceptions -fno-rtti: ok (sizeof(Agent<>) = %zu bytes)\n", sizeof agent);
   return 0;

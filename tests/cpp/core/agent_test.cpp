@@ -1,8 +1,10 @@
-// Agent core unit tests: the transition table equals the spec's, no heap use, window eviction.
+// Agent core and node unit tests: the transition table equals the spec's, the action names are the
+// spec's, no heap use (the agent core; a node while it runs no Master core), window eviction.
 #include <gtest/gtest.h>
 
 #include <atomic>
 #include <cstdlib>
+#include <dirent.h>
 #include <fstream>
 #include <new>
 #include <regex>
@@ -12,6 +14,7 @@
 #include <tuple>
 
 #include "ev3proto/agent.hpp"
+#include "ev3proto/node.hpp"
 
 // Replacing the global allocation functions with malloc/free is exactly what this test wants.
 #pragma GCC diagnostic ignored "-Wmismatched-new-delete"
@@ -59,11 +62,105 @@ TEST(TransitionTable, EqualsSpecAllowedTransitions) {
 }
 
 TEST(TransitionTable, NextStateUsesTheTable) {
-  EXPECT_EQ(next_state(State::WORKING, Action::HeartbeatLost), State::PAUSED);
-  EXPECT_EQ(next_state(State::ACTIVE, Action::HeartbeatLost), State::PANIC);
-  EXPECT_EQ(next_state(State::WORKING, Action::RecvStart), State::WORKING);  // no row: unchanged
-  for (std::size_t s = 0; s < kStateCount; ++s) EXPECT_EQ(led_of(static_cast<State>(s)), led_of(static_cast<State>(s)));
+  EXPECT_EQ(next_state(State::WORKING, Action::HeartbeatLost).to, State::PAUSED);
+  EXPECT_EQ(next_state(State::ACTIVE, Action::HeartbeatLost).to, State::PANIC);
+  EXPECT_EQ(next_state(State::WORKING, Action::RecvStart).to, State::WORKING);  // a stay row
+  EXPECT_FALSE(next_state(State::IDLE, Action::RecvStart));                     // no row: refused
+  EXPECT_TRUE(next_state(State::WORKING, Action::RecvContinue, Wait::CONTINUE));
+  EXPECT_FALSE(next_state(State::WORKING, Action::RecvContinue, Wait::RESTART));
   EXPECT_EQ(to_string(led_of(State::PAUSED)), "ORANGE");
+}
+
+TEST(TransitionTable, StaysKeepTheStateAndOFFHasNoRow) {
+  for (const Transition& t : kStays) EXPECT_EQ(t.from, t.to) << to_string(t.by);
+  for (std::size_t a = 0; a < kActionCount; ++a)
+    for (Wait w : {Wait::NONE, Wait::CONTINUE, Wait::RESTART})
+      EXPECT_FALSE(next_state(State::OFF, static_cast<Action>(a), w)) << to_string(static_cast<Action>(a));
+}
+
+// ---- the C++ action names are the spec's (docs/core.md: one handler per TLA+ action, same name)
+
+std::string spec_dir() {
+  const std::string f = EV3_AGENT_LOGIC_TLA;
+  return f.substr(0, f.rfind('/'));
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+/// Every operator a module of spec/tla defines (`Name(...) ==` or `Name ==` at a line's start).
+std::set<std::string> spec_operators() {
+  std::set<std::string> ops;
+  DIR* d = opendir(spec_dir().c_str());
+  if (d == nullptr) return ops;
+  const std::regex def(R"re(^([A-Za-z][A-Za-z0-9_]*)\s*(\([^)]*\))?\s*==)re", std::regex::multiline);
+  while (dirent* e = readdir(d)) {
+    const std::string n = e->d_name;
+    if (n.size() < 4 || n.substr(n.size() - 4) != ".tla") continue;
+    const std::string text = read_file(spec_dir() + "/" + n);
+    for (std::sregex_iterator it(text.begin(), text.end(), def), end; it != end; ++it) ops.insert((*it)[1]);
+  }
+  closedir(d);
+  return ops;
+}
+
+/// The string elements of the TLA+ set `Name == {"A", "B", ...}` in @p module.
+std::set<std::string> spec_name_set(const std::string& module, const std::string& name) {
+  const std::string text = read_file(spec_dir() + "/" + module);
+  const auto at = text.find(name + " ==");
+  std::set<std::string> out;
+  if (at == std::string::npos) return out;
+  const std::string body = text.substr(at, text.find('}', at) - at);
+  const std::regex str(R"re("(\w+)")re");
+  for (std::sregex_iterator it(body.begin(), body.end(), str), e; it != e; ++it) out.insert((*it)[1]);
+  return out;
+}
+
+// The C++ actions the spec abstracts (docs/core.md "Relay and election"): the master reads the relay
+// table (RELAY_ROUTE) and the handover of a stepping-down master.
+const std::set<std::string> kCppOnly = {"MasterRoute", "MasterHandover"};
+
+TEST(ActionNames, EveryCppActionIsASpecAction) {
+  const std::set<std::string> ops = spec_operators();
+  ASSERT_GT(ops.size(), 100u) << "no TLA+ modules read in " << spec_dir();
+  for (std::size_t i = 0; i < kActionCount; ++i) {
+    const std::string a(to_string(static_cast<Action>(i)));
+    if (kCppOnly.count(a) != 0) {
+      EXPECT_EQ(ops.count(a), 0u) << a << " is a spec action now: drop it from kCppOnly";
+      continue;
+    }
+    EXPECT_EQ(ops.count(a), 1u) << "Action::" << a << " is defined by no module of spec/tla";
+  }
+}
+
+TEST(ActionNames, EverySpecActionOfANodeIsACppAction) {
+  std::set<std::string> cpp;
+  for (std::size_t i = 0; i < kActionCount; ++i) cpp.insert(std::string(to_string(static_cast<Action>(i))));
+  std::set<std::string> spec = spec_name_set("AgentLogic.tla", "RecvNames");
+  for (const auto& n : spec_name_set("AgentLogic.tla", "InternalNames")) spec.insert(n);
+  for (const auto& n : spec_name_set("MasterLogic.tla", "MasterNames")) spec.insert(n);
+  ASSERT_GE(spec.size(), 28u);
+  // Election.tla's Next: the actions its nodes take (the environment's and the two the cores name
+  // otherwise are listed: Timeout is the agent's HeartbeatLost, SendCommand the master's
+  // MasterCommand, docs/core.md).
+  const std::string text = read_file(spec_dir() + "/Election.tla");
+  const auto at = text.find("\nNext ==");
+  ASSERT_NE(at, std::string::npos);
+  const std::string next = text.substr(at, text.find("\nSpec ==", at) - at);
+  const std::regex call(R"re(([A-Z][A-Za-z]*)\()re");
+  const std::set<std::string> environment = {"Crash", "Restart", "Cut", "Heal", "Lose", "Timeout", "SendCommand"};
+  std::size_t election = 0;
+  for (std::sregex_iterator it(next.begin(), next.end(), call), e; it != e; ++it) {
+    if (environment.count((*it)[1]) != 0) continue;
+    spec.insert((*it)[1]);
+    ++election;
+  }
+  EXPECT_GE(election, 14u);
+  for (const auto& n : spec) EXPECT_EQ(cpp.count(n), 1u) << "spec action " << n << " has no Action";
 }
 
 constexpr BehaviourSpec kBehs[] = {{"explore", 1u}, {"wander", 0u}};
@@ -153,13 +250,52 @@ TEST(AgentNoHeap, CounterSeesAllocations) {  // the counter itself works
   EXPECT_EQ(g_news.load(), before + 1);
 }
 
+/// A node that never wins an epoch allocates nothing: its Master core, the only part that
+/// allocates, never runs. Election on: relay requests, a relay, a vote, a newer epoch.
+TEST(NodeNoHeap, NoMasterCoreNoAllocation) {
+  using N = Node<>;
+  alignas(N) static unsigned char storage[sizeof(N)];
+  N::Config c;
+  c.agent = config();
+  c.agent.election.enabled = true;
+  c.agent.election.score = 50;
+  const long before = g_news.load();
+  N* n = new (storage) N(c, 0);  // placement: no allocation (an empty std::function allocates nothing)
+  auto drain_node = [n] {
+    NodeTransmit t;
+    while (n->poll_transmit(t)) {
+    }
+    NodeEvent e;
+    while (n->poll_event(e)) {
+    }
+  };
+  n->handle_datagram("1:7:1:2:50001", 1, 10);
+  n->handle_datagram("1:0:2:29:1:1:7:8:9", 1, 20);
+  n->handle_datagram("9:0:5:21:1", 9, 30);
+  n->handle_datagram("9:7:6:23:1:1", 9, 40);
+  n->handle_datagram("1:7:3:25:9:1%3A9%3A4%3A6%3A5", 1, 50);
+  n->handle_datagram("1:7:4:7:explore", 1, 60);
+  n->handle_datagram("1:7:5:8", 1, 70);
+  n->action_ok(80);
+  n->handle_datagram("garbage", 1, 90);
+  drain_node();
+  n->advance(10000);
+  n->handle_datagram("8:0:3:27:2:5:0", 8, 10001);  // a weaker candidate: vote, epoch 2
+  n->advance(20000);
+  drain_node();
+  EXPECT_EQ(g_news.load(), before) << "the node allocated";
+  EXPECT_EQ(n->master(), nullptr);
+  EXPECT_EQ(n->agent().epoch(), 2u);
+  n->~N();
+}
+
 TEST(AgentWindow, EvictedCommandIsActedOnAgain) {
   Agent<NoTrace, 2> a(config(), 0);
   a.handle_datagram("1:5:1:2:50001", 1, 1);
-  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 2), Action::RecvBehaviour);
-  EXPECT_EQ(a.handle_datagram("1:5:3:8", 1, 3), Action::RecvStart);  // window now {2, 3}: MASTER evicted
-  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 4), Action::RecvDuplicate);
-  EXPECT_EQ(a.handle_datagram("1:5:1:2:50001", 1, 5), Action::Ignore);  // evicted, not masterless
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 2).action, Action::RecvBehaviour);
+  EXPECT_EQ(a.handle_datagram("1:5:3:8", 1, 3).action, Action::RecvStart);  // window now {2, 3}: MASTER evicted
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander", 1, 4).action, Action::RecvDuplicate);
+  EXPECT_EQ(a.handle_datagram("1:5:1:2:50001", 1, 5).action, Action::Ignore);  // evicted, not masterless
   EXPECT_EQ(a.window().size(), 2u);
 }
 
@@ -189,7 +325,7 @@ TEST(AgentBehaviour, ArgumentsBeyondCapacityAreRefused) {
   Agent<NoTrace, 50, 8, 512, 16, 4> a(config(), 0);
   a.handle_datagram("1:5:1:2:50001", 1, 1);
   drain(a);
-  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander:speed=3", 1, 2), Action::RecvBehaviour);
+  EXPECT_EQ(a.handle_datagram("1:5:2:7:wander:speed=3", 1, 2).action, Action::RecvBehaviour);
   Transmit t;
   ASSERT_TRUE(a.poll_transmit(t));
   EXPECT_EQ(t.bytes, "5:1:2:4:2:unknown behaviour");
@@ -208,7 +344,7 @@ TEST(AgentTime, PastTimeChangesNothingAndDeadlineIsExact) {
   EXPECT_EQ(a.next_deadline(), Agent<>::kNever);
   a.advance(20000);
   EXPECT_EQ(a.now(), 20000u);
-  EXPECT_EQ(a.handle_datagram("1:50001:1:2:50001", 1, 20001), Action::Ignore);  // OFF: no step
+  EXPECT_EQ(a.handle_datagram("1:50001:1:2:50001", 1, 20001).action, Action::Ignore);  // OFF: no step
 }
 
 TEST(Timers, DefaultsAndSpecMapping) {

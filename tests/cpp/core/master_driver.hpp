@@ -3,11 +3,14 @@
 // Inputs:
 //   master [resend=ms] [drop=ms] [max_resends=n] [next_id=n] [next_msgid=n] [at=ms]
 //   advance MS
-//   recv DATAGRAM [from=PEER]            (default peer 100)
+//   recv DATAGRAM [from=PEER]            (symbolic or wire bytes, as agent_driver.hpp; peer 100)
 //   cmd assign ID|all NAME [ARG...]      BEHAVIOUR
 //   cmd start|stop|pause|resume|standby|continue|restart ID|all
+//   show                                 election role, epoch, members, registry
 //   trace                                print the NDJSON trace lines of this case
-// Outputs: `action X` per spec action (Tick excluded); `send peer=P D`; `op KIND agent=ID ...`;
+// Outputs: each spec action by name (a MasterTick only when it did something), followed,
+// indented, by what it did: `send peer=P DATAGRAM` / `send broadcast DATAGRAM` (symbolic) and
+// `op KIND agent=ID ...` (operator events); a datagram no action took: `ignored`. Last:
 // `deadline T`.
 #pragma once
 
@@ -18,19 +21,21 @@
 
 #include "ev3proto/master.hpp"
 #include "ev3proto/trace.hpp"
+#include "symbolic.hpp"
 
 namespace ev3test {
 
 using namespace ev3proto;
 
+class MasterDriver;
+
+/// Trace sink: each action's name followed by what it sent and reported (the driver drains the
+/// master's queues at every record), and the NDJSON lines.
 struct MasterLog {
   static constexpr bool enabled = true;
-  std::vector<std::string> actions;
+  MasterDriver* driver = nullptr;
   std::vector<std::string> json;
-  void record(const MasterTraceRecord& r) {
-    if (r.action != Action::MasterTick) actions.push_back("action " + std::string(to_string(r.action)));
-    json.push_back(to_ndjson(r));
-  }
+  void record(const MasterTraceRecord& r);
 };
 
 using TracedMaster = Master<MasterLog>;
@@ -60,8 +65,9 @@ inline std::string op_line(const OperatorEvent& e) {
 class MasterDriver {
  public:
   std::vector<std::string> run(const std::vector<std::string>& input) {
-    log_.actions.clear();
+    lines_.clear();
     log_.json.clear();
+    log_.driver = this;
     std::vector<std::string> errors;
     bool show_trace = false;
     for (const std::string& line : input) {
@@ -107,7 +113,13 @@ class MasterDriver {
           from = static_cast<Peer>(std::stoul(d.substr(f + 6)));
           d = d.substr(0, f);
         }
-        master_->handle_datagram(d, from, now_);
+        std::string error;
+        if (is_symbolic(d) && !parse_symbolic(d, d, error)) {
+          errors.push_back("error: " + error);
+          continue;
+        }
+        master_->advance(now_);
+        if (master_->handle_datagram(d, from, now_) == Action::Ignore) lines_.push_back("ignored");
       } else if (w[0] == "cmd" && w.size() >= 3) {
         MsgType t;
         if (!command_type(w[1], t)) {
@@ -127,20 +139,13 @@ class MasterDriver {
         l += " reg=";
         for (const auto& kv : master_->registry())
           l += std::to_string(kv.first) + (kv.second.via ? "via" + std::to_string(kv.second.via) : "") + ",";
-        shows.push_back(l + " handed_over=" + (master_->handed_over() ? "1" : "0"));
+        lines_.push_back(l + " handed_over=" + (master_->handed_over() ? "1" : "0"));
       } else {
         errors.push_back("error: bad input: " + line);
       }
     }
-    std::vector<std::string> lines = log_.actions;
-    MasterTransmit t;
-    while (master_ && master_->poll_transmit(t))
-      lines.push_back(t.dest == Dest::broadcast ? "send broadcast " + t.bytes
-                                                : "send peer=" + std::to_string(t.peer) + " " + t.bytes);
-    for (auto& x : shows) lines.push_back(x);
-    shows.clear();
-    OperatorEvent e;
-    while (master_ && master_->poll_event(e)) lines.push_back(op_line(e));
+    std::vector<std::string> lines = std::move(lines_);
+    lines_.clear();
     if (show_trace)
       for (const auto& j : log_.json) lines.push_back("trace " + j);
     const Millis d = master_ ? master_->next_deadline() : TracedMaster::kNever;
@@ -149,11 +154,30 @@ class MasterDriver {
     return lines;
   }
 
+  /// Called by the trace sink after each action: its name, then what it queued.
+  void on_record(const MasterTraceRecord& r) {
+    std::vector<std::string> out;
+    MasterTransmit t;
+    while (master_ && master_->poll_transmit(t))
+      out.push_back(t.dest == Dest::broadcast ? "  send broadcast " + symbolic(t.bytes)
+                                              : "  send peer=" + std::to_string(t.peer) + " " + symbolic(t.bytes));
+    OperatorEvent e;
+    while (master_ && master_->poll_event(e)) out.push_back("  " + op_line(e));
+    if (r.action == Action::MasterTick && out.empty()) return;
+    lines_.push_back(std::string(to_string(r.action)));
+    for (auto& l : out) lines_.push_back(std::move(l));
+  }
+
  private:
   MasterLog log_;
-  std::vector<std::string> shows;
+  std::vector<std::string> lines_;
   std::unique_ptr<TracedMaster> master_;
   Millis now_ = 0;
 };
+
+inline void MasterLog::record(const MasterTraceRecord& r) {
+  json.push_back(to_ndjson(r));
+  if (driver != nullptr) driver->on_record(r);
+}
 
 }  // namespace ev3test

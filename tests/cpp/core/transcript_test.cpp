@@ -1,5 +1,5 @@
-// Transcript tests (etcd datadriven style): every tests/cpp/testdata/agent_*.txt and master_*.txt
-// file is one test. EV3_REWRITE=1 rewrites the expectations instead of checking them.
+// Transcript tests (etcd datadriven style): every tests/cpp/testdata/agent_*.txt, master_*.txt and
+// fleet_*.txt file is one test. EV3_REWRITE=1 rewrites the expectations instead of checking them.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -9,6 +9,7 @@
 
 #include "../datadriven/datadriven.hpp"
 #include "agent_driver.hpp"
+#include "fleet_driver.hpp"
 #include "master_driver.hpp"
 
 namespace {
@@ -67,9 +68,15 @@ TEST_P(MasterTranscript, Matches) { run_file<ev3test::MasterDriver>(GetParam());
 INSTANTIATE_TEST_SUITE_P(Testdata, MasterTranscript, ::testing::ValuesIn(files_with_prefix("master_")),
                          test_name);
 
+class FleetTranscript : public ::testing::TestWithParam<std::string> {};
+TEST_P(FleetTranscript, Matches) { run_file<ev3test::FleetDriver>(GetParam()); }
+INSTANTIATE_TEST_SUITE_P(Testdata, FleetTranscript, ::testing::ValuesIn(files_with_prefix("fleet_")),
+                         test_name);
+
 TEST(Transcripts, FilesExist) {
   EXPECT_GE(files_with_prefix("agent_").size(), 5u);
   EXPECT_GE(files_with_prefix("master_").size(), 2u);
+  EXPECT_GE(files_with_prefix("fleet_").size(), 2u);
 }
 
 }  // namespace

@@ -1,7 +1,6 @@
 // Relay and election over the simulated network (Election.tla in the real cores): a PC master
-// (may crash and come back as a candidate) and N agents, each of which runs a Master core once it
-// wins an epoch, the way the firmware does (docs/core.md "An agent becomes master"). Links can be
-// cut. Every copy is lost / delayed / duplicated as in fleet_sim.hpp. The agents' trace hook checks
+// (may crash and come back as a candidate) and N robot nodes (node.hpp: the agent core and the
+// Master core it runs once it wins an epoch, as the firmware runs them). Links can be cut. Every copy is lost / delayed / duplicated as in fleet_sim.hpp. The agents' trace hook checks
 // fencing on every command acted on (Election StaleMasterFencedInv).
 #pragma once
 
@@ -16,8 +15,8 @@
 #include <utility>
 #include <vector>
 
-#include "ev3proto/agent.hpp"
 #include "ev3proto/master.hpp"
+#include "ev3proto/node.hpp"
 #include "fleet_sim.hpp"
 
 namespace ev3sim {
@@ -33,7 +32,8 @@ struct FenceCheck {
   void record(const AgentTraceRecord& r, const A&);
 };
 
-using SimAgent = Agent<FenceCheck>;
+using SimNode = ev3proto::Node<FenceCheck>;
+using SimAgent = SimNode::AgentCore;
 
 class ElectionFleet {
  public:
@@ -53,10 +53,10 @@ class ElectionFleet {
       c.temp_id = t;
       c.election.enabled = true;
       c.election.score = static_cast<std::uint32_t>(10 + (i * 7) % n);  // distinct, arbitrary order
-      auto node = std::make_unique<Node>();
+      auto node = std::make_unique<Robot>();
       node->trace.fleet = this;
       node->trace.index = i;
-      node->agent = std::make_unique<SimAgent>(c, now_, &node->trace);
+      node->node = std::make_unique<SimNode>(SimNode::Config{c, {}}, now_, &node->trace);
       nodes_.push_back(std::move(node));
     }
     MasterConfig c;
@@ -88,10 +88,7 @@ class ElectionFleet {
     for (;;) {
       Millis next = until;
       if (pc_) next = std::min(next, pc_->next_deadline());
-      for (auto& nd : nodes_) {
-        next = std::min(next, nd->agent->next_deadline());
-        if (nd->master) next = std::min(next, nd->master->next_deadline());
-      }
+      for (auto& nd : nodes_) next = std::min(next, nd->node->next_deadline());
       if (!inflight_.empty()) next = std::min(next, std::get<0>(inflight_.begin()->first));
       if (next < now_) next = now_;
       now_ = next;
@@ -104,10 +101,7 @@ class ElectionFleet {
         if (check) check(*this);
       }
       if (pc_) pc_->advance(now_);
-      for (auto& nd : nodes_) {
-        if (nd->master) nd->master->advance(now_);
-        nd->agent->advance(now_);
-      }
+      for (auto& nd : nodes_) nd->node->advance(now_);
       flush();
       if (check) check(*this);
       if (now_ >= until) break;
@@ -121,14 +115,14 @@ class ElectionFleet {
   }
   /// An operator command at agent @p i's Master core (when it runs one).
   void agent_master_command(std::size_t i, std::uint16_t agent, const Command& c) {
-    if (nodes_[i]->master) nodes_[i]->master->command(agent, c, now_);
+    nodes_[i]->node->command(agent, c, now_);
     flush();
   }
 
   Millis now() const { return now_; }
   std::size_t size() const { return nodes_.size(); }
-  SimAgent& agent(std::size_t i) { return *nodes_[i]->agent; }
-  Master<>* agent_master(std::size_t i) { return nodes_[i]->master.get(); }
+  const SimAgent& agent(std::size_t i) { return nodes_[i]->node->agent(); }
+  const Master<>* agent_master(std::size_t i) { return nodes_[i]->node->master(); }
   Master<>* pc() { return pc_.get(); }
   const Timers& timers() const { return timers_; }
   /// History: the master of each epoch (Election elected).
@@ -167,10 +161,9 @@ class ElectionFleet {
 
  private:
   static constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}};
-  struct Node {
+  struct Robot {
     FenceCheck trace;
-    std::unique_ptr<SimAgent> agent;
-    std::unique_ptr<Master<>> master;  // while this agent is (or just was) master
+    std::unique_ptr<SimNode> node;
   };
   struct Packet {
     Peer from = 0, to = 0;
@@ -185,9 +178,7 @@ class ElectionFleet {
       if (pc_) pc_->handle_datagram(p.bytes, p.from, now_);
       return;
     }
-    Node& nd = *nodes_[p.to - 1];
-    if (nd.master) nd.master->handle_datagram(p.bytes, p.from, now_);  // the program: master first
-    nd.agent->handle_datagram(p.bytes, p.from, now_);
+    nodes_[p.to - 1]->node->handle_datagram(p.bytes, p.from, now_);
   }
 
   void transmit(Peer from, Peer to, const std::string& bytes) {
@@ -205,33 +196,22 @@ class ElectionFleet {
       if (agent_peer(j) != from) transmit(from, agent_peer(j), b);
   }
 
-  /// The firmware's part (docs/core.md): run a Master core while the agent is master of an epoch,
-  /// drop it once it stepped down; move every output onto the network.
+  /// Every output onto the network; the history of masters per epoch.
   void flush() {
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
-      Node& nd = *nodes_[i];
-      SimAgent& a = *nd.agent;
-      if (a.role() == Role::master && (!nd.master || nd.master->epoch() != a.master_epoch())) {
-        std::vector<std::uint16_t> members;
-        for (std::size_t k = 0; k < a.member_count(); ++k) members.push_back(a.member(k));
-        nd.master = std::make_unique<Master<>>(
-            MasterConfig::for_elected_agent(timers_, a.id(), a.master_epoch(), members,
-                                            a.next_msgid() + (1u << 30)),
-            now_);
+      SimNode& nd = *nodes_[i]->node;
+      if (nd.agent().role() == Role::master) note_master(nd.agent().master_epoch(), nd.agent().id());
+      NodeEvent e;
+      while (nd.poll_event(e)) {
       }
-      if (a.role() == Role::master) note_master(a.master_epoch(), a.id());
-      if (nd.master && nd.master->role() == MasterRole::stepped_down && a.role() != Role::master)
-        nd.master.reset();
-      Transmit t;
-      while (a.poll_transmit(t)) {
+      NodeTransmit t;
+      while (nd.poll_transmit(t)) {
         const std::string b(t.bytes);
         if (t.dest == Dest::broadcast) broadcast(agent_peer(i), b);
         else transmit(agent_peer(i), t.peer, b);
       }
-      AgentEvent e;
-      while (a.poll_event(e)) {
-      }
-      if (nd.master) drain_master(*nd.master, agent_peer(i));
+      OperatorEvent oe;
+      while (nd.poll_operator_event(oe)) ops.push_back(oe);
     }
     if (pc_) {
       if (pc_->role() == MasterRole::master) note_master(pc_->epoch(), kMasterId);
@@ -254,7 +234,7 @@ class ElectionFleet {
   Millis now_ = 0;
   std::uint64_t seq_ = 0;
   std::map<std::tuple<Millis, std::uint64_t>, Packet> inflight_;
-  std::vector<std::unique_ptr<Node>> nodes_;
+  std::vector<std::unique_ptr<Robot>> nodes_;
   std::unique_ptr<Master<>> pc_;
   MasterConfig pc_store_;
   std::set<std::pair<Peer, Peer>> down_;

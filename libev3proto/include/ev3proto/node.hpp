@@ -1,0 +1,375 @@
+/// @file node.hpp
+/// @brief One robot node: the agent core, the Master core it runs while it is the elected master of
+///        an epoch, and the copy-dedupe window in front of that Master core.
+///
+/// The same sans-I/O shape as the cores: datagrams, time, device events and operator commands in;
+/// datagrams, events and the next deadline out. Every datagram is decoded once (the agent core gets
+/// the decoded Message). After every input the node compares what the agent core reports with
+/// what it reported last and emits an event for each change, as etcd raft's Ready carries HardState
+/// and SoftState only when they changed: `durable` (epoch, votedFor: write them to stable storage
+/// before sending what the same call queued), `role`, `leader` (leader, following, via), `relays`,
+/// and `master_started` / `master_stopped` for the Master core. docs/core.md "The node".
+///
+/// Memory: the agent core and the window are inline (no heap). The Master core allocates (its
+/// registry is a std::map): a node allocates only while it runs one, i.e. after winning an epoch.
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <functional>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include "agent.hpp"
+#include "dedupe.hpp"
+#include "master.hpp"
+
+namespace ev3proto {
+
+/// What a node did with one datagram.
+struct NodeHandled {
+  Handled agent;                  ///< The agent core's action, or why it took none (undecodable...).
+  Action master = Action::Ignore; ///< The Master core's action (Ignore: none running, not its, or a copy).
+  bool copy = false;              ///< A copy the window kept from the Master core (its first copy went in).
+  /// Why nothing took the datagram: Ignored::no when the agent core did, for_the_master_core when
+  /// only the Master core did, else the agent core's reason.
+  Ignored why() const noexcept {
+    if (agent.taken()) return Ignored::no;
+    if (master != Action::Ignore) return Ignored::for_the_master_core;
+    return agent.why;
+  }
+};
+
+/// A datagram a node wants sent.
+struct NodeTransmit {
+  Dest dest = Dest::broadcast;   ///< master (the agent's master), broadcast, or peer.
+  Peer peer = 0;                 ///< Dest::master: the master's handle (0 if unknown); Dest::peer: the receiver's.
+  std::string_view bytes;        ///< The datagram; valid until the next call into the node.
+  bool from_master_core = false; ///< Sent by the Master core (the agent's id, msgids from kMasterMsgidOffset on).
+};
+
+/// An event for the robot program: the agent core's (state, LED, behaviour control) and the node's
+/// own, reported once per change.
+struct NodeEvent {
+  /// Which fields are meaningful.
+  enum class Kind : std::uint8_t {
+    state,          ///< The agent's state changed (@c state).
+    led,            ///< The LED pattern changed (@c led).
+    control,        ///< The behaviour runner must act (@c control; start/restart run agent().behaviour()).
+    durable,        ///< Epoch or vote changed (@c durable, was @c previous): persist before sending.
+    role,           ///< The election role changed (@c role; master: it won @c epoch).
+    leader,         ///< The master followed changed (@c leader in epoch @c epoch, through @c via; 0 = none).
+    relays,         ///< The agents this node relays for changed (agent().relayed(i)).
+    master_started, ///< A Master core runs: this node is master of @c epoch (agent().member(i): its fleet).
+    master_stopped, ///< The Master core of @c epoch stepped down (a newer epoch) and was dropped.
+  } kind = Kind::state;
+  State state = State::IDLE;               ///< state
+  Led led = Led::YELLOW_BLINK;             ///< led
+  ControlKind control = ControlKind::stop; ///< control
+  Durable durable;                         ///< durable: the new epoch and vote
+  Durable previous;                        ///< durable: the ones before
+  Role role = Role::none;                  ///< role
+  std::uint16_t leader = 0;                ///< leader
+  std::uint16_t via = 0;                   ///< leader
+  std::uint32_t epoch = 0;                 ///< role (master), leader (following), master_started / _stopped
+  bool handed_over = false;                ///< master_stopped: HANDOVER was sent to the new master
+};
+
+/// Spelling of a node event kind ("master_started").
+constexpr std::string_view to_string(NodeEvent::Kind k) noexcept {
+  switch (k) {
+    case NodeEvent::Kind::state: return "state";
+    case NodeEvent::Kind::led: return "led";
+    case NodeEvent::Kind::control: return "control";
+    case NodeEvent::Kind::durable: return "durable";
+    case NodeEvent::Kind::role: return "role";
+    case NodeEvent::Kind::leader: return "leader";
+    case NodeEvent::Kind::relays: return "relays";
+    case NodeEvent::Kind::master_started: return "master_started";
+    case NodeEvent::Kind::master_stopped: return "master_stopped";
+  }
+  return {};
+}
+
+/// One robot node.
+/// @tparam AgentTrace the agent core's trace sink (agent.hpp).
+/// @tparam MasterTrace the Master core's trace sink (master.hpp); each Master core gets the sink
+///         master_trace(id, epoch) returns (NodeConfig).
+/// @tparam CopyWindow (sender, msgid) pairs the window in front of the Master core remembers.
+template <typename AgentTrace = NoTrace, typename MasterTrace = NoTrace, std::size_t CopyWindow = 4096>
+class Node {
+ public:
+  /// The agent core.
+  using AgentCore = Agent<AgentTrace>;
+  /// The Master core run while elected.
+  using MasterCore = Master<MasterTrace>;
+  /// The Master core's msgids start this far above the agent core's next one: both send with the
+  /// agent's id, so their msgids must not meet (2^30 datagrams of the agent core apart).
+  static constexpr std::uint32_t kMasterMsgidOffset = 1u << 30;
+  /// "No deadline".
+  static constexpr Millis kNever = ~Millis{0};
+
+  /// Construction parameters.
+  struct Config {
+    AgentConfig agent;  ///< The agent core's (its timers serve the Master core too).
+    /// The trace sink for the Master core this node runs as master of @p epoch with id @p id
+    /// (nullptr or unset: none). Called when that core starts; the previous core is gone by then.
+    std::function<MasterTrace*(std::uint16_t id, std::uint32_t epoch)> master_trace;
+  };
+
+  /// A node in IDLE at @p now (the agent core's Init).
+  Node(const Config& config, Millis now, AgentTrace* trace = nullptr)
+      : cfg_(config), agent_(config.agent, now, trace) {
+    seen_durable_ = agent_.durable();
+  }
+
+  // ---------------------------------------------------------------- inputs
+
+  /// Time moves to @p now in both cores.
+  void advance(Millis now) {
+    if (master_) master_->advance(now);
+    agent_.advance(now);
+    settle(now);
+  }
+  /// Same as advance().
+  void handle_timeout(Millis now) { advance(now); }
+
+  /// A datagram from @p from at @p now: decoded once; the first copy of each (sender, msgid) goes
+  /// to the Master core (when one runs), then the agent core takes it. Returns what each did.
+  NodeHandled handle_datagram(std::string_view bytes, Peer from, Millis now) {
+    NodeHandled h;
+    h.agent.decode = decode(bytes, rx_);
+    if (!h.agent.decode.ok()) {
+      if (master_) master_->advance(now);
+      agent_.advance(now);
+      ++rejected_;
+      h.agent.why = Ignored::undecodable;
+      settle(now);
+      return h;
+    }
+    if (master_) {
+      if (copies_.first_time(rx_.sender, rx_.msgid)) {
+        // master.hpp takes bytes: it decodes them again (an API taking the Message would spare it).
+        h.master = master_->handle_datagram(bytes, from, now);
+      } else {
+        h.copy = true;
+      }
+    }
+    const Action a = h.master;
+    h.agent = agent_.handle_message(rx_, bytes, from, now);
+    h.master = a;
+    settle(now);
+    return h;
+  }
+
+  /// The running action finished (agent core action_ok).
+  bool action_ok(Millis now) { return after(agent_.action_ok(now), now); }
+  /// A warning the behaviour cannot resolve (agent core action_interrupted).
+  bool action_interrupted(Warning w, Millis now) { return after(agent_.action_interrupted(w, now), now); }
+  /// The running action failed (agent core action_failed).
+  bool action_failed(Millis now) { return after(agent_.action_failed(now), now); }
+  /// A sensor reading (agent core sensor_report).
+  bool sensor_report(std::string_view port, std::string_view mode, const std::string_view* values,
+                     std::size_t count, Millis now) {
+    return after(agent_.sensor_report(port, mode, values, count, now), now);
+  }
+  /// Device bits unplugged (agent core device_unplugged).
+  bool device_unplugged(std::uint32_t device, Millis now) {
+    return after(agent_.device_unplugged(device, now), now);
+  }
+  /// Device bits plugged back (agent core device_plugged).
+  bool device_plugged(std::uint32_t device, Millis now) {
+    return after(agent_.device_plugged(device, now), now);
+  }
+  /// The battery is low (agent core battery_low).
+  bool battery_low(Millis now) { return after(agent_.battery_low(now), now); }
+
+  /// An operator command for the fleet this node is master of (agent id, 0 = all; the Master
+  /// core's MasterCommand). False (nothing done) unless a Master core runs as master.
+  bool command(std::uint16_t agent, const Command& c, Millis now) {
+    if (!master_ || master_->role() != MasterRole::master) return false;
+    master_->command(agent, c, now);
+    settle(now);
+    return true;
+  }
+
+  // ---------------------------------------------------------------- outputs
+
+  /// Takes the next datagram to send: the agent core's first, then the Master core's.
+  bool poll_transmit(NodeTransmit& out) {
+    Transmit t;
+    if (agent_.poll_transmit(t)) {
+      out = NodeTransmit{t.dest, t.peer, t.bytes, false};
+      return true;
+    }
+    MasterTransmit mt;
+    if (master_ && master_->poll_transmit(mt)) {
+      mtx_ = std::move(mt.bytes);
+      out = NodeTransmit{mt.dest, mt.peer, mtx_, true};
+      return true;
+    }
+    return false;
+  }
+
+  /// Takes the next event: the agent core's (in order), then the node's of the same call. Drain
+  /// events before datagrams: a `durable` event must be on stable storage before they are sent.
+  bool poll_event(NodeEvent& out) {
+    AgentEvent e;
+    if (agent_.poll_event(e)) {
+      out = NodeEvent{};
+      out.kind = e.kind == AgentEvent::Kind::state ? NodeEvent::Kind::state
+                 : e.kind == AgentEvent::Kind::led ? NodeEvent::Kind::led
+                                                   : NodeEvent::Kind::control;
+      out.state = e.state;
+      out.led = e.led;
+      out.control = e.control;
+      return true;
+    }
+    if (ev_count_ == 0) return false;
+    out = ev_[ev_head_];
+    ev_head_ = (ev_head_ + 1) % kEventSlots;
+    --ev_count_;
+    return true;
+  }
+
+  /// Takes the Master core's next operator event (registered, acked, report...); false when none.
+  bool poll_operator_event(OperatorEvent& out) { return master_ && master_->poll_event(out); }
+
+  /// When advance() must be called next at the latest: the earlier of the two cores' deadlines.
+  Millis next_deadline() const noexcept {
+    Millis t = agent_.next_deadline();
+    if (master_) {
+      const Millis m = master_->next_deadline();
+      if (m < t) t = m;
+    }
+    return t;
+  }
+
+  // ---------------------------------------------------------------- observers
+
+  /// The agent core (state, id, behaviour, election variables...).
+  const AgentCore& agent() const noexcept { return agent_; }
+  /// The Master core while one runs (registry, role), else nullptr.
+  const MasterCore* master() const noexcept { return master_ ? &*master_ : nullptr; }
+  /// Datagrams that did not decode.
+  std::uint32_t rejected() const noexcept { return rejected_; }
+  /// Events dropped because the caller did not drain them.
+  std::uint32_t overflowed() const noexcept { return overflowed_ + agent_.overflowed(); }
+
+ private:
+  static constexpr std::size_t kEventSlots = 16;
+
+  bool after(bool taken, Millis now) {
+    settle(now);
+    return taken;
+  }
+
+  /// After every input: start or drop the Master core, then report what changed since last time.
+  void settle(Millis now) {
+    const Durable d = agent_.durable();
+    if (d != seen_durable_) {
+      NodeEvent e = make(NodeEvent::Kind::durable);
+      e.durable = d;
+      e.previous = seen_durable_;
+      push(e);
+      seen_durable_ = d;
+    }
+    if (agent_.role() != seen_role_) {
+      seen_role_ = agent_.role();
+      NodeEvent e = make(NodeEvent::Kind::role);
+      e.role = seen_role_;
+      e.epoch = seen_role_ == Role::master ? agent_.master_epoch() : agent_.epoch();
+      push(e);
+    }
+    if (agent_.leader() != seen_leader_ || agent_.following() != seen_following_ ||
+        agent_.via() != seen_via_) {
+      seen_leader_ = agent_.leader();
+      seen_following_ = agent_.following();
+      seen_via_ = agent_.via();
+      NodeEvent e = make(NodeEvent::Kind::leader);
+      e.leader = seen_leader_;
+      e.epoch = seen_following_;
+      e.via = seen_via_;
+      push(e);
+    }
+    if (relays_changed()) push(make(NodeEvent::Kind::relays));
+    run_master_core(now);
+  }
+
+  /// The Master core runs while the agent core is master of an epoch (a new core per epoch won),
+  /// seeded with the agent's membership and msgids disjoint from the agent core's; it is dropped
+  /// once it stepped down and the agent core is master no more.
+  void run_master_core(Millis now) {
+    if (agent_.role() == Role::master && (!master_ || master_->epoch() != agent_.master_epoch())) {
+      master_.reset();
+      std::vector<std::uint16_t> members;
+      for (std::size_t i = 0; i < agent_.member_count(); ++i) members.push_back(agent_.member(i));
+      MasterTrace* trace = cfg_.master_trace ? cfg_.master_trace(agent_.id(), agent_.master_epoch()) : nullptr;
+      master_.emplace(MasterConfig::for_elected_agent(cfg_.agent.timers, agent_.id(), agent_.master_epoch(),
+                                                      std::move(members), agent_.next_msgid() + kMasterMsgidOffset),
+                      now, trace);
+      NodeEvent e = make(NodeEvent::Kind::master_started);
+      e.epoch = agent_.master_epoch();
+      push(e);
+      master_->advance(now);  // its first LEADER is due now
+    }
+    if (master_ && master_->role() == MasterRole::stepped_down && agent_.role() != Role::master) {
+      NodeEvent e = make(NodeEvent::Kind::master_stopped);
+      e.epoch = agent_.master_epoch();
+      e.handed_over = master_->handed_over();
+      master_.reset();
+      push(e);
+    }
+  }
+
+  bool relays_changed() {
+    bool changed = agent_.relay_count() != seen_relay_count_;
+    for (std::size_t i = 0; !changed && i < seen_relay_count_; ++i) changed = agent_.relayed(i) != seen_relays_[i];
+    if (!changed) return false;
+    seen_relay_count_ = agent_.relay_count() < kMaxSeenRelays ? agent_.relay_count() : kMaxSeenRelays;
+    for (std::size_t i = 0; i < seen_relay_count_; ++i) seen_relays_[i] = agent_.relayed(i);
+    return true;
+  }
+
+  NodeEvent make(NodeEvent::Kind k) const {
+    NodeEvent e;
+    e.kind = k;
+    e.state = agent_.state();
+    e.led = agent_.led();
+    e.durable = agent_.durable();
+    e.role = agent_.role();
+    return e;
+  }
+  void push(const NodeEvent& e) {
+    if (ev_count_ == kEventSlots) {
+      ev_head_ = (ev_head_ + 1) % kEventSlots;
+      --ev_count_;
+      ++overflowed_;
+    }
+    ev_[(ev_head_ + ev_count_) % kEventSlots] = e;
+    ++ev_count_;
+  }
+
+  static constexpr std::size_t kMaxSeenRelays = 16;
+
+  Config cfg_;
+  AgentCore agent_;
+  std::optional<MasterCore> master_;
+  DedupeWindow<CopyWindow> copies_;  // in front of master_: one copy of each (sender, msgid)
+  Message rx_;
+  std::string mtx_;                  // the Master core's datagram last polled
+  std::uint32_t rejected_ = 0, overflowed_ = 0;
+  // What was reported last (raft's prevHardSt / prevSoftSt).
+  Durable seen_durable_;
+  Role seen_role_ = Role::none;
+  std::uint16_t seen_leader_ = 0, seen_via_ = 0;
+  std::uint32_t seen_following_ = 0;
+  std::uint16_t seen_relays_[kMaxSeenRelays] = {};
+  std::size_t seen_relay_count_ = 0;
+  NodeEvent ev_[kEventSlots];
+  std::size_t ev_head_ = 0, ev_count_ = 0;
+};
+
+}  // namespace ev3proto

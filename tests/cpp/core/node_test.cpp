@@ -1,0 +1,145 @@
+// The robot node (node.hpp): what handle_datagram reports, the events of the raft-Ready kind (only
+// when something changed, durable first), the Master core's life (started when the agent core wins
+// an epoch, fed the first copy of each datagram, dropped once it stepped down).
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "ev3proto/node.hpp"
+#include "symbolic.hpp"
+
+namespace {
+using namespace ev3proto;
+
+constexpr BehaviourSpec kBehs[] = {{"explore", 1u}};
+
+Node<>::Config config(bool election) {
+  Node<>::Config c;
+  c.agent.caps = Capabilities{"A", kBehs, 1, 1u};
+  c.agent.temp_id = 50001;
+  c.agent.election.enabled = election;
+  c.agent.election.score = 5;
+  return c;
+}
+
+std::vector<std::string> events(Node<>& n) {
+  std::vector<std::string> out;
+  NodeEvent e;
+  while (n.poll_event(e)) {
+    std::string l(to_string(e.kind));
+    if (e.kind == NodeEvent::Kind::durable) l += " " + std::to_string(e.durable.epoch) + "/" + std::to_string(e.durable.voted_for);
+    if (e.kind == NodeEvent::Kind::role) l += " " + std::string(to_string(e.role)) + " " + std::to_string(e.epoch);
+    if (e.kind == NodeEvent::Kind::leader) l += " " + std::to_string(e.leader) + "@" + std::to_string(e.epoch);
+    if (e.kind == NodeEvent::Kind::master_started || e.kind == NodeEvent::Kind::master_stopped)
+      l += " " + std::to_string(e.epoch) + (e.handed_over ? " handed_over" : "");
+    out.push_back(l);
+  }
+  return out;
+}
+
+std::vector<std::string> sent(Node<>& n) {
+  std::vector<std::string> out;
+  NodeTransmit t;
+  while (n.poll_transmit(t)) out.push_back(std::string(t.from_master_core ? "M " : "") + ev3test::symbolic(t.bytes));
+  return out;
+}
+
+TEST(NodeHandled, SaysWhyADatagramWasIgnored) {
+  Node<> n(config(false), 0);
+  NodeHandled h = n.handle_datagram("1:7:1", 1, 1);
+  EXPECT_EQ(h.why(), Ignored::undecodable);
+  EXPECT_FALSE(h.agent.decode.ok());
+  EXPECT_EQ(n.rejected(), 1u);
+  EXPECT_EQ(n.handle_datagram("1:9:1:2:50002", 1, 2).why(), Ignored::misaddressed);
+  EXPECT_EQ(n.handle_datagram("3:50001:1:2:50001", 3, 3).why(), Ignored::foreign_sender);
+  EXPECT_EQ(n.handle_datagram("3:0:1:19", 3, 4).why(), Ignored::foreign_sender);  // another's PANIC
+  EXPECT_EQ(n.handle_datagram("1:50001:9:3:1", 1, 4).why(), Ignored::not_for_agent);  // an ACK
+  EXPECT_EQ(n.handle_datagram("1:50001:2:6:1", 1, 5).why(), Ignored::ignored_in_state);  // PONG while IDLE
+  EXPECT_EQ(n.handle_datagram("2:0:1:21:1:5", 2, 6).why(), Ignored::election_off);
+  h = n.handle_datagram("1:7:3:2:50001", 1, 7);
+  EXPECT_TRUE(h.agent.taken());
+  EXPECT_EQ(h.agent.action, Action::RecvMaster);
+  EXPECT_EQ(n.handle_datagram("1:7:3:2:50001", 1, 8).agent.action, Action::RecvDuplicate);
+  EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "leader 1@1"}));
+  n.battery_low(9);
+  events(n);
+  EXPECT_EQ(n.handle_datagram("1:7:4:8", 1, 10).why(), Ignored::off);
+}
+
+TEST(NodeHandled, StaleEpochIsAnsweredAndSaid) {
+  Node<> n(config(true), 0);
+  n.handle_datagram("1:7:1:2:50001", 1, 1);
+  EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "leader 1@1"}));
+  n.handle_datagram("2:0:1:29:3:2:2:7", 2, 2);  // LEADER of epoch 3 from agent 2: follow it
+  sent(n);
+  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 3/0", "leader 2@3"}));
+  const NodeHandled h = n.handle_datagram("1:7:2:8", 1, 3);  // the PC's bare START: epoch 1
+  EXPECT_EQ(h.why(), Ignored::stale_epoch);
+  EXPECT_EQ(sent(n), (std::vector<std::string>{"7->1 EPOCH_STALE #2 3"}));
+  EXPECT_TRUE(events(n).empty()) << "nothing changed: no event";
+}
+
+/// Wins epoch 2 with members 7, 8, 9 (the vote of 8), as agent_election_win.txt.
+void win(Node<>& n) {
+  n.advance(1000);
+  n.handle_datagram("1:7:20:2:50001", 1, 1000);
+  n.handle_datagram("1:0:21:29:1:1:7:8:9", 1, 1000);
+  n.advance(4000);                            // PANIC, relay requests
+  n.handle_datagram("8:7:2:33:1", 8, 4000);   // PREVOTE_OK: with itself 2 of 3
+  n.advance(7543);                            // StartElection (epoch 2)
+  n.handle_datagram("8:7:3:28:2:7", 8, 7543); // VOTE: BecomeMaster
+}
+
+TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
+  Node<> n(config(true), 0);
+  win(n);
+  // Drained once at the end: the agent core's events of all the calls, then the node's.
+  const std::vector<std::string> ev = events(n);
+  EXPECT_EQ(ev, (std::vector<std::string>{"state", "led", "state", "led", "leader 1@1", "leader 0@0",
+                                          "durable 2/7", "role candidate 2", "role master 2", "master_started 2"}));
+  ASSERT_NE(n.master(), nullptr);
+  EXPECT_EQ(n.master()->epoch(), 2u);
+  EXPECT_EQ(n.master()->self_id(), 7u);
+  EXPECT_EQ(n.master()->next_msgid(), n.agent().next_msgid() + Node<>::kMasterMsgidOffset + 1);  // its first LEADER
+  const std::vector<std::string> out = sent(n);
+  ASSERT_FALSE(out.empty());
+  EXPECT_EQ(out.back().substr(0, 2), "M ");  // the Master core's LEADER, after the agent core's
+  // The Master core gets the first copy of a PING only; the agent core ignores PINGs.
+  NodeHandled h = n.handle_datagram("8:7:5:5:ACTIVE", 8, 7600);
+  EXPECT_EQ(h.master, Action::MasterPing);
+  EXPECT_EQ(h.why(), Ignored::for_the_master_core);
+  h = n.handle_datagram("8:7:5:5:ACTIVE", 8, 7601);
+  EXPECT_TRUE(h.copy);
+  EXPECT_EQ(h.master, Action::Ignore);
+  EXPECT_EQ(h.why(), Ignored::foreign_sender);  // not from a master it follows (it is one)
+  OperatorEvent oe;
+  ASSERT_TRUE(n.poll_operator_event(oe));  // the Master core saw 8's state
+  EXPECT_EQ(oe.kind, OperatorEvent::Kind::state);
+  EXPECT_FALSE(n.poll_operator_event(oe));
+  EXPECT_TRUE(n.command(8, Command::simple(MsgType::STOP), 7602));
+  EXPECT_FALSE(n.poll_operator_event(oe));  // STOP queued and sent; no answer yet
+  EXPECT_EQ(sent(n).back(), "M 7->8 EPOCH_CMD #" + std::to_string(n.master()->next_msgid() - 1) + " 2 [7->8 STOP #" +
+                                std::to_string(n.master()->next_msgid() - 1) + "]");
+  // A newer master (the PC in epoch 3): the agent core follows it, the Master core hands its fleet
+  // over and is dropped.
+  n.handle_datagram("1:0:50:29:3:1:7:8:9", 1, 7700);
+  EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "durable 3/0", "role none 3", "leader 1@3",
+                                                 "master_stopped 2 handed_over"}));
+  EXPECT_EQ(n.master(), nullptr);
+  EXPECT_FALSE(n.command(8, Command::simple(MsgType::STOP), 7701));
+}
+
+TEST(Node, DurableComesBeforeTheVoteItGuards) {
+  Node<> n(config(true), 0);
+  n.handle_datagram("1:7:1:2:50001", 1, 1);
+  n.handle_datagram("1:0:2:29:1:1:7:8:9", 1, 2);
+  n.advance(4000);  // PANIC
+  events(n);
+  sent(n);
+  n.handle_datagram("8:0:9:27:2:1:0", 8, 4001);  // ELECT(2) of a weaker candidate
+  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 2/8"}));
+  EXPECT_EQ(sent(n), (std::vector<std::string>{"7->8 VOTE #7 2 8"}));
+}
+
+}  // namespace
