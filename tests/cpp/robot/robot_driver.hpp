@@ -198,7 +198,7 @@ class RobotDriver {
       Attr a{};
       if (!parse_port(w[1], d) || !parse_attr(w[2], a)) return say("error: raw PORT ATTR VALUE");
       const int err = world_.write(d, a, w[3], now_);
-      return at("raw " + w[1] + " " + w[2] + " " + w[3] + (err == 0 ? "" : " failed " + std::string(Runtime::errno_name(err))));
+      return at("raw " + w[1] + " " + w[2] + " " + w[3] + (err == 0 ? "" : " failed " + std::string(errno_name(err))));
     }
     if (c == "control" && w.size() >= 2) {
       ev3proto::ControlKind k{};
@@ -347,7 +347,7 @@ class RobotDriver {
     while (out.pop(x)) {
       at("write " + std::string(to_string(x.dev)) + " " + std::string(to_string(x.attr)) + " " + std::string(x.value.view()));
       const int err = world_.write(x.dev, x.attr, std::string(x.value.view()), now_);
-      if (err != 0) at("write-failed " + std::string(Runtime::errno_name(err)));
+      if (err != 0) at("write-failed " + std::string(errno_name(err)));
     }
   }
 
@@ -560,7 +560,7 @@ class RobotDriver {
           rt_->device_disconnected(w.dev, now_);
         } else if (err != 0) {
           at("write-failed " + std::string(to_string(w.dev)) + " " + std::string(to_string(w.attr)) + " " +
-             std::string(Runtime::errno_name(err)));
+             std::string(errno_name(err)));
           rt_->write_failed(w, err, now_);
         }
       }

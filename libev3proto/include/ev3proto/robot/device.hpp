@@ -8,6 +8,7 @@
 /// robot logic parses them, so garbage is caught in pure code with a reason naming the file.
 #pragma once
 
+#include <cerrno>
 #include <cstddef>
 #include <cstdint>
 #include <string_view>
@@ -161,6 +162,24 @@ constexpr Attr value_attr(std::size_t i) noexcept {
 
 /// The most values a lego-sensor gives (num_values <= 8: value0..value7).
 inline constexpr std::size_t kMaxValues = 8;
+
+/// The name of an errno value a device file may answer with ("EBUSY"); "error" for others.
+constexpr std::string_view errno_name(int e) noexcept {
+  switch (e) {
+    case EBUSY: return "EBUSY";
+    case EINVAL: return "EINVAL";
+    case EIO: return "EIO";
+    case ENODEV: return "ENODEV";
+    case ENOENT: return "ENOENT";
+    case ENXIO: return "ENXIO";
+    case ETIMEDOUT: return "ETIMEDOUT";
+    case EAGAIN: return "EAGAIN";
+    case EACCES: return "EACCES";
+    case EPERM: return "EPERM";
+    case EOPNOTSUPP: return "EOPNOTSUPP";
+    default: return "error";
+  }
+}
 
 // ------------------------------------------------------------------ fixed point
 

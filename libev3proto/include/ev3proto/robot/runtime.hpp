@@ -390,23 +390,6 @@ class Runtime {
   /// Writes / events dropped because a queue was full (0 unless something is badly wrong).
   std::size_t dropped() const noexcept { return writes_.overflowed() + events_.dropped() + out_events_.dropped(); }
 
-  /// The name of an errno value as the log and DEVICE_ERROR spell it.
-  static constexpr std::string_view errno_name(int e) noexcept {
-    switch (e) {
-      case EBUSY: return "EBUSY";
-      case EINVAL: return "EINVAL";
-      case EIO: return "EIO";
-      case ENODEV: return "ENODEV";
-      case ENOENT: return "ENOENT";
-      case ETIMEDOUT: return "ETIMEDOUT";
-      case EAGAIN: return "EAGAIN";
-      case EACCES: return "EACCES";
-      case ENXIO: return "ENXIO";
-      case EPERM: return "EPERM";
-      default: return "error";
-    }
-  }
-
  private:
   static Event event(EventKind k, Dev d, Millis now) noexcept {
     Event e;
