@@ -91,12 +91,15 @@ void Ev3Devices::find_battery() {
   }
 }
 
+void Ev3Devices::scan_leds() {
+  if (leds_looked_) return;
+  leds_looked_ = true;
+  find_leds();
+}
+
 void Ev3Devices::scan(std::vector<DeviceChange>& changes) {
   changes.clear();
-  if (!leds_looked_) {
-    leds_looked_ = true;
-    find_leds();
-  }
+  scan_leds();
   if (!has_battery()) find_battery();
   scan_class(DeviceClass::tacho_motor, changes);
   scan_class(DeviceClass::lego_sensor, changes);

@@ -59,6 +59,9 @@ class Ev3Devices {
   /// Looks for changes since the last scan (the first finds everything; it also finds the LEDs and
   /// the battery, once). Devices an access found gone are not reported again.
   void scan(std::vector<DeviceChange>& changes);
+  /// Finds the status LEDs only (what scan() does first, once): for a program that only shows
+  /// the lifecycle on them.
+  void scan_leds();
 
   /// Reads @p a of the device on @p d. Access::gone means it was just unplugged: tell the robot
   /// runtime (device_disconnected) now; scan() will not report it again.
