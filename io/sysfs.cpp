@@ -147,7 +147,7 @@ AccessResult SysfsDevice::write(Attr a, std::string_view value) {
   if (fd < 0) return fail(a, -fd);
   ++calls_;
   long n = io_.pwrite(fd, value.data(), value.size());
-  if (n == -ENODEV && create_) {
+  if ((n == -ENODEV || n == -ENOENT) && create_) {
     // An LED's delay_on / delay_off go away when the trigger leaves `timer` and come back with it:
     // a descriptor held from before is stale. Open it again, once.
     fail(a, ENODEV);

@@ -3,7 +3,9 @@
 // runtime allocates nothing and survives any bytes read from a device.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <atomic>
+#include <cstdio>
 #include <cstdlib>
 #include <new>
 #include <random>
@@ -414,6 +416,61 @@ TEST(RobotNoHeap, CounterSeesAllocations) {
   void* p = ::operator new(16);
   ::operator delete(p);
   EXPECT_EQ(g_news.load(), before + 1);
+}
+
+/// Runs a `drive` and presses the bumper (or brings an obstacle within 10 cm) at @p at; returns
+/// when the motors' stop was written, in simulated ms after @p at.
+Millis stop_latency(Millis at, bool bumper) {
+  Runtime rt(RuntimeConfig{}, 0);
+  plug_model_a(rt, 0);
+  drain(rt);
+  const std::string_view args[] = {"speed=500"};
+  rt.control(ev3proto::ControlKind::start, "drive", args, 1, 1);
+  drain(rt);
+  std::int32_t pos = 0;
+  char buf[16];
+  for (Millis t = 1; t < at + 1000; ++t) {
+    if (t < rt.next_deadline()) continue;
+    ReadPlan p;
+    rt.plan_reads(p, t);
+    pos += 10;
+    for (std::size_t i = 0; i < p.count; ++i) {
+      const Read& r = p.reads[i];
+      std::string_view text = "0\n";
+      if (r.attr == Attr::position) {
+        std::snprintf(buf, sizeof buf, "%d\n", pos);
+        text = buf;
+      } else if (r.dev == Dev::in4) {
+        text = !bumper && t >= at ? "100\n" : "800\n";
+      } else if (r.dev == Dev::in1) {
+        text = bumper && t >= at ? "1\n" : "0\n";
+      } else if (r.dev == Dev::battery) {
+        text = "8000000\n";
+      }
+      rt.reading(r.dev, r.attr, text, t);
+    }
+    rt.tick(t);
+    for (Write w; rt.poll_write(w);)
+      if (w.attr == Attr::command && w.value.view() == "stop") return t - at;
+    drain(rt);
+  }
+  return 100000;
+}
+
+TEST(RobotLatency, StopWrittenWithinOneTickOfThePress) {
+  // The bumper pressed at any moment: read at the next tick (every 20 ms while driving), the stop
+  // written in that tick. The ultrasonic confirms with a second reading: one tick more.
+  std::mt19937 rng(7);
+  Millis worst_bumper = 0, worst_proximity = 0;
+  for (int i = 0; i < 200; ++i) {
+    const Millis at = 200 + rng() % 2000;
+    worst_bumper = std::max(worst_bumper, stop_latency(at, true));
+    worst_proximity = std::max(worst_proximity, stop_latency(at, false));
+  }
+  const RuntimeConfig cfg;
+  EXPECT_LT(worst_bumper, cfg.tick_ms);
+  EXPECT_GE(worst_bumper, cfg.tick_ms - 5);  // the bound is reached: the ticks are 20 ms apart
+  EXPECT_LT(worst_proximity, 2 * cfg.tick_ms);
 }
 
 TEST(RobotGarbage, AnyBytesFromAnyFileAreHandled) {
