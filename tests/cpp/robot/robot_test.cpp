@@ -468,6 +468,8 @@ TEST(RobotLatency, StopWrittenWithinOneTickOfThePress) {
     worst_proximity = std::max(worst_proximity, stop_latency(at, false));
   }
   const RuntimeConfig cfg;
+  RecordProperty("worst_bumper_ms", static_cast<int>(worst_bumper));
+  RecordProperty("worst_proximity_ms", static_cast<int>(worst_proximity));
   EXPECT_LT(worst_bumper, cfg.tick_ms);
   EXPECT_GE(worst_bumper, cfg.tick_ms - 5);  // the bound is reached: the ticks are 20 ms apart
   EXPECT_LT(worst_proximity, 2 * cfg.tick_ms);
