@@ -7,7 +7,8 @@
 // then back to the held position at kHoldSpeed). The driver's traps are modelled: setpoints act
 // only when a command is written; `stop` with `hold` after a run-to-*-pos holds position_sp (so it
 // keeps driving there); writing `position` while running or holding is EBUSY; a speed_sp beyond
-// max_speed, a command or stop action not listed, a mode not listed are EINVAL. No ramping, no
+// max_speed, a command or stop action not listed, a mode not listed are EINVAL; a run-to-rel-pos
+// after a run-to-rel-pos counts from the previous target (legoev3_motor.c). No ramping, no
 // slip: an ideal motor. It is no substitute for ev3-sim (sim/), which models the robot in a world.
 #pragma once
 
@@ -86,7 +87,13 @@ struct SimMotor {
       mode = Mode::forever;
       vel = speed_sp;
     } else if (c == "run-to-abs-pos" || c == "run-to-rel-pos") {
-      target = c == "run-to-abs-pos" ? position_sp : static_cast<double>(std::llround(pos) + position_sp);
+      // The driver's trap: a run-to-rel-pos after a run-to-rel-pos counts from the previous target.
+      if (c == "run-to-abs-pos")
+        target = position_sp;
+      else if (last_command == "run-to-rel-pos")
+        target = position_sp_target + position_sp;
+      else
+        target = static_cast<double>(std::llround(pos) + position_sp);
       position_sp_target = target;
       mode = Mode::to_pos;
       vel = (target >= pos ? 1 : -1) * std::abs(speed_sp);

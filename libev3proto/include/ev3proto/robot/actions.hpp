@@ -8,7 +8,8 @@
 /// over them (a Plan). ActionRunner runs one Plan; the Runtime owns it and the Body.
 ///
 /// End conditions (positions only: one pread per wheel per tick):
-/// - DriveDistance / Turn: the driver runs both wheels to their targets (run-to-rel-pos); the action
+/// - DriveDistance / Turn: the driver runs both wheels to their targets (run-to-abs-pos to the
+///   position read this tick + the counts of the distance or angle); the action
 ///   ends when each wheel is at its target or beyond (short by at most reach_counts) and has stopped
 ///   (two readings after the command within still_counts). A wheel that makes no progress for
 ///   stall_ms short of its target fails the action ("outB stalled ..."), motors stopped.
@@ -293,7 +294,7 @@ class ActionRunner {
         bool ok = true;
         switch (s.kind) {
           case action::Kind::drive_distance:
-          case action::Kind::turn: ok = m.apply(RunToRelPos{1, s.speed, s.stop}, scratch, why); break;
+          case action::Kind::turn: ok = m.apply(RunToAbsPos{0, s.speed, s.stop}, scratch, why); break;
           case action::Kind::run_forever: ok = m.apply(RunForever{w == 0 ? s.speed : s.speed_right}, scratch, why); break;
           case action::Kind::stop:
           case action::Kind::pause: ok = m.apply(Stop{s.stop}, scratch, why); break;
@@ -531,7 +532,9 @@ class ActionRunner {
       anchor_[w] = start_pos_[w];
       progress_at_[w] = c.now;
     }
-    if (!both(c, RunToRelPos{counts_[0], s.speed, s.stop}, RunToRelPos{counts_[1], s.speed, s.stop}, why,
+    // run-to-abs-pos to the targets computed from this tick's positions: the driver's own target is
+    // then exactly ours (run-to-rel-pos would count from the previous run-to-rel-pos's target).
+    if (!both(c, RunToAbsPos{target_[0], s.speed, s.stop}, RunToAbsPos{target_[1], s.speed, s.stop}, why,
               counts_[0] != 0, counts_[1] != 0))
       return fail(c, why, false);
     return Outcome::running;

@@ -11,9 +11,15 @@
 /// - A setpoint (speed_sp, position_sp, time_sp, stop_action) takes effect only when a command is
 ///   written after it: every command writes its setpoints first and `command` last, always (a new
 ///   speed is a new run-forever, never a lone speed_sp write).
-/// - `stop` with `hold` after a run-to-abs-pos / run-to-rel-pos keeps driving to position_sp: that
-///   stop is written as run-to-rel-pos with position_sp 0 and stop_action hold (the motor holds where
-///   it is when the write lands).
+/// - `stop` with `hold` after a run-to-abs-pos / run-to-rel-pos keeps driving to the position target
+///   (the driver's hold loop keeps that target): that stop is written as run-forever at speed_sp 0
+///   (the driver forgets the target and brakes the wheel to a standstill), then stop with hold (it
+///   holds where it is).
+/// - run-to-rel-pos after a run-to-rel-pos counts from the previous target, not from where the
+///   wheel is (legoev3_motor.c: `position_sp += ...` when the last command was run-to-rel-pos): after
+///   a move that stopped short or long, the next relative move goes somewhere else. RunToRelPos is
+///   written as asked (it is ev3dev's command); the actions use run-to-abs-pos, whose target is
+///   the one computed.
 /// - Writing `position` fails with EBUSY while the motor runs or holds: refused beforehand when the
 ///   last command leaves it running or holding; if the driver still says EBUSY the runtime reports it.
 /// - Setting a sensor mode is slow (~100 ms on the UART sensors): skipped when the mode is already
@@ -153,19 +159,15 @@ class Tacho {
     last_stop_ = c.stop_action;
     return true;
   }
-  /// stop; with hold after a run-to-*-pos: run-to-rel-pos 0 with hold (the trap, see the file doc).
+  /// stop; with hold after a run-to-*-pos: run-forever at 0 first (the trap, see the file doc).
   bool apply(const Stop& c, Writes& w, Reason& why) noexcept {
     if (!can(MotorCommand::stop, why) || !stop_ok(c.stop_action, why)) return false;
     if (c.stop_action == StopAction::hold &&
         (last_ == MotorCommand::run_to_abs_pos || last_ == MotorCommand::run_to_rel_pos) &&
-        (info_.commands & bit(MotorCommand::run_to_rel_pos)) != 0) {
-      const std::int32_t s = last_speed_ != 0 ? (last_speed_ < 0 ? -last_speed_ : last_speed_) : info_.max_speed / 4;
-      w.push_int(port_, Attr::speed_sp, s);
-      w.push_int(port_, Attr::position_sp, 0);
-      w.push(port_, Attr::stop_action, "hold");
-      command(MotorCommand::run_to_rel_pos, w);
-      last_stop_ = StopAction::hold;
-      return true;
+        (info_.commands & bit(MotorCommand::run_forever)) != 0) {
+      w.push_int(port_, Attr::speed_sp, 0);
+      command(MotorCommand::run_forever, w);
+      last_speed_ = 0;
     }
     w.push(port_, Attr::stop_action, to_string(c.stop_action));
     command(MotorCommand::stop, w);
