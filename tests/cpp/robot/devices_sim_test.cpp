@@ -247,26 +247,42 @@ TEST(SimDevices, OneSystemCallPerAccessOnFuse) {
   EXPECT_EQ(io.calls() - before, 100u);
 }
 
-/// Runs `drive speed=400` through the device layer on @p sim's tree until it ends (at most 5 s):
-/// the results' details and the events' names.
-void drive(const Sim& sim, std::vector<std::string>& results, std::vector<std::string>& events) {
+/// What a run of the runtime on a simulated robot gave: the results' outcome + detail, the events.
+struct SimRun {
+  std::vector<std::string> results, events;
+};
+
+/// The agent program's robot loop on @p sim's tree, in real time: @p start(rt) starts something,
+/// then the loop runs until a result (at most @p max_ms).
+template <typename Start>
+SimRun run_until_result(const Sim& sim, Start start, ev3proto::Millis max_ms) {
+  SimRun run;
   Ev3Devices devices(sim.root());
   ev3io::RobotIo rio(devices);
   const ev3proto::Millis t0 = mono_ms();
   Runtime rt(RuntimeConfig{}, 0);
   rio.scan(rt, 0);
   rio.flush(rt, 0);
-  const std::string_view args[] = {"speed=400"};
-  rt.control(ev3proto::ControlKind::start, "drive", args, 1, 0);
-  for (ev3proto::Millis now = 0; now < 5000 && results.empty(); now = mono_ms() - t0) {
+  start(rt);
+  for (ev3proto::Millis now = 0; now < max_ms && run.results.empty(); now = mono_ms() - t0) {
     if (now >= rio.next_scan()) rio.scan(rt, now);
     if (now >= rt.next_deadline()) rio.tick(rt, now);
     rio.flush(rt, now);
-    for (ActionResult r; rt.poll_result(r);) results.push_back(std::string(r.detail.view()));
-    for (Event e; rt.poll_event(e);) events.push_back(std::string(to_string(e.kind)));
+    for (ActionResult r; rt.poll_result(r);)
+      run.results.push_back(std::string(to_string(r.outcome)) + ": " + std::string(r.detail.view()));
+    for (Event e; rt.poll_event(e);) run.events.push_back(std::string(to_string(e.kind)));
     sleep_ms(1);
   }
   EXPECT_EQ(rio.stats().failed_reads + rio.stats().failed_writes, 0u);
+  return run;
+}
+
+/// `drive speed=400` until it ends (at most 5 s).
+SimRun drive(const Sim& sim) {
+  return run_until_result(sim, [](Runtime& rt) {
+    const std::string_view args[] = {"speed=400"};
+    rt.control(ev3proto::ControlKind::start, "drive", args, 1, 0);
+  }, 5000);
 }
 
 /// A number of the robot in the simulator's status ("x", "heading_total", ...).
@@ -292,10 +308,9 @@ TEST(SimLoop, DriveTowardsAWallStopsAtTheUltrasonicsAlert) {
   ASSERT_SIM_UP(sim);
   sim.control("place 140 60 0");  // the wall at x = 200 ahead; the ultrasonic 11 cm ahead of the axle
   sleep_ms(50);
-  std::vector<std::string> results, events;
-  drive(sim, results, events);
-  ASSERT_EQ(results.size(), 1u);
-  EXPECT_EQ(results[0], "interrupted by PROXIMITY_ALERT on in4");
+  const SimRun run = drive(sim);
+  ASSERT_EQ(run.results.size(), 1u);
+  EXPECT_EQ(run.results[0], "interrupted: interrupted by PROXIMITY_ALERT on in4");
   sleep_ms(300);  // braked to a standstill
   const double x = robot_x(sim);
   RecordProperty("stopped_at_x_cm", std::to_string(x));
@@ -308,11 +323,10 @@ TEST(SimLoop, DriveIntoAWallsEndStopsAtTheBumper) {
   ASSERT_SIM_UP(sim);
   sim.control("place 160 124 0");  // the wall's end (200, 120) meets the bumper; the ultrasonic's ray passes it
   sleep_ms(50);
-  std::vector<std::string> results, events;
-  drive(sim, results, events);
-  ASSERT_EQ(results.size(), 1u);
-  EXPECT_EQ(results[0], "interrupted by OBSTACLE_DETECTED on in1");
-  EXPECT_NE(std::find(events.begin(), events.end(), "OBSTACLE_DETECTED"), events.end());
+  const SimRun run = drive(sim);
+  ASSERT_EQ(run.results.size(), 1u);
+  EXPECT_EQ(run.results[0], "interrupted: interrupted by OBSTACLE_DETECTED on in1");
+  EXPECT_NE(std::find(run.events.begin(), run.events.end(), "OBSTACLE_DETECTED"), run.events.end());
   sleep_ms(300);
   const double x = robot_x(sim);
   RecordProperty("stopped_at_x_cm", std::to_string(x));
@@ -320,27 +334,11 @@ TEST(SimLoop, DriveIntoAWallsEndStopsAtTheBumper) {
   EXPECT_GT(x, 180.0);
 }
 
-/// Runs @p step through the runtime on @p sim's tree until it ends; its result's detail.
+/// Runs @p step through the runtime on @p sim's tree until it ends; its outcome and detail.
 std::string run_step(const Sim& sim, const action::Step& step) {
-  Ev3Devices devices(sim.root());
-  ev3io::RobotIo rio(devices);
-  const ev3proto::Millis t0 = mono_ms();
-  Runtime rt(RuntimeConfig{}, 0);
-  rio.scan(rt, 0);
-  rio.flush(rt, 0);
-  rt.run(action::single(step), 0);
-  std::string result;
-  for (ev3proto::Millis now = 0; now < 8000 && result.empty(); now = mono_ms() - t0) {
-    if (now >= rio.next_scan()) rio.scan(rt, now);
-    if (now >= rt.next_deadline()) rio.tick(rt, now);
-    rio.flush(rt, now);
-    for (ActionResult r; rt.poll_result(r);) result = std::string(to_string(r.outcome)) + ": " + std::string(r.detail.view());
-    for (Event e; rt.poll_event(e);) {
-    }
-    sleep_ms(1);
-  }
+  const SimRun run = run_until_result(sim, [&step](Runtime& rt) { rt.run(action::single(step), 0); }, 8000);
   sleep_ms(200);  // the body settles
-  return result;
+  return run.results.empty() ? "no result" : run.results[0];
 }
 
 // DriveDistance and Turn on the simulated robot (model A's geometry is the simulator's): how far
