@@ -7,6 +7,7 @@
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
+#include <iterator>
 #include <new>
 #include <random>
 #include <string>
@@ -307,6 +308,16 @@ TEST(Model, Ports) {
   }
   EXPECT_EQ(kModelADevices, 31u);
   EXPECT_EQ(kTouch, 8u);  // the bits ev3-agent announces (agent/main.cpp)
+}
+
+TEST(Behaviours, ModelADeclaresItsActionsAndBehaviours) {
+  std::string names;
+  for (const ActionSupport& a : kModelAActions) names += std::string(action::to_string(a.kind)) + " ";
+  EXPECT_EQ(names, "DriveDistance Turn RunForever Stop Pause Wait ");
+  ASSERT_EQ(std::size(kModelABehaviours), 2u);
+  EXPECT_EQ(kModelABehaviours[0].name, "wait");
+  EXPECT_EQ(kModelABehaviours[1].devices, kMotors | kTouch);
+  for (const BuiltinBehaviour& b : kModelABehaviours) EXPECT_EQ(b.devices & ~kModelADevices, 0u) << b.name;
 }
 
 TEST(Behaviours, BuildPlans) {

@@ -20,6 +20,19 @@ struct BuiltinBehaviour {
   std::uint32_t devices = 0;
 };
 
+/// An action a model supports and the model devices it needs.
+struct ActionSupport {
+  action::Kind kind;
+  std::uint32_t devices = 0;
+};
+
+/// The actions of model A (the set is fixed per model, thesis 3.1.2): the master learns from it
+/// what the robot can do. Pause needs no motor (it only stops those there) but reads sensors.
+inline constexpr ActionSupport kModelAActions[] = {
+    {action::Kind::drive_distance, kMotors}, {action::Kind::turn, kMotors}, {action::Kind::run_forever, kMotors},
+    {action::Kind::stop, kMotors},           {action::Kind::pause, 0},      {action::Kind::wait, 0},
+};
+
 /// Model A's behaviours: `wait` needs nothing; `drive` the two motors and the bumper.
 inline constexpr BuiltinBehaviour kModelABehaviours[] = {
     {"wait", 0},
