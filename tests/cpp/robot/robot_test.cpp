@@ -12,6 +12,8 @@
 #include <random>
 #include <string>
 
+#include "ev3proto/behaviour/definition.hpp"
+#include "ev3proto/behaviour/model.hpp"
 #include "ev3proto/robot/runtime.hpp"
 #include "fixtures.hpp"
 
@@ -318,6 +320,26 @@ TEST(Behaviours, ModelADeclaresItsActionsAndBehaviours) {
   EXPECT_EQ(kModelABehaviours[0].name, "wait");
   EXPECT_EQ(kModelABehaviours[1].devices, kMotors | kTouch);
   for (const BuiltinBehaviour& b : kModelABehaviours) EXPECT_EQ(b.devices & ~kModelADevices, 0u) << b.name;
+}
+
+// The behaviour language (issue 16, ev3proto/behaviour/) names the robot's events, devices and stop
+// actions with its own enums "in the order and with the values of" robot/'s, so the runtime can pass
+// one as the other: checked here, for both sides.
+TEST(Behaviours, TheLanguagesEnumsAreTheRobots) {
+  namespace bhv = ev3proto::behaviour;
+  static_assert(bhv::kEventCount == kEventKindCount);
+  for (std::size_t i = 0; i < kEventKindCount; ++i) {
+    EXPECT_EQ(bhv::to_string(static_cast<bhv::Event>(i)), to_string(static_cast<EventKind>(i)));
+    EXPECT_EQ(bhv::is_critical(static_cast<bhv::Event>(i)), severity_of(static_cast<EventKind>(i)) == Severity::critical);
+  }
+  for (Role r : {Role::left, Role::right, Role::ultrasonic, Role::touch, Role::colour}) {
+    const auto d = static_cast<bhv::Device>(static_cast<std::uint8_t>(r));
+    EXPECT_EQ(bhv::bit(d), role_bit(r));
+    EXPECT_EQ(bhv::role_name(d), to_string(r));
+  }
+  EXPECT_EQ(bhv::kModelA.devices & kModelADevices, kModelADevices);
+  for (auto a : {StopAction::coast, StopAction::brake, StopAction::hold})
+    EXPECT_EQ(bhv::to_string(static_cast<bhv::StopMode>(static_cast<std::uint8_t>(a))), to_string(a));
 }
 
 TEST(Behaviours, BuildPlans) {
