@@ -1,15 +1,16 @@
 /// @file leds.hpp
-/// @brief The brick's status LEDs through ev3dev's sysfs LED class: ROOT/class/leds/NAME/{trigger,
-///        brightness,max_brightness,delay_on,delay_off}. Solid patterns: trigger `none` and a
-///        brightness; blinking ones: trigger `timer` with delay_on / delay_off of 500 ms.
-///        When the directory does not exist (a PC), the pattern is only logged (once, at verbose).
+/// @brief The brick's status LEDs showing the lifecycle: the pattern of each state is the robot
+///        library's (libev3proto robot/leds.hpp: yellow (0.1, 1), green (0, 1), orange (1, 0.5),
+///        red (1, 0) of max_brightness on the red and green LEDs; blinking = trigger `timer`), the
+///        files are written through the device layer (io/ev3io/devices.hpp: each file opened once,
+///        one pwrite per write). When there are no LEDs (a PC), the pattern is only logged.
 #pragma once
 
 #include <string>
-#include <vector>
 
 #include <ev3proto/core.hpp>
 
+#include "ev3io/devices.hpp"
 #include "ev3io/log.hpp"
 
 namespace ev3agent {
@@ -20,14 +21,8 @@ struct LedColour {
   bool blink = false;
 };
 
-/// The colour of each core LED pattern (brief sec. 2: yellow / green blinking, green, orange, red
-/// blinking; dark when OFF). Orange is red full and green half, as ev3dev's own ORANGE.
+/// The colour of each core LED pattern (robot::colour_of as fractions).
 LedColour colour_of(ev3proto::Led l) noexcept;
-
-/// The names ev3dev gives the four brick-status LEDs: left red, left green, right red, right green.
-/// ev3dev-stretch (4.14 kernels) first, then ev3dev-jessie's names.
-extern const char* const kLedNamesStretch[4];
-extern const char* const kLedNamesJessie[4];
 
 /// Writes LED patterns to sysfs.
 class Leds {
@@ -39,9 +34,8 @@ class Leds {
   const std::string& dir() const noexcept { return dir_; }
 
  private:
-  bool write(const std::string& path, const std::string& value);
+  ev3io::Ev3Devices devices_;
   std::string dir_;
-  std::vector<std::string> names_;
   ev3io::Logger& log_;
   bool warned_ = false;
 };
