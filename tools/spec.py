@@ -3,7 +3,8 @@
 
 Subcommands:
   check --size small|full [--update]   SANY + TLC on each model of that size;
-                                       figures compared with spec/tla/manifest.json
+                                       figures compared with spec/tla/manifest.json;
+                                       then the trace modules (spec/tla/trace) on their samples
   refute                               every broken variant must be refuted on
                                        the property it breaks
   diagram [--check]                    docs/lifecycle.{dot,svg} from TLC's state graph
@@ -442,6 +443,19 @@ def election_main(args):
         raise SystemExit(1)
 
 
+def trace_modules():
+    """spec/tla/trace/, the trace checks of `ev3-conformance validate` (docs/spec.md "Implementation ->
+    spec"): SANY on every module, and each check on its sample trace (must conform; one record changed
+    must be rejected, naming it): ev3conformance.tracecheck.check_modules (standard library only)."""
+    sys.path.insert(0, os.path.join(ROOT, "conformance"))
+    from ev3conformance import tracecheck
+    t0 = time.monotonic()
+    ok = tracecheck.check_modules()
+    print("trace modules: %s (%.1fs)" % ("ok" if ok else "FAILED", time.monotonic() - t0))
+    if not ok:
+        raise SystemExit(1)
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -453,6 +467,8 @@ def main():
     d.add_argument("--check", action="store_true")
     args = ap.parse_args()
     {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
+    if args.cmd == "check":
+        trace_modules()
     election_main(args)  # relay and election (issue 4), after the lifecycle models
 
 

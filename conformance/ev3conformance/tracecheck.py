@@ -1,11 +1,22 @@
-"""Implementation -> spec: an NDJSON trace of the agent core (docs/core.md "Trace") becomes a TLA+
-module whose behaviour walks the trace with AgentLogic's handlers; TLC checks it.
+"""Implementation -> spec: NDJSON traces of the programs (docs/core.md "Trace") checked by TLC against
+the trace modules of spec/tla/trace/ (docs/spec.md "Implementation -> spec (validate)").
 
-The module has a variable `cursor` (next record) and `failed` (the record that could not be
-matched). Invariant `Matched == cursor <= Len(Trace)` is violated exactly when the whole trace was
-matched (TLC exit 12 with that invariant = success); `NotStuck == failed = 0` is violated when a
-record cannot be matched (its number is reported). Tick records of n ticks are n spec Ticks, taken in one step (closed form, see Adv).
-Variables absent from a record's "changed" must be unchanged.
+The TLA+ lives in .tla files, parsed by SANY in `make spec`: AgentTrace, ElectionTrace, MasterTrace
+and MasterElectionTrace give a node's initial local state and its step relation (the set of local
+states a record leads to), TraceWalk walks one node's records with it, and MC<kind>Trace.tla/.cfg
+put the two together. TLC 2.18 cannot read a file from TLA+ (no Json/IOUtils module; a Java module
+override would mean a second JSON parser and a second wire decoder), so this module only converts
+data: it decodes each record's datagram with the reference codec (ev3conformance.wire), keeps the
+fields the check reads, and writes them with the run's constants as a module TraceData.tla of
+definitions (values only: no operator, no TLA+ logic). It then runs TLC on MC<kind>Trace in a
+directory holding the spec's modules, the trace modules and that TraceData, and reads the verdict:
+invariant Matched violated = every record matched; NotStuck violated = the record TraceWalk names
+could not be matched.
+
+A trace that cannot show anything is an error, never a pass: an empty trace, one with no record of
+the node asked for (another node's trace), a line that is not JSON, a record without an action, a
+datagram that does not decode. A last line cut by a kill (SIGKILL: the programs write through stdio)
+is left out, and the result says so.
 """
 
 from __future__ import annotations
@@ -13,17 +24,19 @@ from __future__ import annotations
 import json
 import os
 import re
+import shutil
 import tempfile
+from collections import Counter
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from ev3conformance import graph as gr
 from ev3conformance import tla, wire
 
+TRACE_SPEC = gr.SPEC / "trace"
+
 AGENT_VARS = ["state", "led", "id", "beh", "step", "wait", "motors", "devOk", "silence", "clk", "win"]
-RECV = ["RecvMaster", "RecvPong", "RecvBehaviour", "RecvStart", "RecvStop", "RecvPause", "RecvResume",
-        "RecvStandby", "RecvContinue", "RecvRestart", "RecvDuplicate", "Ignore"]
 REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTION_ERR"}
 
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
@@ -38,38 +51,87 @@ class Result:
     ok: bool
     records: int
     message: str
-    skipped: bool = False
+    skipped: bool = False     # kept for callers: a check with nothing to check is an error, never skipped
+    no_records: bool = False  # failed because the trace holds no record of the node asked for
 
 
-
-# AgentLogic's internal actions a trace record may name, and their arguments in the check.
-_INTERNAL = [("SyncTimeout", "a"), ("HeartbeatLost", "a"), ("ActionOk", "a"),
-             ("ActionInterrupted", "a, r.e"), ("ActionFailed", "a"), ("SensorReport", "a"),
-             ("DeviceUnplugged", "a"), ("DevicePlugged", "a"), ("BatteryLow", "a")]
+class TraceError(ValueError):
+    """A trace that cannot be checked: the message names the line or record and what is wrong."""
 
 
-def _internal_case(suffix: str) -> str:
-    """A CASE over _INTERNAL calling L!<action><suffix> (suffix "Ok": the enabling conditions)."""
-    return "\n      [] ".join(f'r.a = "{n}" -> L!{n}{suffix}({args})' for n, args in _INTERNAL)
+@dataclass
+class TraceFile:
+    records: list[dict]
+    cut: int = 0                      # bytes of a last line cut by a kill (left out), or 0
+    nodes: Counter = field(default_factory=Counter)   # records per node
 
 
-def _agent_steps(t_ping: int, apply: str) -> str:
-    """The TLA+ operators both agent trace checks share: Adv (n ticks at once), Recv (the receive
-    handler named by the record, @p apply its CASE arms), IntOk / Internal (AgentLogic's internal
-    actions)."""
-    return f'''Adv(a, k) == IF k = 0 THEN a
-             ELSE [a EXCEPT !.clk = (a.clk + k) % {t_ping},
-                            !.silence = IF a.state = "PANIC" THEN 0 ELSE a.silence + k]
-Recv(h, a, m) ==
-    CASE {apply}
-IntOk(r, a) ==
-    CASE {_internal_case("Ok")}
-      [] OTHER -> FALSE
-Internal(r, a) ==
-    CASE {_internal_case("")}
-'''
+def read_trace(path: Path) -> TraceFile:
+    """Every record of the trace at @p path. A line that is not a JSON object with an "action" is an
+    error, except a last line without its newline that is the start of a record: cut by a kill (the
+    master killed with SIGKILL: the program writes through stdio), left out and counted in `cut`."""
+    try:
+        text = Path(path).read_text(encoding="utf-8", errors="replace")
+    except OSError as e:
+        raise TraceError(f"cannot read the trace: {e.strerror or e}") from e
+    lines = text.split("\n")
+    out = TraceFile([])
+    for i, raw in enumerate(lines):
+        line = raw.strip()
+        if not line:
+            continue
+        last = i == len(lines) - 1  # no newline after it
+        try:
+            r = json.loads(line)
+        except json.JSONDecodeError as e:
+            if last and line.startswith("{"):
+                out.cut = len(raw)
+                break
+            raise TraceError(f"line {i + 1} is not JSON ({e.msg}): {line[:120]!r}") from e
+        if not isinstance(r, dict) or not isinstance(r.get("action"), str) or not r["action"]:
+            raise TraceError(f"line {i + 1} is not a trace record (a JSON object with an \"action\"): "
+                             f"{line[:120]!r}")
+        for k in ("args", "changed"):
+            if not isinstance(r.get(k, {}), dict):
+                raise TraceError(f"line {i + 1}: \"{k}\" is not an object: {line[:120]!r}")
+        out.records.append(r)
+        out.nodes[str(r.get("node", ""))] += 1
+    return out
+
+
+def load(path: Path, node: str | None = None) -> list[dict]:
+    """The trace's records (of @p node, if given); see read_trace."""
+    recs = read_trace(path).records
+    return [r for r in recs if node is None or r.get("node") == node]
+
+
+def _no_records(tf: TraceFile, what: str, hint: str) -> str:
+    """Why there is nothing to check: an empty trace, or one of other nodes only."""
+    if not tf.records:
+        cut = f" (its only line was cut: {tf.cut} bytes)" if tf.cut else ""
+        return f"no records: the trace is empty{cut}; nothing was checked"
+    held = ", ".join(f"{n or '(no node)'} ({k})" for n, k in sorted(tf.nodes.items()))
+    return f"no {what} records: the trace holds {held}; nothing was checked{hint}"
+
+
+def _also(tf: TraceFile, checked: int) -> str:
+    """What the result leaves out: a cut last line, records of other nodes."""
+    parts = []
+    if tf.cut:
+        parts.append(f"its last line was cut ({tf.cut} bytes, left out)")
+    if len(tf.records) > checked:
+        others = ", ".join(f"{n or '(no node)'} ({k})" for n, k in sorted(tf.nodes.items()))
+        parts.append(f"{len(tf.records) - checked} records of other nodes not checked here (nodes: {others})")
+    return "; " + "; ".join(parts) if parts else ""
+
+
+# --- the data: records as the trace modules read them (spec/tla/trace/*.tla, "A record ...") -------
+
+_NONE_MSG = {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
+
 
 def _msg(text: str) -> dict:
+    """A datagram as AgentLogic's / MasterLogic's message record (Messages.tla's Msg)."""
     m = wire.decode(text.encode("latin-1"))
     name = m.type_name
     ps = [p.decode("latin-1") for p in m.params]
@@ -82,6 +144,7 @@ def _msg(text: str) -> dict:
 
 
 def _win(w: list) -> tuple:
+    """The dedupe window as AgentLogic's WinEntry sequence."""
     out = []
     for e in w:
         a = e["ans"]
@@ -91,26 +154,32 @@ def _win(w: list) -> tuple:
     return tuple(out)
 
 
-def load(path: Path, node: str | None = None) -> list[dict]:
-    """The trace's records (of @p node, if given). A last line without its newline that is not JSON
-    was cut by a kill (a master killed with SIGKILL: the program writes through stdio) and is left out."""
-    recs = []
-    with open(path) as f:
-        text = f.read()
-    lines = text.split("\n")
-    for i, line in enumerate(lines):
-        line = line.strip()
-        if not line:
-            continue
-        try:
-            r = json.loads(line)
-        except json.JSONDecodeError:
-            if i == len(lines) - 1:  # unterminated last line: cut by a kill
-                break
-            raise
-        if node is None or r.get("node") == node:
-            recs.append(r)
-    return recs
+def _agent_changed(ch: dict) -> dict:
+    """AgentLogic's variables of a record's changed (dupActed is never written)."""
+    out = {k: v for k, v in ch.items() if k in AGENT_VARS}
+    if "win" in out:
+        out["win"] = _win(out["win"])
+    return out
+
+
+def _record(recs: list[dict], k: int, convert) -> dict:
+    """convert(record k), with an error naming the record when its data is not what the trace format says."""
+    try:
+        return convert(recs[k])
+    except wire.DecodeError as e:
+        raise TraceError(f"record {k + 1} of {len(recs)}: its datagram does not decode ({e}): "
+                         f"{json.dumps(recs[k])[:300]}") from e
+    except (KeyError, TypeError, ValueError, AttributeError) as e:
+        raise TraceError(f"record {k + 1} of {len(recs)} is malformed ({type(e).__name__}: {e}): "
+                         f"{json.dumps(recs[k])[:300]}") from e
+
+
+def _agent_record(r: dict) -> dict:
+    """AgentTrace's record: [a, m, e, n, ch]."""
+    args = r.get("args", {})
+    m = args.get("msg")
+    return {"a": r["action"], "m": _msg(m) if m else dict(_NONE_MSG), "e": str(args.get("e", "")),
+            "n": int(args.get("ticks", 1)), "ch": _agent_changed(r.get("changed", {}))}
 
 
 def temp_id_of(recs: list[dict]) -> int:
@@ -130,65 +199,17 @@ def temp_id_of(recs: list[dict]) -> int:
     return 50000
 
 
-def agent_module(name: str, recs: list[dict], consts: dict, temp_id: int) -> str:
-    items = []
-    for r in recs:
-        ch = dict(r.get("changed", {}))
-        ch.pop("dupActed", None)
-        if "win" in ch:
-            ch["win"] = _win(ch["win"])
-        a = r["action"]
-        m = r.get("args", {}).get("msg")
-        mrec = _msg(m) if m else {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
-        chs = tla.to_tla(ch) if ch else "[x \\in {} |-> 0]"
-        items.append(f'[a |-> "{a}", m |-> {tla.to_tla(mrec)}, e |-> {tla.to_tla(r.get("args", {}).get("e", ""))},'
-                     f' n |-> {int(r.get("args", {}).get("ticks", 1))}, ch |-> {chs}]')
-    c = consts
-    behs = "{" + ", ".join(tla.to_tla(b) for b in c["Behaviours"]) + "}"
-    apply = "\n      [] ".join(f'h = "{h}" -> L!{h}(a, m)' for h in RECV)
-    return f"""---- MODULE {name} ----
-EXTENDS Naturals, Sequences, TLC
-VARIABLES ag, out, cursor, sub, snap, failed
-L == INSTANCE AgentLogic WITH Behaviours <- {behs}, UnknownBehaviour <- "?unknown",
-       ModelName <- {tla.to_tla(c["ModelName"])}, TSync <- {c["TSync"]}, TPing <- {c["TPing"]},
-       TLoss <- {c["TLoss"]}, TPaused <- {c["TPaused"]}, Window <- {c["Window"]},
-       Steps <- {c["Steps"]}, BUG <- "none"
-Trace == <<
-  {(","+chr(10)+"  ").join(items)}
->>
-Vars == {tla.to_tla(set(AGENT_VARS))}
-Fits(r, before, after) ==
-    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN after[v] = r.ch[v] ELSE after[v] = before[v]
-{_agent_steps(c["TPing"], apply)}Init == /\\ ag = L!InitAgent({temp_id}) /\\ out = <<>> /\\ cursor = 1 /\\ sub = 0 /\\ snap = ag /\\ failed = 0
-Match ==
-    /\\ failed = 0 /\\ cursor <= Len(Trace)
-    /\\ LET r == Trace[cursor] IN
-       IF r.a = "Tick" THEN
-          \\* n Ticks in one step: Adv(ag, n - 1) is the state before the last one. Tick changes
-          \\* only clk and silence, and TimeoutDue is monotone in silence, so the n Ticks are all
-          \\* enabled iff the first and the last are (closed form; the last is the spec's Tick).
-          /\\ L!TickOk(ag) /\\ L!TickOk(Adv(ag, r.n - 1))
-          /\\ LET res == L!Tick(Adv(ag, r.n - 1)) IN
-               /\\ ag' = res.ag /\\ out' = res.out
-               /\\ Fits(r, ag, res.ag) /\\ cursor' = cursor + 1 /\\ sub' = 0 /\\ snap' = res.ag
-       ELSE IF r.m.type # "NONE" THEN
-          /\\ ag.state # "OFF" /\\ L!Handler(ag, r.m) = r.a
-          /\\ LET res == Recv(r.a, ag, r.m) IN
-               /\\ ag' = res.ag /\\ out' = res.out /\\ Fits(r, ag, res.ag)
-               /\\ cursor' = cursor + 1 /\\ sub' = 0 /\\ snap' = res.ag
-       ELSE
-          /\\ IntOk(r, ag)
-          /\\ LET res == Internal(r, ag) IN
-             /\\ ag' = res.ag /\\ out' = res.out /\\ Fits(r, ag, res.ag)
-             /\\ cursor' = cursor + 1 /\\ sub' = 0 /\\ snap' = res.ag
-    /\\ UNCHANGED failed
-Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
-         /\\ failed' = cursor /\\ UNCHANGED <<ag, out, cursor, sub, snap>>
-Next == Match \\/ Stuck
-Matched == cursor <= Len(Trace)
-NotStuck == failed = 0
-====
-"""
+def data_module(records: list[dict], consts: dict, about: str) -> str:
+    """The module TraceData: the records as the sequence Trace and each constant as a definition
+    (values only). @p about: a line saying where the data comes from (a comment)."""
+    about = " ".join(about.split())
+    body = ",\n".join("  " + tla.to_tla(r) for r in records)
+    lines = ["---- MODULE TraceData ----",
+             "\\* Data only, written by ev3conformance.tracecheck (no TLA+ logic: see spec/tla/trace/).",
+             f"\\* {about}",
+             f"Trace == <<\n{body}\n>>"]
+    lines += [f"{k} == {tla.to_tla(v)}" for k, v in consts.items()]
+    return "\n".join(lines) + "\n====\n"
 
 
 def _describe_record(recs, k):
@@ -200,47 +221,112 @@ def _describe_record(recs, k):
     return "\n".join(rows)
 
 
-def validate(path: Path, consts: dict | None = None, node: str = "agent", temp_id: int | None = None,
-             workdir: Path | None = None) -> Result:
-    path = Path(path)
-    c = dict(DEFAULTS)
-    c.update(consts or {})
-    recs = load(path, None)
-    nodes = {r.get("node") for r in recs}
-    mine = [r for r in recs if r.get("node", "").startswith(node)]
-    if not mine:
-        other = ", ".join(sorted(n for n in nodes if n)) or "none"
-        return Result(str(path), True, 0, f"no {node} records (nodes: {other}); nothing to check", skipped=True)
-    tid = temp_id if temp_id is not None else temp_id_of(mine)
+@dataclass
+class _Verdict:
+    kind: str          # "matched", "stuck" or "error"
+    record: int = -1   # stuck: the index of the record that could not be matched
+    detail: str = ""   # error: what TLC said
+    dir: Path | None = None
+
+
+def check(module: str, data: str, n: int, workdir: Path | None, prefix: str) -> _Verdict:
+    """TLC on spec/tla/trace/@p module (MCAgentTrace, ...) with @p data as TraceData, in a new
+    directory under @p workdir holding the spec's modules; @p n records. The directory is removed when
+    the trace conforms, kept otherwise (rerun TLC there: java -cp tla2tools.jar tlc2.TLC -config
+    MODULE.cfg MODULE.tla)."""
     wd = Path(workdir or (gr.BUILD / "traces"))
     wd.mkdir(parents=True, exist_ok=True)
-    d = Path(tempfile.mkdtemp(prefix="trace-", dir=wd))
+    d = Path(tempfile.mkdtemp(prefix=prefix, dir=wd))
+    for f in sorted(gr.SPEC.glob("*.tla")) + sorted(TRACE_SPEC.glob("*.tla")) + sorted(TRACE_SPEC.glob("*.cfg")):
+        shutil.copy(f, d / f.name)
+    (d / "TraceData.tla").write_text(data)
+    rc, out = gr.tlc(f"{module}.tla", f"{module}.cfg", [], cwd=d)
+    if rc == 12 and "Invariant Matched is violated" in out:
+        # TraceWalk's cursor past the last record: cross-checks that TLC walked every record read here
+        cur = re.findall(r"^/\\ cursor = (\d+)", out, re.M)
+        if cur and int(cur[-1]) == n + 1:
+            shutil.rmtree(d, ignore_errors=True)
+            return _Verdict("matched")
+        return _Verdict("error", detail=f"TLC's walk ended at record {cur[-1] if cur else '?'}, the trace has "
+                                        f"{n} (check kept in {d})", dir=d)
+    if rc == 12 and "Invariant NotStuck is violated" in out:
+        fails = re.findall(r"^/\\ failed = (\d+)", out, re.M)
+        return _Verdict("stuck", record=int(fails[-1]) - 1 if fails else -1, dir=d)
+    if rc == 0:
+        return _Verdict("error", detail=f"TLC ended without matching the trace (check in {d})", dir=d)
+    return _Verdict("error", detail=f"TLC failed (exit {rc}); check in {d}:\n{out[-2500:]}", dir=d)
+
+
+# --- one node's data, and its check --------------------------------------------------------------
+
+class NoRecords(TraceError):
+    """The trace holds no record of the node asked for."""
+
+
+@dataclass
+class NodeData:
+    """One node's records converted for its trace module (data only): what TraceData holds."""
+    node: str            # the node's name in the trace
+    module: str          # the check: MCAgentTrace, MCElectionTrace, MCMasterTrace, MCMasterElectionTrace
+    what: str            # what it checks against (for messages)
+    records: list[dict]  # the node's records as read
+    items: list[dict]    # the same as the module reads them
+    consts: dict         # the module's constants
+    file: TraceFile
+    tag: str = ""        # ", election" when checked with Election.tla
+
+    def data(self, path: Path) -> str:
+        return data_module(self.items, self.consts, f"{len(self.records)} records of node {self.node} in {path}")
+
+
+def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp_id: int | None = None) -> NodeData:
+    """An agent's records (of node @p node) for AgentTrace, or ElectionTrace when the agent ran with
+    --election (Election records in the trace, or consts Election = True). Raises TraceError."""
+    c = dict(DEFAULTS)
+    c.update(consts or {})
+    tf = read_trace(path)
+    mine = [r for r in tf.records if str(r.get("node", "")).startswith(node)]
+    if not mine:
+        raise NoRecords(_no_records(tf, node, " (a master's trace: validate --master)"))
+    tid = temp_id if temp_id is not None else temp_id_of(mine)
     election = c.get("Election")
     if election is None:
         election = is_election_trace(mine)
-    if election:
-        name, specs, what = "ElectionTraceCheck", ("AgentLogic.tla", "Messages.tla", "Election.tla"), \
-            "AgentLogic + Election (per-agent projection)"
-        (d / f"{name}.tla").write_text(election_module(name, mine, c, tid))
-    else:
-        name, specs, what = "TraceCheck", ("AgentLogic.tla", "Messages.tla"), "the spec"
-        (d / f"{name}.tla").write_text(agent_module(name, mine, c, tid))
-    (d / f"{name}.cfg").write_text("INIT Init\nNEXT Next\nINVARIANTS Matched NotStuck\nCHECK_DEADLOCK FALSE\n")
-    for f in specs:
-        (d / f).write_text((gr.SPEC / f).read_text())
-    rc, out = gr.tlc(f"{name}.tla", f"{name}.cfg", [], cwd=d)
-    tag = ", election" if election else ""
-    if rc == 12 and "Invariant Matched is violated" in out:
-        return Result(str(path), True, len(mine), f"{len(mine)} records matched (temporary id {tid}{tag})")
-    if rc == 12 and "Invariant NotStuck is violated" in out:
-        fails = re.findall(r"failed = (\d+)", out)
-        k = int(fails[-1]) - 1 if fails else -1
-        return Result(str(path), False, len(mine),
-                      f"record {k + 1} of {len(mine)} could not be matched by {what} "
-                      f"(temporary id {tid}; module kept in {d}):\n{_describe_record(mine, k)}")
-    if rc == 0:
-        return Result(str(path), False, len(mine), f"TLC ended without matching the trace (module in {d})")
-    return Result(str(path), False, len(mine), f"TLC failed (exit {rc}); module in {d}:\n{out[-2500:]}")
+    k = {"Behaviours": frozenset(c["Behaviours"]), "ModelName": str(c["ModelName"]), "TSync": int(c["TSync"]),
+         "TPing": int(c["TPing"]), "TLoss": int(c["TLoss"]), "TPaused": int(c["TPaused"]),
+         "Window": int(c["Window"]), "Steps": int(c["Steps"]), "TempId": int(tid)}
+    if not election:
+        return NodeData(node, "MCAgentTrace", "the spec", mine,
+                        [_record(mine, i, _agent_record) for i in range(len(mine))], k, tf)
+    items, fleet = _election_records(mine)
+    score = c.get("Score")
+    k.update({"Fleet": frozenset(fleet), "Score": int(score) if score is not None else 0,
+              "ScoreKnown": score is not None, "InitEpoch": int(c.get("Epoch", 1) or 1),
+              "InitVotedFor": int(c.get("VotedFor", 0) or 0)})
+    return NodeData(node, "MCElectionTrace", "AgentLogic + Election (per-agent projection)", mine, items, k, tf,
+                    ", election")
+
+
+def validate(path: Path, consts: dict | None = None, node: str = "agent", temp_id: int | None = None,
+             workdir: Path | None = None) -> Result:
+    """An agent's trace (records of node @p node) against AgentLogic, or AgentLogic + Election when the
+    agent ran with --election (Election records in the trace, or consts Election = True). consts: the
+    run's timers TSync, TPing, TLoss, TPaused (ms), Window, Behaviours; election: Score (None:
+    unknown), Epoch, VotedFor (its --state-dir at start)."""
+    path = Path(path)
+    try:
+        nd = agent_data(path, consts, node, temp_id)
+    except TraceError as e:
+        return Result(str(path), False, 0, str(e), no_records=isinstance(e, NoRecords))
+    n, tid = len(nd.records), nd.consts["TempId"]
+    v = check(nd.module, nd.data(path), n, workdir, "trace-")
+    if v.kind == "matched":
+        return Result(str(path), True, n, f"{n} records matched (temporary id {tid}{nd.tag}){_also(nd.file, n)}")
+    if v.kind == "stuck":
+        return Result(str(path), False, n,
+                      f"record {v.record + 1} of {n} could not be matched by {nd.what} "
+                      f"(temporary id {tid}; check kept in {v.dir}):\n{_describe_record(nd.records, v.record)}")
+    return Result(str(path), False, n, v.detail)
 
 
 def validate_many(paths: list[Path], consts: dict | None = None, jobs: int = 2) -> list[Result]:
@@ -252,45 +338,24 @@ def jobs_default() -> int:
     return max(1, min(2, os.cpu_count() or 1))
 
 
-# --- the master (MasterLogic, ExactMsgids = TRUE) ------------------------------------------------
-#
-# Time. MasterLogic's MasterTick is one abstract resend period for every entry at once: each entry's
-# quiet grows by one, an entry quiet for TDrop ticks is dropped, every pending datagram is resent
-# (or its command fails). The C++ core counts milliseconds and keeps a resend deadline per entry
-# (sent_at + resend) and a drop deadline per entry (heard + drop); `advance` runs one MasterTick at
-# each deadline, acting on the entries due then. The check maps this as follows (the same map for
-# `ev3-master --driver` traces, resend 1 ms, and for the real program over UDP):
-#   - 1 tick = 1 ms for quiet and drops: quiet is ms since heard (the trace's quiet), TDrop the drop
-#     timeout in ms; an entry is dropped at the tick where quiet reaches TDrop, as in TickEntries.
-#   - the resend period is per entry: an entry's pending datagram is due TResend ms after it was
-#     sent (when its msgid was drawn, or last resent by a tick; a re-announcement's resend
-#     does not move it, as in the core). The check keeps this time itself (variable `sent`),
-#     it is not read from the trace.
-#   - a MasterTick record at time t is MasterLogic's TickEntries over exactly the entries due at t
-#     (quiet reaching TDrop, or the resend period over): they are dropped / resent / failed by the
-#     spec's own per-entry rule, in id order; every other entry only ages by the tick. The record
-#     must come at the first ms anything is due (nothing due at t - 1) and something must be due.
-#   - between records time passes with nothing due (else the core would have ticked first): every
-#     entry ages by the elapsed ms (closed form, one TLC step per record).
-# With TResend = 1 every pending datagram is due every ms: the spec's MasterTick exactly (driver).
-# Times are rebased to the first record (real traces carry the monotonic clock).
+# --- the master (MasterTrace: MasterLogic, ExactMsgids = TRUE; time map in MasterTrace.tla) --------
 
 MASTER_RECV = ["MasterSync", "MasterAnswer", "MasterPing", "MasterReport"]
-COMMANDS = ["BEHAVIOUR", "START", "STOP", "PAUSE", "RESUME", "STANDBY", "CONTINUE", "RESTART"]
 ELECTION_MASTER_ACTIONS = {"Heartbeat", "StartElection", "HandleVote", "BecomeMaster", "HandleElect",
                            "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover"}
 # TDrop has no default (the driver's and the program's differ); TResend 1 is the driver's.
 MASTER_DEFAULTS = {"TResend": 1, "MaxResends": 10, "Behaviours": ["wait"], "NextId": 2, "FirstMsgid": 1}
+_REG_KEYS = ("ann", "id", "ep", "synced", "pending", "mid", "resends", "desired", "beh", "quiet", "hi")
 
 
-def _reg_tla(reg: list) -> str:
-    keys = ("ann", "id", "ep", "synced", "pending", "mid", "resends", "desired", "beh", "quiet", "hi")
+def _reg(reg: list) -> frozenset:
+    """A registry as MasterLogic's set of entries."""
     out = []
     for x in reg:
-        e = {k: x[k] for k in keys}
-        e["queue"] = tuple({"type": q["type"], "name": q["name"]} for q in x["queue"])
-        out.append(tla.to_tla(e))
-    return "{" + ", ".join(out) + "}"
+        e = tla.Rec((k, x[k]) for k in _REG_KEYS)
+        e["queue"] = tuple(tla.Rec(type=q["type"], name=q["name"]) for q in x["queue"])
+        out.append(e)
+    return frozenset(out)
 
 
 def _behaviour_names(recs: list[dict], given) -> list[str]:
@@ -305,117 +370,60 @@ def _behaviour_names(recs: list[dict], given) -> list[str]:
     return names
 
 
-def _master_consts(consts: dict, recs: list[dict]) -> tuple[dict, int]:
-    """The check's constants (MASTER_DEFAULTS overridden by @p consts) and the trace's first time."""
-    c = dict(MASTER_DEFAULTS)
-    c.update(consts)
-    return c, (int(recs[0].get("now", 0)) if recs else 0)
-
-
-def _master_changed_parts(ch: dict) -> list[str]:
-    """The MasterLogic variables a master record changed, as TLA+ record fields (reg, nextId, msgid)."""
-    parts = []
+def _master_changed(ch: dict) -> dict:
+    """The MasterLogic variables a master record changed (reg, nextId, msgid)."""
+    out = {}
     if "reg" in ch:
-        parts.append(f"reg |-> {_reg_tla(ch['reg'])}")
+        out["reg"] = _reg(ch["reg"])
     for k in ("nextId", "msgid"):
         if k in ch:
-            parts.append(f"{k} |-> {int(ch[k])}")
-    return parts
+            out[k] = int(ch[k])
+    return out
 
 
-def master_module(name: str, recs: list[dict], consts: dict) -> str:
-    """MasterTraceCheck: one TLC step per record, with the time map above. consts: TDrop and TResend
-    (ms), MaxResends, Behaviours, NextId / FirstMsgid (the master's first id and msgid: 2 and 1 unless
-    it was restarted from a state file)."""
-    c, base = _master_consts(consts, recs)
-    items = []
-    for r in recs:
-        ch = r.get("changed", {})
-        parts = _master_changed_parts(ch)
+def _master_records(recs: list[dict]) -> list[dict]:
+    """MasterTrace's records [a, m, now, ch]; times from the first record (real traces carry the
+    monotonic clock)."""
+    base = int(recs[0].get("now", 0))
+
+    def one(r):
         m = r.get("args", {}).get("msg")
-        mrec = _msg(m) if m else {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
-        chs = "[" + ", ".join(parts) + "]" if parts else "[x \\in {} |-> 0]"
-        now = int(r.get("now", 0)) - base
-        items.append(f'[a |-> "{r["action"]}", m |-> {tla.to_tla(mrec)}, now |-> {now}, ch |-> {chs}]')
-    behs = "{" + ", ".join(tla.to_tla(b) for b in _behaviour_names(recs, c.get("Behaviours"))) + "}"
-    return f"""---- MODULE {name} ----
-EXTENDS Naturals, Sequences, FiniteSets, TLC
-VARIABLES ms, cursor, clock, sent, failed
-TDrop == {int(c["TDrop"])}
-M == INSTANCE MasterLogic WITH TDrop <- TDrop, MaxResends <- {int(c["MaxResends"])},
-       ExactMsgids <- TRUE, BUG <- "none"
-TResend == {int(c["TResend"])}
-Behs == {behs}
-Trace == <<
-  {(","+chr(10)+"  ").join(items)}
->>
-Vars == {{"reg", "nextId", "msgid"}}
-Val(v, s) == IF v = "msgid" THEN s.msgid[0] ELSE s[v]
-\\* The record's changed variables have its values; the others are as before the action.
-Fits(r, before, after) ==
-    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN Val(v, after) = r.ch[v] ELSE after[v] = before[v]
-Eps(r) == {{x.ep : x \\in ms.reg}} \\cup (IF "reg" \\in DOMAIN r.ch THEN {{x.ep : x \\in r.ch.reg}} ELSE {{}})
-Cmds == {{M!Cmd(t, M!NoBehaviour) : t \\in {tla.to_tla(set(COMMANDS) - {"BEHAVIOUR"})}}}
-        \\cup {{M!Cmd("BEHAVIOUR", b) : b \\in Behs}}
-Ids(s) == {{x.id : x \\in s.reg}}
-EntryOf(s, i) == CHOOSE x \\in s.reg : x.id = i
-\\* Time passes k ms with nothing due: every entry's quiet grows by k.
-Age(s, k) == [s EXCEPT !.reg = {{[x EXCEPT !.quiet = x.quiet + k] : x \\in s.reg}}]
-\\* The entries due at time t >= clock: quiet reaches TDrop, or the pending datagram was sent
-\\* TResend ms ago (sent: the check's own record of when, see NewSent).
-DueAt(y, t) == y.quiet + (t - clock) >= TDrop \\/ (y.pending /\\ t - sent[y.id] >= TResend)
-Due(t) == {{y.id : y \\in {{x \\in ms.reg : DueAt(x, t)}}}}
-\\* When each entry's pending datagram was last sent, after a step at time t that produced s2:
-\\* now if its msgid was drawn in the step (new entry, next command, resync) or a tick resent it
-\\* (ids D), else as before (a re-announcement resends it without moving its deadline).
-NewSent(s2, D, t) ==
-    [i \\in Ids(s2) |-> IF i \\in D \\/ ~\\E y \\in ms.reg : y.id = i /\\ y.pending /\\ y.mid = EntryOf(s2, i).mid
-                       THEN t ELSE sent[i]]
-\\* The operator's command: MasterCommand for one id (or an unknown one: 1), or for every
-\\* registered id in id order (the console's `all`: one core call, one record).
-RECURSIVE ForAll(_, _, _)
-ForAll(s, ids, c) ==
-    IF ids = {{}} THEN s
-    ELSE LET i == CHOOSE i \\in ids : \\A j \\in ids : i <= j
-         IN ForAll(M!MasterCommand(s, i, c).ms, ids \\ {{i}}, c)
-CmdResults(s) == {{M!MasterCommand(s, id, c).ms : id \\in Ids(s) \\cup {{1}}, c \\in Cmds}}
-                 \\cup {{ForAll(s, Ids(s), c) : c \\in Cmds}}
-Init == /\\ ms = [reg |-> {{}}, nextId |-> {int(c["NextId"])}, msgid |-> [k \\in {{0}} |-> {int(c["FirstMsgid"])}]]
-        /\\ cursor = 1 /\\ clock = 0 /\\ sent = [i \\in {{}} |-> 0] /\\ failed = 0
-Match ==
-    /\\ failed = 0 /\\ cursor <= Len(Trace)
-    /\\ LET r == Trace[cursor]
-           t == r.now
-       IN /\\ IF r.a = "MasterTick" THEN
-                \\* the first ms anything is due: the spec's per-entry tick for the due entries
-                /\\ t > clock /\\ Due(t - 1) = {{}} /\\ Due(t) # {{}}
-                /\\ LET D == Due(t)
-                       s1 == Age(ms, t - 1 - clock)
-                       tk == M!TickEntries(s1, D, {{}})
-                       s2 == [tk.ms EXCEPT !.reg = {{IF x.id \\in D THEN x ELSE [x EXCEPT !.quiet = x.quiet + 1]
-                                                     : x \\in tk.ms.reg}}]
-                   IN /\\ Fits(r, s1, s2) /\\ ms' = s2 /\\ sent' = NewSent(s2, D, t)
-             ELSE
-                /\\ t >= clock /\\ Due(t) = {{}}
-                /\\ LET s1 == Age(ms, t - clock) IN
-                   IF r.a = "MasterCommand" THEN
-                      \\E s2 \\in CmdResults(s1) :
-                         /\\ Fits(r, s1, s2) /\\ ms' = s2 /\\ sent' = NewSent(s2, {{}}, t)
-                   ELSE
-                      /\\ r.a \\in {tla.to_tla(set(MASTER_RECV))} /\\ M!Handler(r.m) = r.a
-                      /\\ \\E from \\in Eps(r) \\cup {{0}} :
-                            LET s2 == M!Receive(s1, r.m, from).ms IN
-                            /\\ Fits(r, s1, s2) /\\ ms' = s2 /\\ sent' = NewSent(s2, {{}}, t)
-          /\\ clock' = t
-    /\\ cursor' = cursor + 1
-    /\\ UNCHANGED failed
-Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
-         /\\ failed' = cursor /\\ UNCHANGED <<ms, cursor, clock, sent>>
-Next == Match \\/ Stuck
-Matched == cursor <= Len(Trace)
-NotStuck == failed = 0
-====
-"""
+        return {"a": r["action"], "m": _msg(m) if m else dict(_NONE_MSG), "now": int(r.get("now", 0)) - base,
+                "ch": _master_changed(r.get("changed", {}))}
+    return [_record(recs, k, one) for k in range(len(recs))]
+
+
+def _master_consts(c: dict, recs: list[dict]) -> dict:
+    """MasterTrace's constants."""
+    return {"TDrop": int(c["TDrop"]), "MaxResends": int(c["MaxResends"]), "TResend": int(c["TResend"]),
+            "Behaviours": frozenset(_behaviour_names(recs, c.get("Behaviours"))),
+            "NextId": int(c["NextId"]), "FirstMsgid": int(c["FirstMsgid"])}
+
+
+def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
+    """A master's records for MasterTrace, or MasterElectionTrace when it ran with --election (see
+    validate_master). Raises TraceError."""
+    c = dict(MASTER_DEFAULTS)
+    c.update(consts)
+    tf = read_trace(path)
+    if node is None:  # the master program's records (an agent-master's are named master:ID:EPOCH)
+        recs = [r for r in tf.records if str(r.get("node", "")).startswith("master") and ":" not in str(r.get("node", ""))]
+    else:
+        recs = [r for r in tf.records if r.get("node", "") == node]
+    if not recs:
+        hint = " (an agent's trace: validate without --master)" if node is None else ""
+        raise NoRecords(_no_records(tf, node or "master", hint))
+    election = c.get("Election")
+    if election is None:
+        election = is_master_election_trace(recs)
+    k = _master_consts(c, recs)
+    if not election:
+        return NodeData(node or "master", "MCMasterTrace", "MasterLogic", recs, _master_records(recs), k, tf)
+    k.update({"Self": int(c.get("Self", 1) or 1), "InitLife": str(c.get("Life") or "MASTER"),
+              "InitEpoch": int(c.get("Epoch", 1) or 1),
+              "InitMembers": frozenset(int(x) for x in (c.get("Members") or []))})
+    return NodeData(node or "master", "MCMasterElectionTrace", "MasterLogic + Election (the PC's rules)", recs,
+                    _master_election_records(recs), k, tf, ", election")
 
 
 def validate_master(path: Path, consts: dict, workdir: Path | None = None, node: str | None = None) -> Result:
@@ -423,70 +431,41 @@ def validate_master(path: Path, consts: dict, workdir: Path | None = None, node:
     the default) or the real program's `--trace` over UDP (TResend = its --resend-ms). consts: TDrop
     (--agent-timeout-ms / the driver's drop), TResend, MaxResends, Behaviours, NextId, FirstMsgid.
     A trace of `ev3-master --election` (Election.tla records, or consts Election = True) is checked by
-    MasterLogic + Election.tla's PC rules (master_election_module; consts Epoch, Members, Life: the
-    state the master starts from); Election = False forces MasterLogic alone."""
+    MasterLogic + Election.tla's PC rules (MasterElectionTrace; consts Epoch, Members, Life: the
+    state the master starts from); Election = False forces MasterLogic alone. @p node: the records of
+    that node (an agent-master's, master:ID:EPOCH); default: the master program's (node master)."""
     path = Path(path)
-    if node is None:  # the master program's records (an agent-master's are named master:ID:EPOCH)
-        recs = [r for r in load(path, None) if r.get("node", "").startswith("master") and ":" not in r.get("node", "")]
-    else:
-        recs = [r for r in load(path, None) if r.get("node", "") == node]
-    if not recs:
-        return Result(str(path), True, 0, "no master records; nothing to check", skipped=True)
-    wd = Path(workdir or (gr.BUILD / "traces"))
-    wd.mkdir(parents=True, exist_ok=True)
-    d = Path(tempfile.mkdtemp(prefix="mtrace-", dir=wd))
-    election = consts.get("Election")
-    if election is None:
-        election = is_master_election_trace(recs)
-    if election:
-        name, what, tag = "MasterElectionTraceCheck", "MasterLogic + Election (the PC's rules)", ", election"
-        (d / f"{name}.tla").write_text(master_election_module(name, recs, consts))
-        specs = ("MasterLogic.tla", "Messages.tla", "Election.tla")
-    else:
-        name, what, tag = "MasterTraceCheck", "MasterLogic", ""
-        (d / f"{name}.tla").write_text(master_module(name, recs, consts))
-        specs = ("MasterLogic.tla", "Messages.tla")
-    (d / f"{name}.cfg").write_text("INIT Init\nNEXT Next\nINVARIANTS Matched NotStuck\nCHECK_DEADLOCK FALSE\n")
-    for f in specs:
-        (d / f).write_text((gr.SPEC / f).read_text())
-    rc, out = gr.tlc(f"{name}.tla", f"{name}.cfg", [], cwd=d)
-    if rc == 12 and "Invariant Matched is violated" in out:
-        return Result(str(path), True, len(recs), f"{len(recs)} master records matched{tag}")
-    if rc == 12 and "Invariant NotStuck is violated" in out:
-        fails = re.findall(r"failed = (\d+)", out)
-        k = int(fails[-1]) - 1 if fails else -1
+    try:
+        nd = master_data(path, consts, node)
+    except TraceError as e:
+        return Result(str(path), False, 0, str(e), no_records=isinstance(e, NoRecords))
+    n = len(nd.records)
+    v = check(nd.module, nd.data(path), n, workdir, "mtrace-")
+    if v.kind == "matched":
+        return Result(str(path), True, n, f"{n} master records matched{nd.tag}{_also(nd.file, n)}")
+    if v.kind == "stuck":
+        k = v.record
         why = ""
-        if not election and 0 <= k < len(recs) and recs[k].get("action") in ELECTION_MASTER_ACTIONS:
+        if not nd.tag and 0 <= k < n and nd.records[k].get("action") in ELECTION_MASTER_ACTIONS:
             why = " (an Election.tla action: run without --no-election)"
-        return Result(str(path), False, len(recs),
-                      f"record {k + 1} of {len(recs)} could not be matched by {what}{why} "
-                      f"(module kept in {d}):\n{_describe_record(recs, k)}")
-    return Result(str(path), False, len(recs), f"TLC failed (exit {rc}); module in {d}:\n{out[-2500:]}")
+        return Result(str(path), False, n,
+                      f"record {k + 1} of {n} could not be matched by {nd.what}{why} "
+                      f"(check kept in {v.dir}):\n{_describe_record(nd.records, k)}")
+    return Result(str(path), False, n, v.detail)
 
 
-# --- agents with --election (Election.tla + AgentLogic) ------------------------------------------
-#
-# A per-agent projection (docs/spec.md "Election traces"). The agent's own Election variables (life,
-# epoch, votedFor, votes, leader, following, via, relays, offered, prevotes) are checked with
-# Election.tla's own per-node operators (XOk: the enabling condition on the node's own state, XNext:
-# its new local state); the environment (links, the network, the other nodes) is not observed, so
-# its guards are taken as satisfiable and a received datagram is the record's. The lifecycle
-# variables are checked with AgentLogic as for any agent; the two compose as docs/election.md
-# section 5 maps them (life CANDIDATE / MASTER = state PANIC; the followed master is AgentLogic's
-# MasterId).
+# --- agents with --election (ElectionTrace: AgentLogic + Election.tla per agent) -------------------
 
 ELECTION_ACTIONS = {"RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped",
                     "GrantPreVote", "HandlePreVote", "StartElection", "HandleElect", "HandleVote",
                     "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand"}
 ELECTION_VARS = ["life", "epoch", "votedFor", "votes", "leader", "following", "via", "relays", "offered",
                  "prevotes"]
+# Wire type names -> Election.tla's message types.
 _EL_TYPES = {"RELAY_REQ": "RREQ", "RELAY_OFFER": "ROFFER", "RELAY_ACCEPT": "RACCEPT", "RELAY_ROUTE": "ROUTE",
              "RELAY": "RELAY", "RELAY_DROP": "RDROP", "ELECT": "ELECT", "VOTE": "VOTE", "LEADER": "HB",
              "EPOCH_STALE": "STALE", "EPOCH_CMD": "CMD", "HANDOVER": "HANDOVER", "PREVOTE_OK": "PREOK"}
-_NONE_MSG = {"src": 0, "dst": 0, "msgid": 0, "type": "NONE", "ref": 0, "args": ()}
 _NONE_EL = {"t": "NONE", "src": 0, "dst": 0, "e": 0, "x": 0, "sc": 0, "tgt": 0}
-# The largest number TLC's integers hold: the epoch bound of the check (MaxEpoch).
-_TLC_MAXINT = 2147483647
 
 
 def is_election_trace(recs: list[dict]) -> bool:
@@ -538,21 +517,12 @@ def _el_changed(ch: dict) -> dict:
     return out
 
 
-def election_module(name: str, recs: list[dict], consts: dict, temp_id: int) -> str:
-    """ElectionTraceCheck: one TLC step per record; variables ag (AgentLogic's local state) and el (the
-    agent's Election variables, Election.tla's Loc record). consts: the timers as for agent_module, and
-    Score (the agent's --score; None: unknown, both outcomes of a score comparison are allowed), Epoch and
-    VotedFor (what the agent started with from its --state-dir; 1 and 0)."""
-    items = []
+def _election_records(recs: list[dict]) -> tuple[list[dict], set[int]]:
+    """ElectionTrace's records [a, m, em, im, cmd, e, n, ch, ech] and the fleet: the members the
+    LEADERs in the trace list."""
     fleet: set[int] = set()
-    for r in recs:
-        ch = dict(r.get("changed", {}))
-        ch.pop("dupActed", None)
-        lch = {k: v for k, v in ch.items() if k in AGENT_VARS}
-        if "win" in lch:
-            lch["win"] = _win(lch["win"])
-        ech = _el_changed(ch)
-        a = r["action"]
+
+    def one(r):
         args = r.get("args", {})
         text = args.get("msg")
         m, em, im = dict(_NONE_MSG), dict(_NONE_EL), dict(_NONE_MSG)
@@ -565,192 +535,13 @@ def election_module(name: str, recs: list[dict], consts: dict, temp_id: int) -> 
                     im = inner
             else:
                 m = _msg(text)
-        chs = tla.to_tla(lch) if lch else "[x \\in {} |-> 0]"
-        echs = tla.to_tla(ech) if ech else "[x \\in {} |-> 0]"
-        items.append(f'[a |-> "{a}", m |-> {tla.to_tla(m)}, em |-> {tla.to_tla(em)}, im |-> {tla.to_tla(im)},'
-                     f' cmd |-> {tla.to_tla(args.get("cmd", "Ignore"))}, e |-> {tla.to_tla(args.get("e", ""))},'
-                     f' n |-> {int(args.get("ticks", 1))}, ch |-> {chs}, ech |-> {echs}]')
-    c = consts
-    behs = "{" + ", ".join(tla.to_tla(b) for b in c["Behaviours"]) + "}"
-    score = c.get("Score")
-    scores = "{%d}" % int(score) if score is not None else "{0, %d}" % _TLC_MAXINT
-    apply = "\n      [] ".join(f'h = "{h}" -> L!{h}(a, m)' for h in RECV)
-    epoch0, voted0 = int(c.get("Epoch", 1) or 1), int(c.get("VotedFor", 0) or 0)
-    return f"""---- MODULE {name} ----
-EXTENDS Naturals, Sequences, FiniteSets, TLC
-VARIABLES ag, el, cursor, failed
-L == INSTANCE AgentLogic WITH Behaviours <- {behs}, UnknownBehaviour <- "?unknown",
-       ModelName <- {tla.to_tla(c["ModelName"])}, TSync <- {c["TSync"]}, TPing <- {c["TPing"]},
-       TLoss <- {c["TLoss"]}, TPaused <- {c["TPaused"]}, Window <- {c["Window"]},
-       Steps <- {c["Steps"]}, BUG <- "none"
-\\* The fleet: the members the LEADERs in the trace list (quorums count against it).
-Fleet == {tla.to_tla(set(fleet)) if fleet else "{}"}
-\\* Only Election's per-node operators are used: its variables are never read.
-E == INSTANCE Election WITH Agents <- Fleet, Score <- [n \\in {{}} |-> 0], MaxEpoch <- {_TLC_MAXINT},
-       MaxFaults <- 0, Crashes <- FALSE, PCCrash <- FALSE, PCReturns <- FALSE, Partitions <- FALSE,
-       MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {{}}, PreVote <- TRUE, BUG <- "None",
-       life <- {{}}, epoch <- {{}}, votedFor <- {{}}, votes <- {{}}, leader <- {{}}, following <- {{}},
-       via <- {{}}, relays <- {{}}, offered <- {{}}, prevotes <- {{}}, net <- {{}}, down <- {{}}, faults <- 0,
-       lost <- 0, elected <- {{}}, applied <- {{}}, lastAction <- <<>>
-\\* The agent's own score (its --score), or both outcomes of every comparison when unknown.
-MyScores == {scores}
-Trace == <<
-  {(","+chr(10)+"  ").join(items)}
->>
-Vars == {tla.to_tla(set(AGENT_VARS))}
-ElVars == {tla.to_tla(set(ELECTION_VARS))}
-Fits(r, before, after) ==
-    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN after[v] = r.ch[v] ELSE after[v] = before[v]
-\\* votes is compared while the agent is a candidate: the core clears it when the candidacy ends
-\\* (BecomeMaster, a LEADER heard), Election.tla keeps the last set, read only by a CANDIDATE.
-FitsEl(r, before, after) ==
-    \\A v \\in ElVars :
-        IF v = "votes" /\\ after.life # "CANDIDATE" THEN TRUE
-        ELSE IF v \\in DOMAIN r.ech THEN after[v] = r.ech[v] ELSE after[v] = before[v]
-{_agent_steps(c["TPing"], apply)}
-\\* --- composition (docs/spec.md "Election traces") ---
-\\* life CANDIDATE / MASTER are the lifecycle's PANIC; otherwise life is the lifecycle state.
-StateOf(life) == IF life \\in {{"CANDIDATE", "MASTER"}} THEN "PANIC" ELSE life
-LifeOf(st, old) == IF old \\in {{"CANDIDATE", "MASTER"}} /\\ st = "PANIC" THEN old ELSE st
-\\* AgentLogic's master is MasterId; the agent follows master c (el.leader, else the PC; the sender of an
-\\* EPOCH_CMD): the lifecycle sees c as MasterId and MasterId as c (a swap: dedupe keys stay distinct).
-Cur(s) == IF s.leader # 0 THEN s.leader ELSE L!MasterId
-Swap(x, c) == IF x = c THEN L!MasterId ELSE IF x = L!MasterId THEN c ELSE x
-SwapMsg(m, c) == [m EXCEPT !.src = Swap(@, c)]
-SwapAg(a, c) == [a EXCEPT !.win = [i \\in 1..Len(a.win) |-> [a.win[i] EXCEPT !.src = Swap(@, c)]]]
-Handled(a, m, c) == L!Handler(SwapAg(a, c), SwapMsg(m, c))
-Received(h, a, m, c) == SwapAg(Recv(h, SwapAg(a, c), SwapMsg(m, c)).ag, c)
-\\* A bare command or MASTER counts as epoch 1: past epoch 1 it is fenced (ignored, EPOCH_STALE).
-BareFenced(s, a, m) == s.epoch > 1 /\\ L!Answered(m) /\\ L!AddressedTo(a, m)
-\\* The lifecycle after Election step s -> s2 of agent a: the state follows life; a WORKING agent paused
-\\* (master changed, newer epoch) stops its motors; PANIC -> ACTIVE (a LEADER, a relay taken) restarts the
-\\* periodic phase; -> PANIC (RELAY_DROP) is HeartbeatLost's; hearing a master resets the silence.
-Follow(a, s2, heard) ==
-    LET st == StateOf(s2.life)
-        b == CASE st = a.state -> a
-               [] st = "PAUSED" /\\ a.state = "WORKING" -> [L!Goto(a, "PAUSED") EXCEPT !.motors = "OFF"]
-               [] st = "ACTIVE" /\\ a.state = "PANIC" -> [L!Goto(a, "ACTIVE") EXCEPT !.clk = 0]
-               [] st = "PANIC" -> [L!Goto(L!Stopped(a), "PANIC") EXCEPT !.silence = 0, !.clk = 0]
-               [] OTHER -> [a EXCEPT !.state = "none"]
-    IN IF heard THEN [b EXCEPT !.silence = 0] ELSE b
-\\* RELAY's x: the relayed agent (the target, or the sender when it goes to the master).
-FwdMsg(m, s) == IF m.tgt = s.leader THEN [m EXCEPT !.x = m.src] ELSE [m EXCEPT !.x = m.tgt]
-\\* The agent's Election step for record r from s (its id me, its score sv): the set of new local
-\\* states, empty when the action is not enabled on the agent's own state.
-IfOk(ok, s2) == IF ok THEN {{s2}} ELSE {{}}
-ElSteps(r, s, me, sv) ==
-    LET m == r.em IN
-    CASE r.a = "RequestRelay" -> IfOk(E!RequestRelayOk(s), s)
-      [] r.a = "StartElection" -> IfOk(E!StartElectionOk(me, s), E!StartElectionNext(me, s))
-      [] r.a = "BecomeMaster" -> IfOk(E!BecomeMasterOk(s), E!BecomeMasterNext(s))
-      [] r.a = "GrantPreVote" -> IfOk(E!GrantPreVoteOk(me, s, m, m.sc, sv), s)
-      [] r.a = "Forward" -> IfOk(E!ForwardOk(me, s, FwdMsg(m, s)), s)
-      [] r.a = "OfferRelay" -> {{IF E!OfferRelayOk(me, s, m) THEN E!OfferRelayNext(s, m) ELSE s}}
-      [] r.a = "HandleAccept" -> {{IF E!HandleAcceptOk(me, s, m) THEN E!HandleAcceptNext(s, m) ELSE s}}
-      [] r.a = "AcceptRelay" -> {{IF E!AcceptRelayOk(me, s, m) THEN E!AcceptRelayNext(s, m) ELSE s}}
-      [] r.a = "RelayDropped" -> {{IF E!RelayDroppedOk(me, s, m) THEN E!RelayDroppedNext(s) ELSE s}}
-      [] r.a = "HandlePreVote" -> {{IF E!HandlePreVoteOk(me, s, m) THEN E!HandlePreVoteNext(s, m) ELSE s}}
-      [] r.a = "HandleElect" ->
-           {{IF E!HandleElectOk(me, s, m, m.sc, sv) THEN E!HandleElectNext(me, s, m, m.sc, sv) ELSE s}}
-      [] r.a = "HandleVote" -> {{IF E!HandleVoteOk(me, s, m) THEN E!HandleVoteNext(s, m) ELSE s}}
-      [] r.a = "HandleHeartbeat" ->
-           {{IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(s, m) ELSE s}}
-      [] r.a = "HandleStale" -> {{IF E!HandleStaleOk(me, s, m) THEN E!HandleStaleNext(me, s, m) ELSE s}}
-      [] OTHER -> {{}}
-\\* Following master c in epoch e after a MASTER (bare: the PC, epoch 1; inside EPOCH_CMD: its sender
-\\* and epoch): Election's rule for hearing c's heartbeat; the lifecycle gives the state.
-Synced(s, c, e, st) == [E!HandleHeartbeatNext(s, E!M("HB", c, 0, e, 0)) EXCEPT !.life = LifeOf(st, s.life)]
-InitEl == [life |-> "IDLE", epoch |-> {epoch0}, votedFor |-> {voted0}, votes |-> {{}}, leader |-> 0,
-           following |-> 0, via |-> 0, relays |-> {{}}, offered |-> {{}}, prevotes |-> {{}}]
-Init == /\\ ag = L!InitAgent({temp_id}) /\\ el = InitEl /\\ cursor = 1 /\\ failed = 0
-Step(r, a2, s2) == /\\ Fits(r, ag, a2) /\\ FitsEl(r, el, s2) /\\ ag' = a2 /\\ el' = s2
-Match ==
-    /\\ failed = 0 /\\ cursor <= Len(Trace)
-    /\\ LET r == Trace[cursor] IN
-       IF r.a = "Tick" THEN
-          /\\ L!TickOk(ag) /\\ L!TickOk(Adv(ag, r.n - 1))
-          /\\ Step(r, L!Tick(Adv(ag, r.n - 1)).ag, el)
-       ELSE IF r.a = "ApplyCommand" THEN
-          \\* EPOCH_CMD of master c in epoch e: the inner datagram goes to AgentLogic's handler r.cmd
-          \\* (c seen as the master); a MASTER syncs a masterless agent in e, anything else passes the
-          \\* fence (Election's Obeys: c is the master it follows in e, its highest epoch).
-          LET c == r.em.src
-              a2 == Received(r.cmd, ag, r.im, c)
-          IN /\\ ag.state # "OFF" /\\ r.em.t = "CMD" /\\ r.im.type # "NONE" /\\ r.im.src = c
-             /\\ Handled(ag, r.im, c) = r.cmd
-             /\\ IF r.im.type = "MASTER"
-                THEN /\\ r.em.e >= el.epoch
-                     /\\ Step(r, a2, IF r.cmd = "RecvMaster" THEN Synced(el, c, r.em.e, a2.state) ELSE el)
-                ELSE /\\ E!Obeys(el, r.em)
-                     /\\ Step(r, a2, [el EXCEPT !.life = LifeOf(a2.state, el.life)])
-       ELSE IF r.a \\in {tla.to_tla(ELECTION_ACTIONS)} THEN
-          \\* An Election action: its rule on the agent's own state (environment guards satisfiable). A
-          \\* receive handler not enabled on the agent's own state must be a stutter (the core answering
-          \\* a copy again: a VOTE re-sent, a LEADER of the master it follows).
-          \\E sv \\in MyScores : \\E s2 \\in ElSteps(r, el, ag.id, sv) :
-             Step(r, Follow(ag, s2, r.a \\in {{"HandleHeartbeat", "AcceptRelay"}} /\\ r.em.e >= el.epoch), s2)
-       ELSE IF r.em.t # "NONE" THEN
-          \\* an Election datagram no Election handler took: the environment's guards may all fail
-          /\\ r.a = "Ignore" /\\ Step(r, ag, el)
-       ELSE IF r.m.type # "NONE" THEN
-          /\\ ag.state # "OFF"
-          /\\ IF BareFenced(el, ag, r.m)
-             THEN r.a = "Ignore" /\\ Step(r, ag, el)
-             ELSE /\\ Handled(ag, r.m, Cur(el)) = r.a
-                  /\\ LET a2 == Received(r.a, ag, r.m, Cur(el)) IN
-                     Step(r, a2, IF r.a = "RecvMaster" THEN Synced(el, Cur(el), 1, a2.state)
-                                 ELSE [el EXCEPT !.life = LifeOf(a2.state, el.life)])
-       ELSE
-          /\\ IntOk(r, ag)
-          /\\ LET a2 == Internal(r, ag).ag IN
-             IF r.a = "HeartbeatLost"
-             THEN E!TimeoutOk(el) /\\ Step(r, a2, E!TimeoutNext(el))
-             ELSE Step(r, a2, [el EXCEPT !.life = LifeOf(a2.state, el.life)])
-    /\\ cursor' = cursor + 1
-    /\\ UNCHANGED failed
-Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
-         /\\ failed' = cursor /\\ UNCHANGED <<ag, el, cursor>>
-Next == Match \\/ Stuck
-Matched == cursor <= Len(Trace)
-NotStuck == failed = 0
-====
-"""
+        return {"a": r["action"], "m": m, "em": em, "im": im, "cmd": str(args.get("cmd", "Ignore")),
+                "e": str(args.get("e", "")), "n": int(args.get("ticks", 1)),
+                "ch": _agent_changed(r.get("changed", {})), "ech": _el_changed(r.get("changed", {}))}
+    return [_record(recs, k, one) for k in range(len(recs))], fleet
 
 
-# --- the master with --election (MasterLogic + Election.tla's PC rules) ------------------------
-#
-# `ev3-master --election` writes, besides MasterLogic's records, Election.tla records of the PC (node
-# 1 in Election.tla; its own variables life, epoch, votes) and two master-side extensions. The check
-# (module MasterElectionTraceCheck, docs/spec.md "Election master traces") keeps MasterLogic's state
-# `ms` with the time map above, the PC's Election record `el` (Election.tla's Loc: life, epoch, votes;
-# the agent-only fields NoNode / {}) and the membership `mem` quorums count against; one TLC step per
-# record:
-#   - MasterLogic's records (MasterSync, MasterAnswer, MasterPing, MasterReport) only while MASTER (the
-#     core ignores the fleet's datagrams otherwise), after the master's route bookkeeping (the core's
-#     note_route, not in MasterLogic: the sender's entry moves to the endpoint it was heard from; a
-#     member that PINGs unregistered is adopted as synced with desired UNKNOWN; a member syncing
-#     that PINGs is synced): a datagram inside RELAY(1, inner) is the inner one (the relay is
-#     transparent). MasterCommand and MasterTick as MasterLogic; the registry ticks only while MASTER.
-#   - Election.tla's PC rules by its own operators: StartElection (XOk / XNext of node 1), HandleVote
-#     (from a member), BecomeMaster (Quorum over `mem`), HandleStale; Heartbeat's guard (life MASTER:
-#     Election has no HeartbeatOk operator). HandleHeartbeat of the PC (docs/core.md deviation 4): an
-#     older LEADER is answered EPOCH_STALE (state unchanged, Election's Stale branch), a newer one is
-#     HandleStale's rule with the LEADER's epoch. HandleElect: the PC ignores ELECT (Election has no
-#     HandleElect of the PC): rejected. Every datagram the core sends draws a msgid (LEADER, ELECT,
-#     EPOCH_STALE): `msgid` grows by one on Heartbeat, StartElection, BecomeMaster and an answered
-#     older LEADER. (Self: node 1; the Master core of an elected agent is checked as its node, see
-#     agent_master_runs at the end: HandleElect / HandleHeartbeat / HandleStale are then Election's
-#     rules of that agent node, the trace's STEPPED_DOWN any life but MASTER, HANDOVER sent once.)
-#   - The core's time: Heartbeat and StartElection come from its deadlines like MasterTick (nothing of
-#     the registry due before their ms; at the same ms the heartbeat goes first). Operator arguments
-#     are bound once (\E x \in {e}): TLC passes them by name and re-evaluates them at every use.
-#   - Extensions Election abstracts (docs/election.md section 5): MasterRoute (RELAY_ROUTE(epoch, a):
-#     only as MASTER of that epoch, for an entry or a member; the entry moves to the relay's endpoint
-#     or a member is adopted), MasterHandover (HANDOVER(epoch, ids): only as MASTER, epoch not above
-#     ours; its assigned ids join `mem`, nothing else changes).
-#   - Not observed: what the master sends (as for MasterLogic): EPOCH_CMD and RELAY wrapping of its
-#     commands (checked at the agents: ApplyCommand's fence), LEADER's membership; the election's
-#     timers (leader heartbeat, candidate timeout: Election.tla has no time); the `via` of an entry.
+# --- the master with --election (MasterElectionTrace: MasterLogic + Election.tla's rules of the node) -
 
 _MASTER_EL_TYPES = {"VOTE", "LEADER", "EPOCH_STALE", "RELAY_ROUTE", "HANDOVER", "ELECT"}
 
@@ -783,245 +574,33 @@ def _master_el_msg(text: str) -> tuple[dict, dict, list[int], bool]:
     return dict(_NONE_MSG), em, ids, relayed
 
 
-def master_election_module(name: str, recs: list[dict], consts: dict) -> str:
-    """MasterElectionTraceCheck (see above). consts: as master_module, and Epoch, Members (the epoch
-    and membership the master starts from: its --state-file, else 1 and none) and Life ("CANDIDATE"
-    when restarted from a state file: Election's Restart(PC); else "MASTER")."""
-    c, base = _master_consts(consts, recs)
-    items = []
-    for r in recs:
+def _master_election_records(recs: list[dict]) -> list[dict]:
+    """MasterElectionTrace's records [a, m, em, ids, now, ch, ech]."""
+    base = int(recs[0].get("now", 0))
+
+    def one(r):
         ch = r.get("changed", {})
-        parts, eparts = _master_changed_parts(ch), []
+        ech = {}
         if "life" in ch:
-            eparts.append(f"life |-> {tla.to_tla(ch['life'])}")
+            ech["life"] = str(ch["life"])
         if "epoch" in ch:
-            eparts.append(f"epoch |-> {int(ch['epoch'])}")
+            ech["epoch"] = int(ch["epoch"])
         if "votes" in ch:
-            eparts.append(f"votes |-> {tla.to_tla(frozenset(int(v) for v in ch['votes']))}")
+            ech["votes"] = frozenset(int(v) for v in ch["votes"])
         text = r.get("args", {}).get("msg")
         m, em, ids = dict(_NONE_MSG), dict(_NONE_EL), []
         if text:
             m, em, ids, _relayed = _master_el_msg(text)
-            if m["dst"] == int(c.get("Self", 1) or 1):
-                m["dst"] = 1  # an agent-master: MasterLogic's master is MasterId
-        chs = "[" + ", ".join(parts) + "]" if parts else "[x \\in {} |-> 0]"
-        echs = "[" + ", ".join(eparts) + "]" if eparts else "[x \\in {} |-> 0]"
-        now = int(r.get("now", 0)) - base
-        items.append(f'[a |-> "{r["action"]}", m |-> {tla.to_tla(m)}, em |-> {tla.to_tla(em)}, '
-                     f'ids |-> {tla.to_tla(frozenset(ids))}, now |-> {now}, ch |-> {chs}, ech |-> {echs}]')
-    behs = "{" + ", ".join(tla.to_tla(b) for b in _behaviour_names(recs, c.get("Behaviours"))) + "}"
-    members = frozenset(int(x) for x in (c.get("Members") or []))
-    # Election's Agents is a constant: one instance per membership the trace can reach (the start's,
-    # grown by each HANDOVER's assigned ids); BecomeMasterOk picks the one equal to `mem`.
-    fleets, cur = [members], set(members)
-    for r in recs:
-        if r.get("action") == "MasterHandover" and r.get("args", {}).get("msg"):
-            try:
-                _m, _em, ids, _rl = _master_el_msg(r["args"]["msg"])
-            except wire.DecodeError:
-                continue
-            cur |= {i for i in ids if 2 <= i <= 49999}
-            if frozenset(cur) not in fleets:
-                fleets.append(frozenset(cur))
-    quorum = "\n      [] ".join(f"mem = {tla.to_tla(f) if f else '{}'} -> E({tla.to_tla(f) if f else '{}'})!BecomeMasterOk(s)"
-                                 for f in fleets)
-    life0 = str(c.get("Life") or "MASTER")
-    self_id = int(c.get("Self", 1) or 1)
-    epoch0 = int(c.get("Epoch", 1) or 1)
-    return f"""---- MODULE {name} ----
-EXTENDS Integers, Sequences, FiniteSets, TLC
-VARIABLES ms, el, mem, handed, cursor, clock, sent, failed
-TDrop == {int(c["TDrop"])}
-M == INSTANCE MasterLogic WITH TDrop <- TDrop, MaxResends <- {int(c["MaxResends"])},
-       ExactMsgids <- TRUE, BUG <- "none"
-\\* Election.tla's per-node operators for a fleet F (the membership: quorums count against it); its
-\\* variables are never read.
-\\* (Election's Agents is a constant: one instance per membership, see QuorumOk.)
-E(F) == INSTANCE Election WITH Agents <- F, Score <- [n \\in {{}} |-> 0], MaxEpoch <- {_TLC_MAXINT},
-       MaxFaults <- 0, Crashes <- FALSE, PCCrash <- FALSE, PCReturns <- FALSE, Partitions <- FALSE,
-       MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {{}}, PreVote <- TRUE, BUG <- "None",
-       life <- {{}}, epoch <- {{}}, votedFor <- {{}}, votes <- {{}}, leader <- {{}}, following <- {{}},
-       via <- {{}}, relays <- {{}}, offered <- {{}}, prevotes <- {{}}, net <- {{}}, down <- {{}}, faults <- 0,
-       lost <- 0, elected <- {{}}, applied <- {{}}, lastAction <- <<>>
-PC == 1
-\\* The master's node: the PC, or the elected agent whose Master core wrote the trace.
-Self == {self_id}
-\\* The trace's life: the PC's Election life; an agent-master's Master core knows MASTER and STEPPED_DOWN
-\\* (any other Election life of the node: its agent core carries the node's lifecycle).
-View(l) == IF Self = PC \\/ l \\in {{"MASTER", "CANDIDATE"}} THEN l ELSE "STEPPED_DOWN"
-TResend == {int(c["TResend"])}
-Behs == {behs}
-Trace == <<
-  {(","+chr(10)+"  ").join(items)}
->>
-Vars == {{"reg", "nextId", "msgid"}}
-ElVars == {{"life", "epoch", "votes"}}
-Val(v, s) == IF v = "msgid" THEN s.msgid[0] ELSE s[v]
-Fits(r, before, after) ==
-    \\A v \\in Vars : IF v \\in DOMAIN r.ch THEN Val(v, after) = r.ch[v] ELSE after[v] = before[v]
-FitsEl(r, before, after) ==
-    \\A v \\in ElVars :
-        IF v = "life" THEN View(after.life) = IF v \\in DOMAIN r.ech THEN r.ech.life ELSE View(before.life)
-        ELSE IF v \\in DOMAIN r.ech THEN after[v] = r.ech[v] ELSE after[v] = before[v]
-Eps(r) == {{x.ep : x \\in ms.reg}} \\cup (IF "reg" \\in DOMAIN r.ch THEN {{x.ep : x \\in r.ch.reg}} ELSE {{}})
-Cmds == {{M!Cmd(t, M!NoBehaviour) : t \\in {tla.to_tla(set(COMMANDS) - {"BEHAVIOUR"})}}}
-        \\cup {{M!Cmd("BEHAVIOUR", b) : b \\in Behs}}
-Ids(s) == {{x.id : x \\in s.reg}}
-EntryOf(s, i) == CHOOSE x \\in s.reg : x.id = i
-Age(s, k) == [s EXCEPT !.reg = {{[x EXCEPT !.quiet = x.quiet + k] : x \\in s.reg}}]
-\\* The registry's deadlines (MasterLogic's tick, time map above) run only while the PC is MASTER.
-DueAt(y, t) == y.quiet + (t - clock) >= TDrop \\/ (y.pending /\\ t - sent[y.id] >= TResend)
-Due(t) == IF el.life = "MASTER" THEN {{y.id : y \\in {{x \\in ms.reg : DueAt(x, t)}}}} ELSE {{}}
-NewSent(s2, D, t) ==
-    [i \\in Ids(s2) |-> IF i \\in D \\/ ~\\E y \\in ms.reg : y.id = i /\\ y.pending /\\ y.mid = EntryOf(s2, i).mid
-                       THEN t ELSE sent[i]]
-\\* The console's `all` (one core call, one record): MasterCommand for every registered id in id order
-\\* leads from s to s2. (A predicate with each intermediate state bound by \\E: TLC passes operator
-\\* arguments by name, and a recursive operator returning the state re-evaluates them exponentially.)
-RECURSIVE ForAllLeads(_, _, _, _)
-ForAllLeads(s, ids, c, s2) ==
-    IF ids = {{}} THEN s = s2
-    ELSE \\E i \\in {{CHOOSE i \\in ids : \\A j \\in ids : i <= j}} :
-         \\E s1 \\in {{M!MasterCommand(s, i, c).ms}} : ForAllLeads(s1, ids \\ {{i}}, c, s2)
-CmdResults(s) == {{M!MasterCommand(s, id, c).ms : id \\in Ids(s) \\cup {{1}}, c \\in Cmds}}
-\\* The state a MasterCommand record claims (its changed variables over s).
-Claimed(r, s) == [reg |-> IF "reg" \\in DOMAIN r.ch THEN r.ch.reg ELSE s.reg,
-                  nextId |-> IF "nextId" \\in DOMAIN r.ch THEN r.ch.nextId ELSE s.nextId,
-                  msgid |-> [k \\in {{0}} |-> IF "msgid" \\in DOMAIN r.ch THEN r.ch.msgid ELSE s.msgid[0]]]
-\\* A datagram the election side sends (LEADER, ELECT, EPOCH_STALE) draws a msgid.
-Drawn(s) == [s EXCEPT !.msgid[0] = @ + 1]
-\\* --- master-side extensions (not in MasterLogic; Election abstracts them) ---
-\\* A member registered without MASTER (it follows our LEADER): synced, desired unknown.
-Adopted(i, from) == [ann |-> i, id |-> i, ep |-> from, synced |-> TRUE, pending |-> FALSE, mid |-> 0,
-                     resends |-> 0, queue |-> <<>>, desired |-> M!UnknownDesired, beh |-> M!NoBehaviour,
-                     quiet |-> 0, hi |-> 0]
-\\* Where a fleet datagram came from (the core's note_route, before MasterLogic's handler).
-Route(s, m, from) ==
-    IF m.src \\in Ids(s) THEN
-       LET x == EntryOf(s, m.src)
-           y == [x EXCEPT !.ep = from]
-       IN IF m.type = "PING" /\\ ~x.synced /\\ m.src \\in mem
-          THEN LET r == M!StartNext(s, [y EXCEPT !.synced = TRUE, !.pending = FALSE])
-               IN M!Replace(r.ms, x, r.x)
-          ELSE M!Replace(s, x, y)
-    ELSE IF m.type = "PING" /\\ m.src \\in mem THEN [s EXCEPT !.reg = @ \\cup {{Adopted(m.src, from)}}]
-    ELSE s
-\\* RELAY_ROUTE(e, a) from a relay heard at endpoint from: a is reached there.
-RouteTo(s, a, from) ==
-    IF a \\in Ids(s) THEN M!Replace(s, EntryOf(s, a), [EntryOf(s, a) EXCEPT !.ep = from])
-    ELSE [s EXCEPT !.reg = @ \\cup {{Adopted(a, from)}}]
-AssignedIds == 2..49999
-\\* Election's BecomeMasterOk (a majority of the membership voted) over the membership mem.
-QuorumOk(s) ==
-    CASE {quorum}
-      [] OTHER -> FALSE
-\\* The rules that do not read the membership.
-EP == INSTANCE Election WITH Agents <- {tla.to_tla(members) if members else "{}"}, Score <- [n \\in {{}} |-> 0],
-       MaxEpoch <- {_TLC_MAXINT}, MaxFaults <- 0, Crashes <- FALSE, PCCrash <- FALSE, PCReturns <- FALSE,
-       Partitions <- FALSE, MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {{}}, PreVote <- TRUE,
-       BUG <- "None", life <- {{}}, epoch <- {{}}, votedFor <- {{}}, votes <- {{}}, leader <- {{}},
-       following <- {{}}, via <- {{}}, relays <- {{}}, offered <- {{}}, prevotes <- {{}}, net <- {{}}, down <- {{}},
-       faults <- 0, lost <- 0, elected <- {{}}, applied <- {{}}, lastAction <- <<>>
-InitEl == [life |-> {tla.to_tla(life0)}, epoch |-> {epoch0}, votes |-> {{}}, votedFor |-> 0, leader |-> 0,
-           following |-> 0, via |-> 0, relays |-> {{}}, offered |-> {{}}, prevotes |-> {{}}]
-Init == /\\ ms = [reg |-> {{}}, nextId |-> {int(c["NextId"])}, msgid |-> [k \\in {{0}} |-> {int(c["FirstMsgid"])}]]
-        /\\ el = InitEl /\\ mem = {tla.to_tla(members) if members else "{}"}
-        /\\ handed = FALSE /\\ cursor = 1 /\\ clock = 0 /\\ sent = [i \\in {{}} |-> 0] /\\ failed = 0
-\\* One step of the master: registry s2 (before: s0), election state el2, membership mem2. (TLC passes
-\\* operator arguments by name: \\E x \\in {{e}} evaluates each once.)
-Step(r, s0, s2x, el2x, mem2, D, t) ==
-    \\E s2 \\in {{s2x}} : \\E el2 \\in {{el2x}} :
-       /\\ Fits(r, s0, s2) /\\ FitsEl(r, el, el2)
-       /\\ ms' = s2 /\\ el' = el2 /\\ mem' = mem2 /\\ sent' = NewSent(s2, D, t)
-Match ==
-    /\\ failed = 0 /\\ cursor <= Len(Trace)
-    /\\ \\E r \\in {{Trace[cursor]}} : \\E s0 \\in {{Age(ms, Trace[cursor].now - clock)}} :
-       LET t == r.now
-           k == t - clock
-           em == r.em
-       IN /\\ t >= clock
-          \\* Heartbeat, StartElection, MasterTick come from the core's deadlines: at the first ms
-          \\* anything of the registry is due (Heartbeat first when both are); the rest find nothing due.
-          /\\ IF r.a \\in {{"Heartbeat", "StartElection", "MasterTick"}} THEN k > 0 => Due(t - 1) = {{}}
-             ELSE Due(t) = {{}}
-          /\\ IF r.a = "MasterTick" THEN
-                  /\\ Due(t) # {{}}
-                  /\\ \\E D \\in {{Due(t)}} :
-                     \\E pre \\in {{[s0 EXCEPT !.reg = {{IF x.id \\in D THEN [x EXCEPT !.quiet = @ - 1] ELSE x : x \\in @}}]}} :
-                        Step(r, s0, M!TickEntries(pre, D, {{}}).ms, el, mem, D, t)
-             ELSE IF r.a = "MasterCommand" THEN
-                  \\E s2 \\in CmdResults(s0) \\cup {{Claimed(r, s0)}} :
-                     /\\ s2 \\in CmdResults(s0) \\/ \\E c \\in Cmds : ForAllLeads(s0, Ids(s0), c, s2)
-                     /\\ Step(r, s0, s2, el, mem, {{}}, t)
-             ELSE IF r.a \\in {tla.to_tla(set(MASTER_RECV))} THEN
-                  /\\ el.life = "MASTER" /\\ r.m.type # "NONE" /\\ M!Handler(r.m) = r.a
-                  /\\ \\E from \\in Eps(r) \\cup {{0}} :
-                        \\E s1 \\in {{Route(s0, r.m, from)}} :
-                           \\* ids exhausted (an agent-master assigns none): an unknown temporary id is ignored
-                           IF r.a = "MasterSync" /\\ M!Known(s1, r.m.src) = {{}} /\\ r.m.src \\notin AssignedIds
-                              /\\ s1.nextId > 49999
-                           THEN Step(r, s0, s1, el, mem, {{}}, t)
-                           ELSE Step(r, s0, M!Receive(s1, r.m, from).ms, el, mem, {{}}, t)
-             ELSE IF r.a = "Heartbeat" THEN
-                  /\\ el.life = "MASTER"   \\* Election's Heartbeat(n): life[n] = "MASTER"
-                  /\\ Step(r, s0, Drawn(s0), el, mem, {{}}, t)
-             ELSE IF r.a = "StartElection" THEN
-                  /\\ EP!StartElectionOk(Self, el)
-                  /\\ Step(r, s0, Drawn(s0), EP!StartElectionNext(Self, el), mem, {{}}, t)
-             ELSE IF r.a = "HandleVote" THEN
-                  /\\ em.src \\in mem /\\ EP!HandleVoteOk(Self, el, em)
-                  /\\ Step(r, s0, s0, EP!HandleVoteNext(el, em), mem, {{}}, t)
-             ELSE IF r.a = "BecomeMaster" THEN
-                  /\\ QuorumOk(el)
-                  /\\ Step(r, s0, Drawn(s0), EP!BecomeMasterNext(el), mem, {{}}, t)
-             ELSE IF r.a = "HandleStale" THEN
-                  /\\ EP!HandleStaleOk(Self, el, em)
-                  /\\ Step(r, s0, s0, EP!HandleStaleNext(Self, el, em), mem, {{}}, t)
-             ELSE IF r.a = "HandleHeartbeat" THEN
-                  LET st == [em EXCEPT !.t = "STALE", !.dst = PC] IN
-                  /\\ em.t = "HB" /\\ em.src # Self
-                  /\\ IF em.e < el.epoch
-                     THEN /\\ View(el.life) # "STEPPED_DOWN"
-                          /\\ Step(r, s0, Drawn(s0), el, mem, {{}}, t)
-                     ELSE IF Self = PC
-                     THEN /\\ EP!HandleStaleOk(PC, el, st)
-                          /\\ Step(r, s0, s0, EP!HandleStaleNext(PC, el, st), mem, {{}}, t)
-                     \\* an agent-master: Election's HandleHeartbeat of node Self (it follows the newer
-                     \\* master); its Master core hands the registry over once (HANDOVER: a msgid)
-                     ELSE /\\ EP!HandleHeartbeatOk(Self, el, em)
-                          /\\ Step(r, s0, IF handed THEN s0 ELSE Drawn(s0), EP!HandleHeartbeatNext(el, em), mem, {{}}, t)
-             ELSE IF r.a = "HandleElect" THEN
-                  \\* an agent-master steps down on a newer ELECT (Election's HandleElect of node Self; the
-                  \\* vote is its agent core's); the PC ignores ELECT (Election has no HandleElect of the PC)
-                  /\\ Self # PC /\\ em.t = "ELECT" /\\ em.e > el.epoch /\\ View(el.life) # "STEPPED_DOWN"
-                  /\\ EP!HandleElectOk(Self, el, em, 0, 0)
-                  /\\ Step(r, s0, s0, EP!HandleElectNext(Self, el, em, 0, 0), mem, {{}}, t)
-             ELSE IF r.a = "MasterRoute" THEN
-                  /\\ em.t = "ROUTE" /\\ em.dst = Self /\\ el.life = "MASTER" /\\ em.e = el.epoch
-                  /\\ em.x \\in Ids(s0) \\cup mem
-                  /\\ \\E from \\in Eps(r) \\cup {{0}} : Step(r, s0, RouteTo(s0, em.x, from), el, mem, {{}}, t)
-             ELSE IF r.a = "MasterHandover" THEN
-                  /\\ em.t = "HANDOVER" /\\ em.dst = Self /\\ el.life = "MASTER" /\\ em.e <= el.epoch
-                  /\\ Step(r, s0, s0, el, mem \\cup (r.ids \\cap (AssignedIds \\ {{Self}})), {{}}, t)
-             ELSE FALSE
-          /\\ clock' = t
-          /\\ handed' = (handed \\/ (r.a = "HandleHeartbeat" /\\ Self # PC /\\ em.e >= el.epoch))
-    /\\ cursor' = cursor + 1
-    /\\ UNCHANGED failed
-Stuck == failed = 0 /\\ cursor <= Len(Trace) /\\ ~ENABLED Match
-         /\\ failed' = cursor /\\ UNCHANGED <<ms, el, mem, handed, cursor, clock, sent>>
-Next == Match \\/ Stuck
-Matched == cursor <= Len(Trace)
-NotStuck == failed = 0
-====
-"""
+        return {"a": r["action"], "m": m, "em": em, "ids": frozenset(ids), "now": int(r.get("now", 0)) - base,
+                "ch": _master_changed(ch), "ech": ech}
+    return [_record(recs, k, one) for k in range(len(recs))]
 
 
 # --- the Master core an elected agent runs (ev3-agent --election --trace) --------------------------
 #
 # While an agent is the elected master, its program runs a Master core (docs/core.md "An agent becomes
 # master") whose records go to the agent's --trace as node "master:ID:EPOCH" (one core per epoch won).
-# Each is checked by master_election_module with Self = ID: MASTER of EPOCH from its first record, no
+# Each is checked by MasterElectionTrace with Self = ID: MASTER of EPOCH from its first record, no
 # ids to assign (next id 50000: an unknown temporary id is ignored), the membership its agent core
 # knew (the members of the last LEADER it took before), the first msgid read from its first record
 # (a Heartbeat: the core draws msgids above the agent core's); its step-down by Election's
@@ -1031,12 +610,16 @@ NotStuck == failed = 0
 
 def agent_master_runs(path: Path, consts: dict | None = None) -> list[tuple[str, dict]]:
     """(node, validate_master constants) of each Master core in an agent's trace. consts: the master
-    timers TDrop, TResend, MaxResends (default: ev3-agent's, the defaults of timers.hpp: 10000, 500, 10)."""
-    recs = load(Path(path), None)
+    timers TDrop, TResend, MaxResends (default: ev3-agent's, the defaults of timers.hpp: 10000, 500, 10).
+    A trace that cannot be read has none (validate reports why)."""
+    try:
+        recs = load(Path(path), None)
+    except TraceError:
+        return []
     out = []
-    for name in dict.fromkeys(r.get("node", "") for r in recs):
+    for name in dict.fromkeys(str(r.get("node", "")) for r in recs):
         parts = name.split(":")
-        if len(parts) != 3 or parts[0] != "master":
+        if len(parts) != 3 or parts[0] != "master" or not (parts[1].isdigit() and parts[2].isdigit()):
             continue
         mine = [r for r in recs if r.get("node") == name]
         start = mine[0].get("now", 0)
@@ -1046,7 +629,7 @@ def agent_master_runs(path: Path, consts: dict | None = None) -> list[tuple[str,
             if r.get("node") == "agent" and r.get("now", 0) <= start and r.get("action") == "HandleHeartbeat":
                 try:
                     m = wire.decode(r["args"]["msg"].encode("latin-1"))
-                except (KeyError, wire.DecodeError):
+                except (KeyError, AttributeError, wire.DecodeError):
                     continue
                 e = _num(list(m.params), 0)
                 if e >= best:
@@ -1061,3 +644,73 @@ def agent_master_runs(path: Path, consts: dict | None = None) -> list[tuple[str,
                   "FirstMsgid": int(msgid) - 1 if first.get("action") == "Heartbeat" and msgid else 1})
         out.append((name, c))
     return out
+
+
+# --- the trace modules themselves (make spec: tools/spec.py check) ----------------------------------
+
+SAMPLES = TRACE_SPEC / "samples"
+
+
+def _sany(modules: list[str], cwd: Path) -> str | None:
+    """SANY on @p modules in @p cwd: None, or its report of the first module with errors."""
+    import subprocess
+    md = tempfile.mkdtemp(prefix="sany-", dir=cwd)
+    try:
+        p = subprocess.run(gr.JAVA + [f"-Djava.io.tmpdir={md}", "-cp", str(gr.JAR), "tla2sany.SANY"] + modules,
+                           cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    finally:
+        shutil.rmtree(md, ignore_errors=True)
+    out = p.stdout
+    if p.returncode != 0 or "*** Errors" in out or "Semantic errors" in out or "Parse Error" in out:
+        return out
+    return None
+
+
+def check_modules(say=print, jobs: int = 2) -> bool:
+    """What make spec checks of spec/tla/trace/: SANY on every module (the MC*Trace ones are parsed by
+    TLC with their sample's data), and each check on its sample trace (samples/samples.json): the
+    sample must conform, and the same trace with one record changed must be rejected naming that
+    record. Every MC*Trace module must have a sample. Prints one line per check; True when all pass."""
+    wd = gr.BUILD / "trace-modules"
+    wd.mkdir(parents=True, exist_ok=True)
+    d = Path(tempfile.mkdtemp(prefix="sany-", dir=wd))
+    for f in sorted(gr.SPEC.glob("*.tla")) + sorted(TRACE_SPEC.glob("*.tla")):
+        shutil.copy(f, d / f.name)
+    mods = sorted(f.name for f in TRACE_SPEC.glob("*.tla"))
+    err = _sany([m for m in mods if not m.startswith("MC")], d)
+    shutil.rmtree(d, ignore_errors=True)
+    if err:
+        say(err)
+        say("FAIL trace modules: SANY found errors (above)")
+        return False
+    say(f"trace modules: SANY ok on {', '.join(m for m in mods if not m.startswith('MC'))}")
+    spec = json.loads((SAMPLES / "samples.json").read_text())["samples"]
+    missing = sorted({m[:-4] for m in mods if m.startswith("MC")} - {s["module"] for s in spec})
+    if missing:
+        say(f"FAIL trace modules: no sample trace checks {', '.join(missing)} (samples/samples.json)")
+        return False
+
+    def run(job):
+        s, bad = job
+        path = SAMPLES / s["trace"]
+        k = 0
+        if bad:
+            recs = [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
+            k = s["corrupt"]["record"]
+            recs[k - 1] = dict(recs[k - 1], changed=dict(recs[k - 1].get("changed", {}), **s["corrupt"]["changed"]))
+            path = Path(tempfile.mkdtemp(prefix="bad-", dir=wd)) / s["trace"]
+            path.write_text("".join(json.dumps(r) + "\n" for r in recs))
+        r = (validate_master(path, s["consts"], workdir=wd) if s.get("master")
+             else validate(path, s["consts"], workdir=wd))
+        if bad:
+            shutil.rmtree(path.parent, ignore_errors=True)
+            ok = not r.ok and f"record {k} of {r.records} could not be matched" in r.message
+            return ok, f"{s['module']} on {s['trace']} with record {k} changed: " + \
+                       (f"rejected, record {k} named" if ok else f"NOT REJECTED AS IT SHOULD BE: {r.message}")
+        return r.ok, f"{s['module']} on {s['trace']}: {r.message}"
+
+    with ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
+        results = list(ex.map(run, [(s, bad) for s in spec for bad in (False, True)]))
+    for ok, line in results:
+        say(f"{'ok  ' if ok else 'FAIL'} {line}")
+    return all(ok for ok, _ in results)

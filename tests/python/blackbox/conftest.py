@@ -84,15 +84,16 @@ def start_agent(agent_exe, programs, tmp_path, tm):
 # EV3_TRACE_VALIDATE=0 turns it off; =sync checks at each teardown (slower, fails the test at once).
 # Agents started with --election (test_election.py, with their own --trace=FILE) are checked too: their
 # traces hold Election.tla actions (HandleHeartbeat, StartElection, Forward, ...), checked by the
-# per-agent projection of Election.tla composed with AgentLogic (tracecheck.election_module; constants:
+# per-agent projection of Election.tla composed with AgentLogic (spec/tla/trace/ElectionTrace.tla; constants:
 # the run's timers, its --score, the epoch / voted_for of its --state-dir at start).
 # Masters started with --election (test_election.py: 2) are checked by MasterLogic composed with
-# Election.tla's rules of the PC (tracecheck.master_election_module: Heartbeat, StartElection,
+# Election.tla's rules of the PC (spec/tla/trace/MasterElectionTrace.tla: Heartbeat, StartElection,
 # HandleVote, BecomeMaster, HandleStale, ... by Election's own XOk / XNext of node 1; MasterRoute and
 # MasterHandover as stated there; constants: the run's master timers, and the epoch / members of its
 # --state-file when it restarts from one). The Master core an elected agent runs writes its records to
 # the agent's trace as node master:ID:EPOCH: each is checked the same way as node ID
-# (tracecheck.agent_master_runs), counted with the master traces.
+# (tracecheck.agent_master_runs), counted with the master traces. A trace with no record is an error
+# (a check of nothing cannot fail), unless the test is marked empty_trace and its trace has no record.
 
 import concurrent.futures as _cf  # noqa: E402
 import threading as _threading  # noqa: E402
@@ -104,9 +105,8 @@ _MODE = os.environ.get("EV3_TRACE_VALIDATE", "1")
 _POOL: _cf.ThreadPoolExecutor | None = None
 _PENDING: list[tuple[str, str, bool, _cf.Future]] = []  # (nodeid, program name, master?, future of Result)
 _CURRENT: list = []                                 # the running test's item
-_STATS = {"traces": 0, "records": 0, "skipped": 0, "master_traces": 0, "master_records": 0,
-          "master_skipped": 0, "election_masters": 0, "election_agents": 0, "election_agent_masters": 0,
-          "seconds": 0.0,
+_STATS = {"traces": 0, "records": 0, "master_traces": 0, "master_records": 0, "empty": 0,
+          "election_masters": 0, "election_agents": 0, "election_agent_masters": 0, "seconds": 0.0,
           "master_seconds": 0.0}
 _STATS_LOCK = _threading.Lock()
 _orig_init = _ev3net.Program.__init__
@@ -211,11 +211,19 @@ def _validate(path: Path, consts: dict, master: bool, node: str | None = None):
     return r
 
 
-def _submit(nodeid: str, p) -> None:
+def _submit(nodeid: str, p, expect_empty: bool = False) -> None:
     global _POOL
     path = getattr(p, "trace_path", None)
     if path is None or _MODE == "0":
         return
+    if expect_empty:  # @pytest.mark.empty_trace: a trace with no record is what the scenario expects
+        from ev3conformance import tracecheck
+        try:
+            if not tracecheck.read_trace(path).records:
+                _STATS["empty"] += 1
+                return
+        except tracecheck.TraceError:
+            pass  # not readable: the check below says why
     master = p.trace_prog == "ev3-master"
     if master and "--election" in p.trace_args:
         _STATS["election_masters"] += 1
@@ -245,7 +253,6 @@ def _count(r, master: bool) -> None:
     k = "master_" if master else ""
     _STATS[k + "traces"] += 1
     _STATS[k + "records"] += r.records
-    _STATS[k + "skipped"] += r.skipped
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -258,7 +265,13 @@ def _trace_check(request):
     """Collects the traces of the programs the test started (see `programs`)."""
     yield
     for p in getattr(request.node, "_ev3_started", []):
-        _submit(request.node.nodeid, p)
+        _submit(request.node.nodeid, p, request.node.get_closest_marker("empty_trace") is not None)
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "empty_trace: the programs the scenario starts may write no trace "
+                                       "record (an empty trace is then counted apart, not checked: an empty "
+                                       "trace check is an error)")
 
 
 def pytest_sessionfinish(session, exitstatus):
@@ -281,9 +294,9 @@ def pytest_sessionfinish(session, exitstatus):
     tr = session.config.pluginmanager.get_plugin("terminalreporter")
     if tr is not None:
         tr.ensure_newline()
-        tr.write_line(f"trace validation: {_STATS['traces']} agent traces ({_STATS['records']} records, "
-                      f"{_STATS['skipped']} skipped), {_STATS['master_traces']} master traces "
-                      f"({_STATS['master_records']} records, {_STATS['master_skipped']} skipped), "
+        tr.write_line(f"trace validation: {_STATS['traces']} agent traces ({_STATS['records']} records), "
+                      f"{_STATS['master_traces']} master traces "
+                      f"({_STATS['master_records']} records), {_STATS['empty']} empty as expected, "
                       f"{bad} not conforming; with --election: {_STATS['election_agents']} agents (AgentLogic + Election), "
                       f"{_STATS['election_masters']} masters (MasterLogic + Election's PC), "
                       f"{_STATS['election_agent_masters']} agent-masters' Master cores; "

@@ -1,0 +1,130 @@
+"""What `validate` makes of traces that cannot show anything (docs/spec.md "A check that cannot fail is
+an error"): an empty trace, another node's trace, lines that are not records, datagrams that do not
+decode are errors naming the cause, never a pass; a last line cut by a kill is left out and said so.
+And the Python side only converts data: the TraceData module it writes holds values only (every
+definition parses back as a TLA+ value), the TLA+ logic is in spec/tla/trace/."""
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+from ev3conformance import tla, tracecheck
+
+SAMPLES = tracecheck.SAMPLES
+AGENT = {"TSync": 5, "TPing": 2, "TLoss": 3, "TPaused": 6}
+MASTER = {"TDrop": 4, "TResend": 1, "MaxResends": 2}
+
+
+def sample(name: str) -> list[dict]:
+    return [json.loads(x) for x in (SAMPLES / name).read_text().splitlines() if x.strip()]
+
+
+def write(path: Path, recs: list[dict], tail: str = "") -> Path:
+    path.write_text("".join(json.dumps(r) + "\n" for r in recs) + tail)
+    return path
+
+
+def test_an_empty_trace_is_an_error(tmp_path):
+    for text in ("", "\n\n  \n"):
+        p = tmp_path / "empty.ndjson"
+        p.write_text(text)
+        for r in (tracecheck.validate(p, AGENT), tracecheck.validate_master(p, MASTER)):
+            assert not r.ok and r.no_records and r.records == 0
+            assert "no records: the trace is empty" in r.message, r.message
+
+
+def test_a_missing_trace_is_an_error(tmp_path):
+    r = tracecheck.validate(tmp_path / "nowhere.ndjson", AGENT)
+    assert not r.ok and "cannot read the trace" in r.message
+
+
+def test_another_nodes_trace_is_an_error(tmp_path):
+    agent = write(tmp_path / "agent.ndjson", sample("agent.ndjson"))
+    master = write(tmp_path / "master.ndjson", sample("master.ndjson"))
+    r = tracecheck.validate_master(agent, MASTER)
+    assert not r.ok and r.no_records
+    assert "no master records: the trace holds agent (15)" in r.message, r.message
+    r = tracecheck.validate(master, AGENT)
+    assert not r.ok and r.no_records
+    assert "no agent records: the trace holds master (11)" in r.message, r.message
+    # an agent-master's records are named by their node; none of them: an error too
+    r = tracecheck.validate_master(agent, MASTER, node="master:2:2")
+    assert not r.ok and "no master:2:2 records" in r.message
+
+
+def test_lines_that_are_not_records_are_errors(tmp_path):
+    recs = sample("agent.ndjson")
+    lines = [json.dumps(r) for r in recs]
+    cases = {
+        "not JSON": lines[:3] + ['{"node": "agent", "action"'] + lines[3:],      # cut inside the trace
+        "not a trace record": lines[:3] + ['{"node": "agent", "args": {}}'] + lines[3:],  # no action
+        "\"changed\" is not an object": lines[:3] + ['{"node": "agent", "action": "Tick", "changed": 3}'],
+    }
+    for what, ls in cases.items():
+        p = tmp_path / "bad.ndjson"
+        p.write_text("\n".join(ls) + "\n")
+        r = tracecheck.validate(p, AGENT)
+        assert not r.ok and "line 4" in r.message and what in r.message, r.message
+    p = tmp_path / "garbage.ndjson"  # a last line that is not the start of a record: not a cut, an error
+    p.write_text("\n".join(lines) + "\n\x00\x17garbage")
+    r = tracecheck.validate(p, AGENT)
+    assert not r.ok and f"line {len(lines) + 1} is not JSON" in r.message, r.message
+
+
+def test_a_datagram_that_does_not_decode_names_its_record(tmp_path):
+    recs = sample("agent.ndjson")
+    k = next(i for i, r in enumerate(recs) if r["action"] == "RecvStart")
+    recs[k]["args"]["msg"] = "1:7:3:99"  # no message type 99
+    r = tracecheck.validate(write(tmp_path / "t.ndjson", recs), AGENT)
+    assert not r.ok and f"record {k + 1} of {len(recs)}: its datagram does not decode" in r.message, r.message
+
+
+def test_a_cut_last_line_is_left_out_and_said(tmp_path):
+    """A master killed with SIGKILL leaves its last record half written: the records before it are
+    checked, and the result says one line was left out (and which records of other nodes it did not check)."""
+    recs = sample("agent.ndjson") + [{"node": "master:7:2", "action": "Heartbeat", "args": {}, "now": 9,
+                                      "changed": {"msgid": 2}}]
+    r = tracecheck.validate(write(tmp_path / "cut.ndjson", recs, tail='{"node":"agent","action":"Ti'), AGENT)
+    assert r.ok, r.message
+    assert r.records == len(recs) - 1
+    assert "its last line was cut (28 bytes, left out)" in r.message, r.message
+    assert "1 records of other nodes not checked here (nodes: agent (15), master:7:2 (1))" in r.message
+
+
+def test_the_cli_fails_on_an_empty_trace(tmp_path):
+    p = tmp_path / "empty.ndjson"
+    p.write_text("")
+    for extra in ([], ["--master"]):
+        cli = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "validate", *extra, str(p)],
+                             capture_output=True, text=True)
+        assert cli.returncode == 1, cli.stdout + cli.stderr
+        assert f"FAIL {p}: no records: the trace is empty" in cli.stdout, cli.stdout
+
+
+def _definitions(module: str) -> dict[str, str]:
+    """TraceData's definitions `Name == text` (the header and footer lines aside)."""
+    body = module.split("\n", 1)[1].rsplit("====", 1)[0]
+    body = "\n".join(x for x in body.splitlines() if not x.startswith("\\*"))
+    parts = re.split(r"^(\w+) == ", body, flags=re.M)
+    assert parts[0].strip() == "", parts[0]
+    return dict(zip(parts[1::2], parts[2::2]))
+
+
+def test_the_data_module_holds_values_only():
+    """Each sample's TraceData: every definition is a TLA+ value (no operator, no expression): the
+    trace, a sequence of records, one per record of the node, and the check's constants (make spec's
+    TLC run of each sample shows they are the ones the module declares)."""
+    spec = json.loads((SAMPLES / "samples.json").read_text())["samples"]
+    for s in spec:
+        path = SAMPLES / s["trace"]
+        nd = (tracecheck.master_data(path, s["consts"]) if s.get("master")
+              else tracecheck.agent_data(path, s["consts"]))
+        assert nd.module == s["module"]
+        defs = _definitions(nd.data(path))
+        values = {k: tla.parse_value(v) for k, v in defs.items()}  # raises on anything but a value
+        assert isinstance(values["Trace"], tuple) and len(values["Trace"]) == len(nd.records)
+        assert all(isinstance(x, dict) and x["a"] == r["action"] for x, r in zip(values["Trace"], nd.records))
+        assert set(values) == {"Trace"} | set(nd.consts)
