@@ -12,6 +12,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <algorithm>
 #include <map>
 #include <set>
 #include <string>
@@ -19,6 +20,7 @@
 #include <vector>
 
 #include "core.hpp"
+#include "deadline_heap.hpp"
 #include "dedupe.hpp"
 #include "messages.hpp"
 #include "timers.hpp"
@@ -295,8 +297,8 @@ class Master {
       case MsgType::AGENT:
       case MsgType::PANIC: a = Action::MasterSync; MasterSync(m, from); break;
       case MsgType::ACK:
-      case MsgType::NOT: a = Action::MasterAnswer; MasterAnswer(m); break;
-      case MsgType::PING: a = Action::MasterPing; MasterPing(m, from); break;
+      case MsgType::NOT: a = Action::MasterAnswer; MasterAnswer(m); rearm(m.sender); break;
+      case MsgType::PING: a = Action::MasterPing; MasterPing(m, from); rearm(m.sender); break;
       case MsgType::ACTION_OK:
       case MsgType::ACTION_INTERR:
       case MsgType::ACTION_ERR:
@@ -335,20 +337,14 @@ class Master {
     return true;
   }
 
-  /// When advance() must be called next at the latest (kNever when nothing is scheduled).
+  /// When advance() must be called next at the latest (kNever when nothing is scheduled): the
+  /// earliest of the LEADER heartbeat, the candidate's next election and (as MASTER) the entries'
+  /// deadlines, which a DeadlineHeap keeps (O(1) here, no walk of the registry).
   Millis next_deadline() const noexcept {
     Millis t = hb_at_ < cand_at_ ? hb_at_ : cand_at_;
     if (role_ != MasterRole::master) return t;
-    for (const auto& kv : reg_) {
-      const RegistryEntry& e = kv.second;
-      const Millis drop = e.heard + cfg_.timers[Timer::drop];
-      if (drop < t) t = drop;
-      if (e.pending) {
-        const Millis r = e.sent_at + cfg_.timers[Timer::resend];
-        if (r < t) t = r;
-      }
-    }
-    return t;
+    const Millis e = deadlines_.next();
+    return e < t ? e : t;
   }
 
   // ---------------------------------------------------------------- observers
@@ -498,7 +494,7 @@ class Master {
       it = adopt(*a, from);
     }
     it->second.via = m.sender;
-    it->second.peer = from;
+    set_peer(it->second, from);
     return true;
   }
 
@@ -527,10 +523,11 @@ class Master {
       e.synced = true;
       e.pending = false;
       start_next(e);
+      rearm(e);
     }
     // A relay forwards the agent's datagrams unchanged: from the relay's peer they are relayed.
     if (via == 0 && e.via != 0 && from == e.peer) return;
-    e.peer = from;
+    set_peer(e, from);
     e.via = via;
   }
   std::map<std::uint16_t, RegistryEntry>::iterator adopt(std::uint16_t id, Peer from) {
@@ -541,7 +538,7 @@ class Master {
     e.synced = true;
     e.desired_known = false;  // what the fleet's earlier master wanted is not known here
     e.heard = now_;
-    return reg_.emplace(id, std::move(e)).first;
+    return insert(std::move(e));
   }
 
   void broadcast(MsgType t, const std::vector<std::string>& params) {
@@ -556,12 +553,57 @@ class Master {
     send(to, id, t, p.data(), p.size());
   }
 
-  /// Spec Known(reg, s): entries whose announced or assigned id is s.
+  /// Spec Known(reg, s): entries whose announced or assigned id is s, by id (an index lookup).
   std::vector<std::uint16_t> Known(std::uint16_t s) const {
     std::vector<std::uint16_t> k;
-    for (const auto& kv : reg_)
-      if (kv.second.ann == s || kv.second.id == s) k.push_back(kv.first);
+    for (auto it = by_ann_.lower_bound({s, 0}); it != by_ann_.end() && it->first == s; ++it)
+      k.push_back(it->second);
+    if (reg_.count(s) != 0 && !std::binary_search(k.begin(), k.end(), s))
+      k.insert(std::lower_bound(k.begin(), k.end(), s), s);
     return k;
+  }
+
+  // ------------------------------------------------ registry (indexes and deadlines)
+
+  /// An entry's deadline: the drop time, or the resend time of its pending datagram if earlier.
+  Millis due_at(const RegistryEntry& e) const noexcept {
+    const Millis drop = e.heard + cfg_.timers[Timer::drop];
+    const Millis resend = e.pending ? e.sent_at + cfg_.timers[Timer::resend] : kNever;
+    return resend < drop ? resend : drop;
+  }
+  /// After heard, pending or sent_at of @p e changed.
+  void rearm(const RegistryEntry& e) { deadlines_.set(e.id, due_at(e)); }
+  void rearm(std::uint16_t id) {
+    const auto it = reg_.find(id);
+    if (it != reg_.end()) rearm(it->second);
+  }
+
+  /// Adds @p e (its id not registered) to the registry, the indexes and the deadlines.
+  std::map<std::uint16_t, RegistryEntry>::iterator insert(RegistryEntry e) {
+    const auto it = reg_.emplace(e.id, std::move(e)).first;
+    by_ann_.insert({it->second.ann, it->first});
+    by_peer_.insert({it->second.peer, it->first});
+    rearm(it->second);
+    return it;
+  }
+  /// Removes entry @p id from the registry, the indexes and the deadlines.
+  void erase(std::uint16_t id) {
+    const auto it = reg_.find(id);
+    if (it == reg_.end()) return;
+    by_ann_.erase({it->second.ann, id});
+    by_peer_.erase({it->second.peer, id});
+    deadlines_.clear(id);
+    reg_.erase(it);
+  }
+  void set_ann(RegistryEntry& e, std::uint16_t ann) {
+    by_ann_.erase({e.ann, e.id});
+    e.ann = ann;
+    by_ann_.insert({ann, e.id});
+  }
+  void set_peer(RegistryEntry& e, Peer p) {
+    by_peer_.erase({e.peer, e.id});
+    e.peer = p;
+    by_peer_.insert({p, e.id});
   }
 
   /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent is heard and gets its
@@ -580,7 +622,7 @@ class Master {
           // The agent lost us while we still hold it (its PONGs were lost): sync it again, a new
           // MASTER; its queued commands follow once it ACKs, reconcile restores its desired state.
           e.synced = false;
-          e.ann = s;  // MASTER names the id the agent holds now
+          set_ann(e, s);  // MASTER names the id the agent holds now
           e.pending = true;
           e.mid = msgid_++;
           e.sent_at = now_;
@@ -588,6 +630,7 @@ class Master {
         }
         if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
         send_pending(e);
+        rearm(e);
       }
       return;
     }
@@ -598,13 +641,13 @@ class Master {
     } else if (next_id_ <= s) {
       next_id_ = static_cast<std::uint16_t>(s + 1);  // adopted: never hand s out again
     }
-    for (auto it = reg_.begin(); it != reg_.end();) {
-      if (it->second.peer == from) {
-        fail_queue(it->second);
-        it = reg_.erase(it);
-      } else {
-        ++it;
-      }
+    // Entries at the same peer, by id (an index lookup, not a walk).
+    while (true) {
+      const auto at = by_peer_.lower_bound({from, 0});
+      if (at == by_peer_.end() || at->first != from) break;
+      const std::uint16_t id = at->second;
+      fail_queue(reg_[id]);
+      erase(id);
     }
     RegistryEntry e;
     e.ann = s;
@@ -615,8 +658,8 @@ class Master {
     e.pending = true;
     e.mid = msgid_++;
     e.sent_at = now_;
-    RegistryEntry& r = reg_[nid] = std::move(e);
-    send_pending(r);
+    erase(nid);
+    send_pending(insert(std::move(e))->second);
   }
 
   /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command. A NOT
@@ -729,13 +772,18 @@ class Master {
   /// Spec MasterTick at now_: drop agents quiet for the drop timeout, resend due pending datagrams
   /// (an operator command fails after max_resends resends; MASTER is resent until ACK or drop and
   /// its resends are not counted).
+  /// Only the entries due (their deadline <= now_) are visited, in order of id: the others would
+  /// be left as they are by the spec's walk of every entry.
   void MasterTick() {
-    for (auto it = reg_.begin(); it != reg_.end();) {
-      RegistryEntry& e = it->second;
+    due_.clear();
+    for (std::uint16_t id; deadlines_.pop_due(now_, id);) due_.push_back(id);
+    std::sort(due_.begin(), due_.end());
+    for (std::uint16_t id : due_) {
+      RegistryEntry& e = reg_.at(id);
       if (now_ - e.heard >= cfg_.timers[Timer::drop]) {
         fail_queue(e);
         push(OperatorEvent::Kind::dropped, e.id, MsgType::PING, {});
-        it = reg_.erase(it);
+        erase(id);
         continue;
       }
       if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
@@ -750,7 +798,7 @@ class Master {
           send_pending(e);
         }
       }
-      ++it;
+      rearm(e);
     }
   }
 
@@ -761,6 +809,7 @@ class Master {
       e.desired_known = true;
     }
     if (e.synced && !e.pending) start_next(e);
+    rearm(e);
   }
 
   /// Sends the next queued command, if any, with a new msgid.
@@ -929,6 +978,10 @@ class Master {
   std::uint32_t msgid_;
   Millis now_;
   std::map<std::uint16_t, RegistryEntry> reg_;
+  DeadlineHeap<std::uint16_t> deadlines_;  // each entry's due_at()
+  std::set<std::pair<std::uint16_t, std::uint16_t>> by_ann_;  // (ann, id): Known()
+  std::set<std::pair<Peer, std::uint16_t>> by_peer_;          // (peer, id): MasterSync's replace
+  std::vector<std::uint16_t> due_;                            // MasterTick's scratch
   DedupeWindow<256> reports_;
   std::deque<MasterTransmit> tx_;
   std::deque<OperatorEvent> ev_;

@@ -1,0 +1,161 @@
+// The master core's deadlines (DeadlineHeap) against plain walks: after every call the earliest
+// deadline the core reports equals the one a walk of its registry finds, over long random runs.
+#include <gtest/gtest.h>
+
+#include <cstdint>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "ev3proto/deadline_heap.hpp"
+#include "ev3proto/master.hpp"
+
+namespace {
+
+using namespace ev3proto;
+
+TEST(DeadlineHeap, EqualsAMapOfDeadlinesOverRandomOperations) {
+  std::mt19937 rng(7);
+  DeadlineHeap<std::uint16_t> h;
+  std::map<std::uint16_t, Millis> model;
+  Millis now = 0;
+  for (int step = 0; step < 200000; ++step) {
+    const std::uint16_t k = static_cast<std::uint16_t>(rng() % 64);
+    switch (rng() % 4) {
+      case 0:
+      case 1: {  // later and earlier moves alike
+        const Millis when = now + rng() % 1000;
+        h.set(k, when);
+        model[k] = when;
+        break;
+      }
+      case 2:
+        h.clear(k);
+        model.erase(k);
+        break;
+      default: {
+        now += rng() % 50;
+        std::uint16_t got = 0;
+        while (h.pop_due(now, got)) {
+          ASSERT_EQ(model.count(got), 1u) << "step " << step;
+          Millis earliest = DeadlineHeap<std::uint16_t>::kNever;
+          for (const auto& kv : model) earliest = std::min(earliest, kv.second);
+          ASSERT_EQ(model[got], earliest) << "pop_due takes the earliest, step " << step;
+          ASSERT_LE(model[got], now);
+          model.erase(got);
+        }
+        break;
+      }
+    }
+    Millis earliest = DeadlineHeap<std::uint16_t>::kNever;
+    for (const auto& kv : model) earliest = std::min(earliest, kv.second);
+    ASSERT_EQ(h.next(), earliest) << "step " << step;
+    ASSERT_EQ(h.size(), model.size());
+    ASSERT_EQ(h.deadline(k), model.count(k) ? model[k] : DeadlineHeap<std::uint16_t>::kNever);
+  }
+  // Lazy deletion must not let the heap grow without bound: one item per key plus the moves earlier.
+  EXPECT_LT(h.heap_items(), 64u * 8u);
+}
+
+/// The earliest deadline by walking the registry (what next_deadline() computed before issue 14).
+Millis walked_deadline(const Master<>& m, const Timers& t) {
+  Millis d = Master<>::kNever;
+  for (const auto& kv : m.registry()) {
+    const RegistryEntry& e = kv.second;
+    d = std::min(d, e.heard + t[Timer::drop]);
+    if (e.pending) d = std::min(d, e.sent_at + t[Timer::resend]);
+  }
+  return d;
+}
+
+/// Random traffic of up to 40 agents (syncs, PANICs, answers right and wrong, PINGs in every state,
+/// reports, copies, operator commands, time moving by small and large steps).
+void random_run(std::uint32_t seed, Millis resend, Millis drop) {
+  std::mt19937 rng(seed);
+  MasterConfig c;
+  c.timers.set(Timer::resend, resend).set(Timer::drop, drop);
+  c.max_resends = 3;
+  Master<> m(c, 1000);
+  Millis now = 1000;
+  std::map<std::uint16_t, std::uint32_t> msgid;  // per sender
+  const char* states[] = {"ACTIVE", "WORKING", "PAUSED", "IDLE", "PANIC"};
+  const MsgType cmds[] = {MsgType::START, MsgType::STOP, MsgType::PAUSE, MsgType::RESUME, MsgType::STANDBY};
+  auto pick = [&]() -> const RegistryEntry* {
+    if (m.registry().empty()) return nullptr;
+    auto it = m.registry().begin();
+    std::advance(it, static_cast<long>(rng() % m.registry().size()));
+    return &it->second;
+  };
+  std::map<OperatorEvent::Kind, int> seen;
+  std::size_t most = 0;
+  for (int step = 0; step < 20000; ++step) {
+    const auto peer = static_cast<Peer>(1 + rng() % 45);
+    std::string d;
+    switch (rng() % 9) {
+      case 0: {  // AGENT from a temporary id (a copy now and then: same msgid)
+        const auto t = static_cast<std::uint16_t>(50000 + rng() % 40);
+        const std::uint32_t id = rng() % 4 == 0 ? msgid[t] : ++msgid[t];
+        d = std::to_string(t) + ":0:" + std::to_string(id) + ":1:A";
+        break;
+      }
+      case 1:
+        if (const RegistryEntry* e = pick()) {  // PANIC from an assigned id
+          d = std::to_string(e->id) + ":0:" + std::to_string(++msgid[e->id]) + ":19";
+        }
+        break;
+      case 2:
+      case 3:
+        if (const RegistryEntry* e = pick()) {  // ACK or NOT of the pending msgid, or of a wrong one
+          const std::uint32_t ref = rng() % 5 == 0 ? e->mid + 1 : e->mid;
+          d = std::to_string(e->id) + ":1:" + std::to_string(++msgid[e->id]) +
+              (rng() % 4 == 0 ? ":4:" + std::to_string(ref) + ":wrong state" : ":3:" + std::to_string(ref));
+        }
+        break;
+      case 4:
+      case 5:
+        if (const RegistryEntry* e = pick()) {  // PING, sometimes stale
+          const std::uint32_t id = rng() % 5 == 0 ? msgid[e->id] : ++msgid[e->id];
+          d = std::to_string(e->id) + ":1:" + std::to_string(id) + ":5:" + states[rng() % 5];
+        }
+        break;
+      case 6: {
+        const RegistryEntry* e = pick();
+        const std::uint16_t id = e == nullptr || rng() % 6 == 0 ? 0 : e->id;
+        m.command(id, Command::simple(cmds[rng() % 5]), now);
+        break;
+      }
+      case 7:
+        now += rng() % (resend + 2);
+        m.advance(now);
+        break;
+      default:
+        now += rng() % (drop / 3 + 1);
+        m.advance(now);
+        break;
+    }
+    if (!d.empty()) m.handle_datagram(d, peer, now);
+    MasterTransmit t;
+    while (m.poll_transmit(t)) {
+    }
+    OperatorEvent ev;
+    while (m.poll_event(ev)) ++seen[ev.kind];
+    most = std::max(most, m.registry().size());
+    ASSERT_EQ(m.next_deadline(), walked_deadline(m, c.timers)) << "seed " << seed << " step " << step << " " << d;
+    ASSERT_GT(m.next_deadline(), m.now()) << "a due deadline was left behind, step " << step;
+  }
+  // The run went through what it is meant to: registrations, answers, failures, drops.
+  EXPECT_GT(most, 10u);
+  for (auto k : {OperatorEvent::Kind::registered, OperatorEvent::Kind::acked, OperatorEvent::Kind::refused,
+                 OperatorEvent::Kind::timed_out, OperatorEvent::Kind::dropped})
+    EXPECT_GT(seen[k], 10) << "seed " << seed << ": too few " << to_string(k);
+}
+
+TEST(MasterDeadlines, NextDeadlineEqualsAWalkOfTheRegistry) {
+  random_run(1, 500, 10000);
+  random_run(2, 1, 10);
+  random_run(3, 7, 40);
+  random_run(4, 100, 1000);
+}
+
+}  // namespace
