@@ -159,3 +159,90 @@ TEST(MasterDeadlines, NextDeadlineEqualsAWalkOfTheRegistry) {
 }
 
 }  // namespace
+
+namespace {
+
+std::vector<std::string> sent(Master<>& m) {
+  std::vector<std::string> out;
+  MasterTransmit t;
+  while (m.poll_transmit(t)) out.push_back(t.bytes);
+  return out;
+}
+
+void expect_receipt(const MasterReceipt& r, Action a, Ignored why, Reason reason = Reason::ok) {
+  EXPECT_EQ(to_string(r.action), to_string(a));
+  EXPECT_EQ(to_string(r.why), to_string(why));
+  EXPECT_EQ(to_string(r.reason), to_string(reason));
+}
+
+TEST(MasterReceipts, SayWhatWasTakenAndWhyTheRestWasIgnored) {
+  Master<> m(MasterConfig{}, 0);
+  expect_receipt(m.handle_datagram("1:x:3:5:ACTIVE", 9, 1), Action::Ignore, Ignored::malformed, Reason::bad_number);
+  EXPECT_EQ(m.rejected(), 1u);
+  expect_receipt(m.handle_datagram("5:7:3:5:ACTIVE", 9, 2), Action::Ignore, Ignored::misaddressed);
+  expect_receipt(m.handle_datagram("5:1:3:6:2", 9, 3), Action::Ignore, Ignored::unexpected_type);  // PONG
+  expect_receipt(m.handle_datagram("5:1:4:5:ACTIVE", 9, 4), Action::MasterPing, Ignored::unknown_sender);
+  EXPECT_TRUE(sent(m).empty()) << "no PONG to an id not registered";
+  expect_receipt(m.handle_datagram("5:1:5:3:1", 9, 5), Action::MasterAnswer, Ignored::unknown_sender);
+  expect_receipt(m.handle_datagram("5:1:6:20:x", 9, 6), Action::MasterReport, Ignored::unknown_sender);
+
+  expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 10), Action::MasterSync, Ignored::none);
+  EXPECT_EQ(sent(m), std::vector<std::string>{"1:2:1:2:50001"});
+  expect_receipt(m.handle_datagram("2:1:2:3:99", 11, 11), Action::MasterAnswer, Ignored::stale_answer);
+  expect_receipt(m.handle_datagram("2:1:3:3:1", 11, 12), Action::MasterAnswer, Ignored::none);
+  expect_receipt(m.handle_datagram("2:1:3:3:1", 11, 13), Action::MasterAnswer, Ignored::stale_answer);
+  expect_receipt(m.handle_datagram("2:1:4:5:ACTIVE", 11, 14), Action::MasterPing, Ignored::none);
+  EXPECT_EQ(sent(m), std::vector<std::string>{"1:2:2:6:4"});
+  expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 15), Action::MasterReport, Ignored::none);
+  expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 16), Action::MasterReport, Ignored::duplicate);
+}
+
+TEST(MasterReceipts, CopiesReachTheHandlerUnlessDropCopiesIsOn) {
+  Master<> spec(MasterConfig{}, 0);  // MasterLogic: every copy goes through its handler
+  for (int copy = 0; copy < 3; ++copy)
+    expect_receipt(spec.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, Ignored::none);
+  EXPECT_EQ(sent(spec).size(), 3u) << "each copy of AGENT resends MASTER";
+
+  MasterConfig c;
+  c.drop_copies = true;
+  Master<> program(c, 0);
+  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, Ignored::none);
+  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 1), Action::Ignore, Ignored::duplicate);
+  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 2), Action::Ignore, Ignored::duplicate);
+  expect_receipt(program.handle_datagram("9:7:1:5:ACTIVE", 11, 3), Action::Ignore, Ignored::misaddressed);
+  expect_receipt(program.handle_datagram("50001:0:2:1:A", 11, 4), Action::MasterSync, Ignored::none);
+  EXPECT_EQ(sent(program).size(), 2u);
+}
+
+TEST(MasterReceipts, HandleMessageTakesADecodedDatagramAsHandleDatagramDoes) {
+  const char* input[] = {"50001:0:1:1:A", "2:1:2:3:1", "2:1:3:5:ACTIVE", "2:1:4:20:x", "2:1:5:6:1"};
+  Master<> a(MasterConfig{}, 0), b(MasterConfig{}, 0);
+  Millis t = 0;
+  for (const char* d : input) {
+    Message msg;
+    ASSERT_TRUE(decode(d, msg).ok());
+    const MasterReceipt ra = a.handle_datagram(d, 11, ++t);
+    const MasterReceipt rb = b.handle_message(msg, d, 11, t);
+    EXPECT_EQ(ra.action, rb.action) << d;
+    EXPECT_EQ(ra.why, rb.why) << d;
+    EXPECT_EQ(sent(a), sent(b)) << d;
+  }
+  EXPECT_EQ(a.registry().size(), 1u);
+  EXPECT_EQ(a.next_deadline(), b.next_deadline());
+}
+
+TEST(MasterReceipts, ElectionReasons) {
+  // An elected agent's master (id 7, epoch 2, members 7 8 9) gives no ids.
+  Master<> m(MasterConfig::for_elected_agent(Timers{}, 7, 2, {7, 8, 9}, 1000), 0);
+  sent(m);
+  expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, Ignored::ids_exhausted);
+  expect_receipt(m.handle_datagram("7:0:1003:29:2:7:8:9", 11, 2), Action::Ignore, Ignored::own_broadcast);
+  expect_receipt(m.handle_datagram("8:7:5:28:1:8", 12, 3), Action::Ignore, Ignored::not_enabled);  // VOTE: not standing
+  expect_receipt(m.handle_datagram("8:7:6:5:ACTIVE", 12, 4), Action::MasterPing, Ignored::none);  // a member: adopted
+  EXPECT_EQ(m.registry().count(8), 1u);
+  expect_receipt(m.handle_datagram("1:7:1:30:3", 1, 5), Action::HandleStale, Ignored::none);  // epoch 3: step down
+  EXPECT_EQ(m.role(), MasterRole::stepped_down);
+  expect_receipt(m.handle_datagram("8:7:7:5:ACTIVE", 12, 6), Action::Ignore, Ignored::not_master);
+}
+
+}  // namespace
