@@ -42,6 +42,9 @@ constexpr int kTableRows = 14;
 // --state-file: msgids are reserved in blocks (the file holds the end of the block in use), so a
 // restarted master continues above every msgid it may have sent without a write per datagram.
 constexpr std::uint32_t kMsgidBlock = 4096;
+// The loop reads at most this many datagrams before it sends what it owes (PONGs, resends, the
+// copies due), acts on the deadlines due and writes the status: a flood cannot starve them.
+constexpr std::size_t kReadBatch = 64;
 
 /// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
 /// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
@@ -120,9 +123,13 @@ class Program {
     std::string dgram;
     ev3io::Endpoint from;
     while (signals_.stop_signal() == 0 && !quit_) {
-      Millis now = ev3io::monotonic_ms();
-      while (net_.receive(dgram, from)) on_datagram(dgram, from, ev3io::monotonic_ms());
-      now = ev3io::monotonic_ms();
+      std::size_t read = 0;
+      while (read < kReadBatch && net_.receive(dgram, from)) {
+        on_datagram(dgram, from, ev3io::monotonic_ms());
+        ++read;
+      }
+      const bool more = read == kReadBatch;  // the socket may hold more: no sleep before reading on
+      const Millis now = ev3io::monotonic_ms();
       master_->advance(now);
       pump(now);
       run_script(now);
@@ -148,6 +155,7 @@ class Program {
         }
         deadline = std::min(deadline, trace_flush_);
       }
+      if (more) deadline = now;
       pollfd p[2] = {{net_.fd(), POLLIN, 0}, {0, POLLIN, 0}};
       const std::size_t n = stdin_open_ ? 2 : 1;
       if (signals_.wait(p, n, deadline) > 0 && n == 2 && (p[1].revents & (POLLIN | POLLHUP | POLLERR)) != 0)
