@@ -13,7 +13,6 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>
-#include <unordered_map>
 #include <vector>
 
 #include "timers.hpp"
@@ -22,16 +21,18 @@ namespace ev3proto {
 
 /// Deadlines by key: set(), clear(), next(), pop_due().
 ///
-/// The heap holds (time, key) items. A key's *wanted* deadline lives beside it (a hash map); the
-/// heap item standing for the key (its *armed* item) is at that time or earlier. Moving a deadline
+/// The heap holds (time, key) items. A key's *wanted* deadline lives beside it (a slot in a vector
+/// indexed by the key); the heap item standing for the key (its *armed* item) is at that time or
+/// earlier. Moving a deadline
 /// later (an agent heard again) only updates the wanted time; the old item stays until it reaches
 /// the top, where it is replaced by one at the wanted time. Moving a deadline earlier pushes a new
 /// item, and the older one is skipped when it surfaces (lazy deletion). After every call the top
 /// item is exact (its key wants exactly that time), so next() is the true earliest deadline.
 ///
 /// Cost (n keys): set() and clear() O(log n) amortized, next() O(1), pop_due() O(log n) amortized.
-/// Memory: one item per key plus one per deadline moved earlier and not yet surfaced.
-/// @tparam Key an integral key (the master: an agent id).
+/// Memory: one item per key plus one per deadline moved earlier and not yet surfaced, and a slot
+/// for every key up to the largest one used.
+/// @tparam Key a small unsigned integer (the master: an agent id; a load generator: an index).
 template <typename Key>
 class DeadlineHeap {
  public:
@@ -40,7 +41,9 @@ class DeadlineHeap {
 
   /// Key @p k is due at @p when (earlier or later than before, or its first deadline).
   void set(Key k, Millis when) {
+    if (k >= slots_.size()) slots_.resize(static_cast<std::size_t>(k) + 1);
     Slot& s = slots_[k];
+    if (s.want == kNever) ++size_;
     s.want = when;
     if (s.seq == 0 || when < s.armed_at) push(k, when, s);
     settle();
@@ -48,7 +51,7 @@ class DeadlineHeap {
 
   /// Key @p k has no deadline any more.
   void clear(Key k) {
-    slots_.erase(k);
+    forget(k);
     settle();
   }
 
@@ -61,19 +64,16 @@ class DeadlineHeap {
     if (heap_.empty() || heap_.front().when > now) return false;
     out = heap_.front().key;
     pop();
-    slots_.erase(out);
+    forget(out);
     settle();
     return true;
   }
 
   /// The deadline of @p k (kNever when it has none).
-  Millis deadline(Key k) const {
-    const auto it = slots_.find(k);
-    return it == slots_.end() ? kNever : it->second.want;
-  }
+  Millis deadline(Key k) const noexcept { return k < slots_.size() ? slots_[k].want : kNever; }
 
   /// Keys with a deadline.
-  std::size_t size() const noexcept { return slots_.size(); }
+  std::size_t size() const noexcept { return size_; }
   /// Items in the heap (keys plus superseded items not surfaced yet): for tests and benchmarks.
   std::size_t heap_items() const noexcept { return heap_.size(); }
 
@@ -84,9 +84,9 @@ class DeadlineHeap {
     std::uint64_t seq;  // which push made it: only the key's armed item counts
   };
   struct Slot {
-    Millis want = kNever;     // the key's deadline
+    Millis want = kNever;     // the key's deadline (kNever: none)
     Millis armed_at = kNever; // the time of its armed item (<= want)
-    std::uint64_t seq = 0;    // the armed item's seq (0: none yet)
+    std::uint64_t seq = 0;    // the armed item's seq (0: none)
   };
   /// Min-heap order for std::push_heap / std::pop_heap (which build max-heaps): later is "less".
   static bool later(const Item& a, const Item& b) noexcept { return a.when > b.when; }
@@ -101,18 +101,22 @@ class DeadlineHeap {
     std::pop_heap(heap_.begin(), heap_.end(), later);
     heap_.pop_back();
   }
+  void forget(Key k) {
+    if (k >= slots_.size() || slots_[k].want == kNever) return;
+    slots_[k] = Slot{};  // its items in the heap no longer match a seq: skipped when they surface
+    --size_;
+  }
 
   /// Makes the top item exact: drops items of cleared keys and superseded items, and moves an
   /// armed item whose key now wants a later time to that time.
   void settle() {
     while (!heap_.empty()) {
       const Item top = heap_.front();
-      const auto it = slots_.find(top.key);
-      if (it == slots_.end() || it->second.seq != top.seq) {
+      Slot& s = slots_[top.key];
+      if (s.seq != top.seq) {
         pop();  // cleared, or superseded by an earlier push
         continue;
       }
-      Slot& s = it->second;
       if (s.want == top.when) return;
       pop();  // the key was moved later while this item waited
       push(top.key, s.want, s);
@@ -120,7 +124,8 @@ class DeadlineHeap {
   }
 
   std::vector<Item> heap_;
-  std::unordered_map<Key, Slot> slots_;
+  std::vector<Slot> slots_;  // by key
+  std::size_t size_ = 0;     // keys with a deadline
   std::uint64_t seq_ = 0;
 };
 

@@ -235,27 +235,31 @@ class CopyWindow {
 
 /// One registry entry (MasterLogic EntryType; spec field names in brackets), plus what the operator
 /// needs.
-struct RegistryEntry {
-  std::uint16_t ann = 0;        ///< [ann] Announced id (temporary, or the old id of a PANIC agent).
+/// Aligned to a cache line, with what every datagram reads in its first 64 bytes (ids, flags, times,
+/// the queue's bounds): at 10,000 agents an entry is rarely in cache when its agent's PING comes, and
+/// one line costs less than the two or three an unaligned entry spans (docs/benchmarks.md).
+struct alignas(64) RegistryEntry {
   std::uint16_t id = 0;         ///< [id] Assigned id.
+  std::uint16_t ann = 0;        ///< [ann] Announced id (temporary, or the old id of a PANIC agent).
   Peer peer = 0;                ///< [ep] Where the agent is.
   bool synced = false;          ///< [synced] The agent acknowledged MASTER.
+  bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
   bool has_state = false;       ///< A PING reported @c state.
   AgentState state = AgentState::IDLE; ///< State from the last PING.
-  Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
-  std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
-  std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
   AgentState desired = AgentState::ACTIVE; ///< [desired] What the operator last asked (desired_after).
   bool desired_known = true;    ///< [desired = UNKNOWN] False after a refused command that no queued
                                 ///< command overrides, and for an entry adopted by an elected master:
                                 ///< no reconcile until the operator's next desired-setting command.
-  bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
-  std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
-  Millis sent_at = 0;           ///< When it was last sent.
-  std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
-  std::deque<Command> queue;    ///< [queue] Operator commands; the front one is pending once synced.
-  std::uint32_t last_msgid = 0; ///< [hi] Highest msgid heard from the agent (orders its PANICs).
   std::uint16_t via = 0;        ///< The relay this agent is reached through (0 = direct; RELAY_ROUTE).
+  std::uint32_t last_msgid = 0; ///< [hi] Highest msgid heard from the agent (orders its PANICs).
+  std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
+  std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
+  Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
+  Millis sent_at = 0;           ///< When it was last sent.
+  std::vector<Command> queue;   ///< [queue] Operator commands; the front one is pending once synced
+                                ///< (a few at most; empty, it takes no memory).
+  std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
+  std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
 
   /// "MASTER" while not synced, the pending command's name, or "DONE" (for displays).
   std::string_view job() const noexcept {
@@ -263,6 +267,102 @@ struct RegistryEntry {
     if (pending && !queue.empty()) return to_string(queue.front().type);
     return "DONE";
   }
+};
+
+/// The master's registry: the entries by assigned id in a std::map (in order of id, as the spec's
+/// records and the operator's table list them), and what finds an entry without walking them: a
+/// flat index id -> entry, and ordered sets (announced id, id) and (peer, id). An entry's id, ann
+/// and peer change only through this class.
+class Registry {
+ public:
+  /// The entries by id.
+  using Map = std::map<std::uint16_t, RegistryEntry>;
+
+  Registry() = default;
+  /// A copy (the conformance driver's snapshots): the index points into the copy's own entries.
+  Registry(const Registry& o) : map_(o.map_), by_ann_(o.by_ann_), by_peer_(o.by_peer_) { reindex(); }
+  Registry& operator=(const Registry& o) {
+    if (this != &o) {
+      map_ = o.map_;
+      by_ann_ = o.by_ann_;
+      by_peer_ = o.by_peer_;
+      reindex();
+    }
+    return *this;
+  }
+  Registry(Registry&&) noexcept = default;  // a std::map's entries move with it: the index stays valid
+  Registry& operator=(Registry&&) noexcept = default;
+  ~Registry() = default;
+
+  /// The entries.
+  const Map& map() const noexcept { return map_; }
+  /// The entries, to change what they hold (not their id, ann or peer).
+  Map::iterator begin() noexcept { return map_.begin(); }
+  Map::iterator end() noexcept { return map_.end(); }
+
+  /// Entry @p id, or nullptr: O(1).
+  RegistryEntry* find(std::uint16_t id) noexcept { return id < index_.size() ? index_[id] : nullptr; }
+  const RegistryEntry* find(std::uint16_t id) const noexcept { return id < index_.size() ? index_[id] : nullptr; }
+  /// True when @p id is registered.
+  bool contains(std::uint16_t id) const noexcept { return find(id) != nullptr; }
+
+  /// Adds @p e (its id not registered); returns it.
+  RegistryEntry& insert(RegistryEntry e) {
+    const std::uint16_t id = e.id;
+    RegistryEntry& r = map_.emplace(id, std::move(e)).first->second;
+    if (id >= index_.size()) index_.resize(std::size_t{id} + 1, nullptr);
+    index_[id] = &r;
+    by_ann_.insert({r.ann, id});
+    by_peer_.insert({r.peer, id});
+    return r;
+  }
+  /// Removes entry @p id (if registered).
+  void erase(std::uint16_t id) {
+    RegistryEntry* e = find(id);
+    if (e == nullptr) return;
+    by_ann_.erase({e->ann, id});
+    by_peer_.erase({e->peer, id});
+    index_[id] = nullptr;
+    map_.erase(id);
+  }
+  /// Entry @p e now announces @p ann.
+  void set_ann(RegistryEntry& e, std::uint16_t ann) {
+    by_ann_.erase({e.ann, e.id});
+    e.ann = ann;
+    by_ann_.insert({ann, e.id});
+  }
+  /// Entry @p e is now at @p p.
+  void set_peer(RegistryEntry& e, Peer p) {
+    by_peer_.erase({e.peer, e.id});
+    e.peer = p;
+    by_peer_.insert({p, e.id});
+  }
+
+  /// Spec Known(reg, s): the ids of the entries whose announced or assigned id is s, in order.
+  std::vector<std::uint16_t> known(std::uint16_t s) const {
+    std::vector<std::uint16_t> k;
+    for (auto it = by_ann_.lower_bound({s, 0}); it != by_ann_.end() && it->first == s; ++it)
+      k.push_back(it->second);
+    if (contains(s) && !std::binary_search(k.begin(), k.end(), s))
+      k.insert(std::lower_bound(k.begin(), k.end(), s), s);
+    return k;
+  }
+  /// The lowest id of an entry at @p p (0: none).
+  std::uint16_t first_at(Peer p) const {
+    const auto it = by_peer_.lower_bound({p, 0});
+    return it != by_peer_.end() && it->first == p ? it->second : 0;
+  }
+
+ private:
+  void reindex() {
+    index_.assign(map_.empty() ? 0 : std::size_t{map_.rbegin()->first} + 1, nullptr);
+    for (auto& kv : map_) index_[kv.first] = &kv.second;
+  }
+
+  Map map_;
+  std::vector<RegistryEntry*> index_;                         // by id; up to the largest id held
+  std::set<std::pair<std::uint16_t, std::uint16_t>> by_ann_;  // (ann, id)
+  std::set<std::pair<Peer, std::uint16_t>> by_peer_;          // (peer, id)
 };
 
 /// One trace record of the master: a spec action, its message, and the master's variables.
@@ -400,7 +500,7 @@ class Master {
   // ---------------------------------------------------------------- observers
 
   /// The registry, by assigned id.
-  const std::map<std::uint16_t, RegistryEntry>& registry() const noexcept { return reg_; }
+  const std::map<std::uint16_t, RegistryEntry>& registry() const noexcept { return reg_.map(); }
   /// The next id to assign (persist it).
   std::uint16_t next_id() const noexcept { return next_id_; }
   /// The next msgid (persist it).
@@ -418,7 +518,7 @@ class Master {
   /// The fleet membership (persist it): the configured members and every agent registered since.
   std::vector<std::uint16_t> members() const {
     std::set<std::uint16_t> m = members_;
-    for (const auto& kv : reg_)
+    for (const auto& kv : reg_.map())
       if (kv.second.synced) m.insert(kv.first);
     return std::vector<std::uint16_t>(m.begin(), m.end());
   }
@@ -485,7 +585,7 @@ class Master {
         MasterPing(m, from);
         return taken(Action::MasterPing);
       case Action::MasterReport: {
-        const Ignored why = reg_.count(m.sender) == 0 ? Ignored::unknown_sender : Ignored::none;
+        const Ignored why = reg_.contains(m.sender) ? Ignored::none : Ignored::unknown_sender;
         if (!MasterReportOk(m)) return taken(Action::MasterReport, Ignored::duplicate);
         MasterReport(m);
         return taken(Action::MasterReport, why);
@@ -516,7 +616,7 @@ class Master {
 
   /// MasterSync has an entry to act on: one the sender is known by, or an id to give it.
   bool MasterSyncOk(std::uint16_t s) const {
-    return !Known(s).empty() || is_assigned_id(s) || next_id_ <= kLastAssignedId;
+    return !reg_.known(s).empty() || is_assigned_id(s) || next_id_ <= kLastAssignedId;
   }
   /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent is heard and gets its
   /// pending datagram again; a PANIC from a synced entry's own id with a msgid above every msgid
@@ -525,16 +625,16 @@ class Master {
   /// An adopted id raises next_id past it (max(next_id, s + 1)): no later agent gets an id in use.
   void MasterSync(const Message& m, Peer from) {
     const std::uint16_t s = m.sender;
-    const std::vector<std::uint16_t> k = Known(s);
+    const std::vector<std::uint16_t> k = reg_.known(s);  // spec Known(reg, s)
     if (!k.empty()) {
       for (std::uint16_t id : k) {
-        RegistryEntry& e = reg_[id];
+        RegistryEntry& e = *reg_.find(id);
         e.heard = now_;
         if (m.type == MsgType::PANIC && e.synced && s == e.id && m.msgid > e.last_msgid) {
           // The agent lost us while we still hold it (its PONGs were lost): sync it again, a new
           // MASTER; its queued commands follow once it ACKs, reconcile restores its desired state.
           set_synced(e, false);
-          set_ann(e, s);  // MASTER names the id the agent holds now
+          reg_.set_ann(e, s);  // MASTER names the id the agent holds now
           e.pending = true;
           e.mid = msgid_++;
           e.sent_at = now_;
@@ -553,11 +653,8 @@ class Master {
       next_id_ = static_cast<std::uint16_t>(s + 1);  // adopted: never hand s out again
     }
     // Entries at the same peer, by id (an index lookup, not a walk).
-    while (true) {
-      const auto at = by_peer_.lower_bound({from, 0});
-      if (at == by_peer_.end() || at->first != from) break;
-      const std::uint16_t id = at->second;
-      fail_queue(reg_[id]);
+    for (std::uint16_t id; (id = reg_.first_at(from)) != 0;) {
+      fail_queue(*reg_.find(id));
       erase(id);
     }
     RegistryEntry e;
@@ -570,16 +667,16 @@ class Master {
     e.mid = msgid_++;
     e.sent_at = now_;
     erase(nid);
-    send_pending(insert(std::move(e))->second);
+    send_pending(insert(std::move(e)));
   }
 
   /// MasterAnswer has an entry to act on: the sender is registered.
-  bool MasterAnswerOk(const Message& m) const { return reg_.count(m.sender) != 0; }
+  bool MasterAnswerOk(const Message& m) const { return reg_.contains(m.sender); }
   /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command. A NOT
   /// makes the desired state unknown (no reconcile) unless a command still queued sets it. Returns
   /// stale_answer when it answered nothing pending (a copy, a late answer, a NOT to MASTER).
   Ignored MasterAnswer(const Message& m) {
-    RegistryEntry& e = reg_.at(m.sender);
+    RegistryEntry& e = *reg_.find(m.sender);
     if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
     const auto ref = m.param_u32(0);
     if (!e.pending || !ref || *ref != e.mid) return Ignored::stale_answer;
@@ -593,7 +690,7 @@ class Master {
       push(OperatorEvent::Kind::registered, e.id, MsgType::MASTER, std::to_string(e.ann));
     } else if (!e.queue.empty()) {
       Command c = std::move(e.queue.front());
-      e.queue.pop_front();
+      e.queue.erase(e.queue.begin());
       if (ack) {
         if (c.type == MsgType::BEHAVIOUR) {
           e.behaviour = c.name;
@@ -615,14 +712,14 @@ class Master {
   }
 
   /// MasterPing has an entry to act on: the sender is registered (others get no PONG).
-  bool MasterPingOk(const Message& m) const { return reg_.count(m.sender) != 0; }
+  bool MasterPingOk(const Message& m) const { return reg_.contains(m.sender); }
   /// Spec MasterPing: PONG at once to a registered agent (which is heard).
   /// Reconcile: a synced agent with nothing pending or queued whose reported state is not the
   /// desired one gets the commands that restore it (Restore), after the PONG. Only a fresh PING
   /// (msgid above every msgid heard from the agent) reconciles: a stale one, sent before the agent's
   /// last answer, reports a state it has left.
   void MasterPing(const Message& m, Peer from) {
-    RegistryEntry& e = reg_.at(m.sender);
+    RegistryEntry& e = *reg_.find(m.sender);
     e.heard = now_;
     const bool fresh = m.msgid > e.last_msgid;
     if (fresh) e.last_msgid = m.msgid;
@@ -675,12 +772,12 @@ class Master {
 
   /// MasterCommand has an entry to act on: @p agent is registered, or 0 (all).
   bool MasterCommandOk(std::uint16_t agent) const {
-    return agent == kBroadcastId || reg_.count(agent) != 0;
+    return agent == kBroadcastId || reg_.contains(agent);
   }
   /// Spec MasterCommand: the operator's command for agent @p agent (0 = all: not in the spec).
   void MasterCommand(std::uint16_t agent, const Command& c) {
     if (agent != kBroadcastId) {
-      enqueue(reg_.at(agent), c);
+      enqueue(*reg_.find(agent), c);
       return;
     }
     for (auto& kv : reg_) enqueue(kv.second, c);
@@ -700,7 +797,7 @@ class Master {
     for (std::uint16_t id; deadlines_.pop_due(now_, id);) due_.push_back(id);
     std::sort(due_.begin(), due_.end());
     for (std::uint16_t id : due_) {
-      RegistryEntry& e = reg_.at(id);
+      RegistryEntry& e = *reg_.find(id);
       if (now_ - e.heard >= cfg_.timers[Timer::drop]) {
         fail_queue(e);
         push(OperatorEvent::Kind::dropped, e.id, MsgType::PING, {});
@@ -710,7 +807,7 @@ class Master {
       if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
         if (e.synced && e.resends >= cfg_.max_resends) {
           push(OperatorEvent::Kind::timed_out, e.id, e.queue.front().type, {});
-          e.queue.pop_front();
+          e.queue.erase(e.queue.begin());
           e.pending = false;
           start_next(e);
         } else {
@@ -837,16 +934,16 @@ class Master {
     const auto e = m.param_u32(0);
     const auto a = m.param_u16(1);
     return role_ == MasterRole::master && m.receiver == self_ && e && *e == epoch_ && a &&
-           (reg_.count(*a) != 0 || members_.count(*a) != 0);
+           (reg_.contains(*a) || members_.count(*a) != 0);
   }
   /// RELAY_ROUTE(epoch, agent) from relay p (Election abstracts it: the master reads the table):
   /// the agent is reached through p from now on (a member not registered yet is adopted).
   void MasterRoute(const Message& m, Peer from) {
     const std::uint16_t a = *m.param_u16(1);
-    auto it = reg_.find(a);
-    if (it == reg_.end()) it = adopt(a, from);
-    it->second.via = m.sender;
-    set_peer(it->second, from);
+    RegistryEntry* e = reg_.find(a);
+    if (e == nullptr) e = &adopt(a, from);
+    e->via = m.sender;
+    reg_.set_peer(*e, from);
   }
 
   /// HANDOVER to us (MASTER) from the master of an epoch not newer than ours.
@@ -897,12 +994,12 @@ class Master {
   /// Where a registered agent is (direct, or through relay @p via); a member we do not hold yet
   /// (it follows our LEADER) is registered as synced when it pings.
   void note_route(const Message& m, Peer from, std::uint16_t via) {
-    auto it = reg_.find(m.sender);
-    if (it == reg_.end()) {
+    RegistryEntry* found = reg_.find(m.sender);
+    if (found == nullptr) {
       if (m.type != MsgType::PING || members_.count(m.sender) == 0) return;
-      it = adopt(m.sender, from);
+      found = &adopt(m.sender, from);
     }
-    RegistryEntry& e = it->second;
+    RegistryEntry& e = *found;
     if (m.type == MsgType::PING && !e.synced && members_.count(m.sender) != 0) {
       // A member we were syncing (its PANIC reached us) pings: it follows our LEADER already.
       set_synced(e, true);
@@ -912,10 +1009,10 @@ class Master {
     }
     // A relay forwards the agent's datagrams unchanged: from the relay's peer they are relayed.
     if (via == 0 && e.via != 0 && from == e.peer) return;
-    set_peer(e, from);
+    reg_.set_peer(e, from);
     e.via = via;
   }
-  std::map<std::uint16_t, RegistryEntry>::iterator adopt(std::uint16_t id, Peer from) {
+  RegistryEntry& adopt(std::uint16_t id, Peer from) {
     RegistryEntry e;
     e.ann = id;
     e.id = id;
@@ -938,16 +1035,6 @@ class Master {
     send(to, id, t, p.data(), p.size());
   }
 
-  /// Spec Known(reg, s): entries whose announced or assigned id is s, by id (an index lookup).
-  std::vector<std::uint16_t> Known(std::uint16_t s) const {
-    std::vector<std::uint16_t> k;
-    for (auto it = by_ann_.lower_bound({s, 0}); it != by_ann_.end() && it->first == s; ++it)
-      k.push_back(it->second);
-    if (reg_.count(s) != 0 && !std::binary_search(k.begin(), k.end(), s))
-      k.insert(std::lower_bound(k.begin(), k.end(), s), s);
-    return k;
-  }
-
   // ------------------------------------------------ registry (indexes and deadlines)
 
   /// An entry's deadline: the drop time, or the resend time of its pending datagram if earlier.
@@ -959,34 +1046,20 @@ class Master {
   /// After heard, pending or sent_at of @p e changed.
   void rearm(const RegistryEntry& e) { deadlines_.set(e.id, due_at(e)); }
 
-  /// Adds @p e (its id not registered) to the registry, the indexes and the deadlines.
-  std::map<std::uint16_t, RegistryEntry>::iterator insert(RegistryEntry e) {
-    const auto it = reg_.emplace(e.id, std::move(e)).first;
-    by_ann_.insert({it->second.ann, it->first});
-    by_peer_.insert({it->second.peer, it->first});
-    rearm(it->second);
-    if (it->second.synced) ++members_rev_;
-    return it;
+  /// Adds @p e (its id not registered) to the registry and its deadline.
+  RegistryEntry& insert(RegistryEntry e) {
+    RegistryEntry& r = reg_.insert(std::move(e));
+    rearm(r);
+    if (r.synced) ++members_rev_;
+    return r;
   }
-  /// Removes entry @p id from the registry, the indexes and the deadlines.
+  /// Removes entry @p id from the registry and its deadline.
   void erase(std::uint16_t id) {
-    const auto it = reg_.find(id);
-    if (it == reg_.end()) return;
-    by_ann_.erase({it->second.ann, id});
-    by_peer_.erase({it->second.peer, id});
+    const RegistryEntry* e = reg_.find(id);
+    if (e == nullptr) return;
+    if (e->synced) ++members_rev_;
     deadlines_.clear(id);
-    if (it->second.synced) ++members_rev_;
-    reg_.erase(it);
-  }
-  void set_ann(RegistryEntry& e, std::uint16_t ann) {
-    by_ann_.erase({e.ann, e.id});
-    e.ann = ann;
-    by_ann_.insert({ann, e.id});
-  }
-  void set_peer(RegistryEntry& e, Peer p) {
-    by_peer_.erase({e.peer, e.id});
-    e.peer = p;
-    by_peer_.insert({p, e.id});
+    reg_.erase(id);
   }
   void set_synced(RegistryEntry& e, bool synced) {
     if (e.synced != synced) ++members_rev_;
@@ -1053,9 +1126,8 @@ class Master {
       if (epoch_ > 1 && (t == MsgType::MASTER || is_command(t)))
         bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(epoch_), bytes);
       // Relay: an agent behind a relay gets RELAY(agent, datagram) through it.
-      const auto it = reg_.find(id);
-      if (it != reg_.end() && it->second.via != 0)
-        bytes = wrap(it->second.via, mid, MsgType::RELAY, std::to_string(id), bytes);
+      const RegistryEntry* e = reg_.find(id);
+      if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, std::to_string(id), bytes);
     }
     if (!bytes.empty()) tx_.push_back(MasterTransmit{to, Dest::peer, std::move(bytes)});
   }
@@ -1106,7 +1178,7 @@ class Master {
       s += '"';
     };
     std::string s = "[";
-    for (const auto& kv : reg_) {
+    for (const auto& kv : reg_.map()) {
       const RegistryEntry& e = kv.second;
       if (s.size() > 1) s += ',';
       s += "{\"ann\":" + std::to_string(e.ann) + ",\"id\":" + std::to_string(e.id) +
@@ -1168,12 +1240,10 @@ class Master {
   std::uint16_t next_id_;
   std::uint32_t msgid_;
   Millis now_;
-  std::map<std::uint16_t, RegistryEntry> reg_;
+  Registry reg_;
   DeadlineHeap<std::uint16_t> deadlines_;  // each entry's due_at()
-  std::set<std::pair<std::uint16_t, std::uint16_t>> by_ann_;  // (ann, id): Known()
-  std::set<std::pair<Peer, std::uint16_t>> by_peer_;          // (peer, id): MasterSync's replace
-  std::vector<std::uint16_t> due_;                            // MasterTick's scratch
-  CopyWindow copies_;                                         // MasterConfig::drop_copies
+  std::vector<std::uint16_t> due_;         // MasterTick's scratch
+  CopyWindow copies_;                      // MasterConfig::drop_copies
   DedupeWindow<256> reports_;
   std::deque<MasterTransmit> tx_;
   std::deque<OperatorEvent> ev_;

@@ -246,3 +246,26 @@ TEST(MasterReceipts, ElectionReasons) {
 }
 
 }  // namespace
+
+namespace {
+
+TEST(MasterRegistry, ACopyFindsItsOwnEntries) {
+  // The conformance driver snapshots a Master by copying it: the copy's id index must point into
+  // the copy, so that changing one leaves the other as it was.
+  Master<> a(MasterConfig{}, 0);
+  a.handle_datagram("50001:0:1:1:A", 11, 1);
+  a.handle_datagram("2:1:2:3:1", 11, 2);
+  Master<> b = a;
+  b.handle_datagram("2:1:3:5:WORKING", 11, 3);
+  EXPECT_FALSE(a.registry().at(2).has_state);
+  EXPECT_EQ(b.registry().at(2).state, AgentState::WORKING);
+  a = b;
+  b.handle_datagram("2:1:4:5:PAUSED", 11, 4);
+  EXPECT_EQ(a.registry().at(2).state, AgentState::WORKING);
+  EXPECT_EQ(b.registry().at(2).state, AgentState::PAUSED);
+  a.handle_datagram("2:1:5:5:ACTIVE", 11, 5);  // through a's index, into a's entry
+  EXPECT_EQ(a.registry().at(2).state, AgentState::ACTIVE);
+  EXPECT_EQ(b.registry().at(2).state, AgentState::PAUSED);
+}
+
+}  // namespace
