@@ -11,12 +11,15 @@
 // (or after --settle-s) the measurement window of --duration-s begins: PONG latency (PING's first
 // copy sent -> its PONG's first copy received), PINGs left without PONG, and agents that lost the
 // master (HeartbeatLost: no answer for --master-timeout-ms -> PANIC). With --master-status FILE (the
-// master's --status-json), the master's own count of agents it declared lost is read at the end.
+// master's --status-json), the master's own count of agents it declared lost is read at the end,
+// and the file's age is sampled every 100 ms of the window (a master that starves its loop under
+// load stops rewriting it: it should be at most about 0.5 s old).
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/epoll.h>
 #include <sys/resource.h>
 #include <sys/socket.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -173,7 +176,7 @@ class LoadGen {
     const double ramp_ms = o_.ramp_s * 1000.0;
     std::size_t started = 0;
     Millis window_start = 0, window_end = 0;
-    Millis next_report = t0 + 1000;
+    Millis next_report = t0 + 1000, next_status_check = 0;
     bool in_window = false;
     std::fprintf(stderr, "ev3-loadgen: %zu agents -> %s, heartbeat %llu ms, ramp %.1f s\n", o_.agents,
                  o_.master.str().c_str(), static_cast<unsigned long long>(o_.heartbeat), o_.ramp_s);
@@ -204,6 +207,10 @@ class LoadGen {
                      o_.agents, static_cast<double>(now - t0) / 1000.0, o_.duration_s);
       }
       if (in_window && now >= window_end) break;
+      if (in_window && !o_.master_status.empty() && now >= next_status_check) {
+        status_age();
+        next_status_check = now + 100;
+      }
       if (now >= next_report) {
         std::fprintf(stderr, "ev3-loadgen: t=%.0fs synced %zu/%zu%s pings %llu pongs %llu losses %llu\n",
                      static_cast<double>(now - t0) / 1000.0, synced_now_, o_.agents, in_window ? " (window)" : "",
@@ -215,6 +222,7 @@ class LoadGen {
       // Sleep until a datagram, an agent deadline, a copy or the next start.
       Millis wake = std::min(deadlines_.next(), copies_.empty() ? ev3proto::DeadlineHeap<std::size_t>::kNever : copies_.top().at);
       wake = std::min(wake, next_report);
+      if (in_window && !o_.master_status.empty()) wake = std::min(wake, next_status_check);
       if (in_window) wake = std::min(wake, window_end);
       if (started < o_.agents) wake = std::min(wake, now + 1);
       const int timeout = wake <= now ? 0 : static_cast<int>(std::min<Millis>(wake - now, 1000));
@@ -347,6 +355,17 @@ class LoadGen {
       ++send_errors_;
   }
 
+  /// Samples the age of the master's status file (CLOCK_REALTIME against its mtime).
+  void status_age() {
+    struct stat st {};
+    if (stat(o_.master_status.c_str(), &st) != 0) return;
+    timespec ts{};
+    clock_gettime(CLOCK_REALTIME, &ts);
+    const double age = static_cast<double>(ts.tv_sec - st.st_mtim.tv_sec) * 1000.0 +
+                       static_cast<double>(ts.tv_nsec - st.st_mtim.tv_nsec) / 1e6;
+    status_max_age_ = std::max(status_max_age_, age);
+  }
+
   static double pct(std::vector<std::uint32_t>& v, double p) {
     if (v.empty()) return 0;
     const std::size_t k = std::min(v.size() - 1, static_cast<std::size_t>(p / 100.0 * static_cast<double>(v.size())));
@@ -385,11 +404,11 @@ class LoadGen {
           "{\"agents\":%zu,\"heartbeat_ms\":%llu,\"window_s\":%.1f,\"synced_at_start\":%zu,\"synced_at_end\":%zu,"
           "\"agents_lost\":%zu,\"heartbeat_losses\":%llu,\"pings\":%llu,\"pongs\":%llu,\"unanswered\":%llu,"
           "\"pong_ms\":{\"samples\":%zu,\"p50\":%.2f,\"p90\":%.2f,\"p99\":%.2f,\"max\":%.2f},"
-          "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld}\n",
+          "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld,\"status_max_age_ms\":%.0f}\n",
           o_.agents, static_cast<unsigned long long>(o_.heartbeat), secs, synced_at_window_, synced_now_, agents_lost_,
           static_cast<unsigned long long>(losses_), static_cast<unsigned long long>(pings_),
           static_cast<unsigned long long>(pongs_), static_cast<unsigned long long>(unanswered_), samples, p50, p90,
-          p99, pmax, static_cast<unsigned long long>(send_errors_), m_agents, m_lost);
+          p99, pmax, static_cast<unsigned long long>(send_errors_), m_agents, m_lost, status_max_age_);
     } else {
       std::printf("agents %zu (heartbeat %llu ms), window %.1f s: synced %zu at start, %zu at end; %zu agents lost "
                   "the master (%llu heartbeat losses)\n",
@@ -400,7 +419,9 @@ class LoadGen {
                   static_cast<unsigned long long>(pings_), static_cast<unsigned long long>(pongs_),
                   static_cast<unsigned long long>(unanswered_), p50, p90, p99, pmax, samples,
                   static_cast<unsigned long long>(send_errors_));
-      if (m_agents >= 0) std::printf("master: %ld agents registered, %ld declared lost\n", m_agents, m_lost);
+      if (m_agents >= 0)
+        std::printf("master: %ld agents registered, %ld declared lost; status file at most %.0f ms old\n", m_agents,
+                    m_lost, status_max_age_);
     }
     return 0;
   }
@@ -417,6 +438,7 @@ class LoadGen {
   std::size_t synced_now_ = 0, synced_at_window_ = 0, agents_lost_ = 0;
   std::uint64_t pings_ = 0, pongs_ = 0, unanswered_ = 0, losses_ = 0, send_errors_ = 0;
   std::vector<std::uint32_t> latencies_;  // microseconds
+  double status_max_age_ = 0;            // ms
 };
 
 }  // namespace

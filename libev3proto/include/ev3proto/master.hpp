@@ -577,9 +577,15 @@ class Master {
         if (!MasterSyncOk(m.sender)) return taken(Action::MasterSync, Ignored::ids_exhausted);
         MasterSync(m, from);
         return taken(Action::MasterSync);
-      case Action::MasterAnswer:
+      case Action::MasterAnswer: {
         if (!MasterAnswerOk(m)) return taken(Action::MasterAnswer, Ignored::unknown_sender);
-        return taken(Action::MasterAnswer, MasterAnswer(m));
+        const RegistryEntry& e = *reg_.find(m.sender);
+        const bool was_pending = e.pending;
+        const std::uint32_t mid = e.mid;
+        MasterAnswer(m);  // an answer to nothing pending leaves the pending datagram as it was
+        const bool answered = e.pending != was_pending || e.mid != mid;
+        return taken(Action::MasterAnswer, answered ? Ignored::none : Ignored::stale_answer);
+      }
       case Action::MasterPing:
         if (!MasterPingOk(m)) return taken(Action::MasterPing, Ignored::unknown_sender);
         MasterPing(m, from);
@@ -673,17 +679,16 @@ class Master {
   /// MasterAnswer has an entry to act on: the sender is registered.
   bool MasterAnswerOk(const Message& m) const { return reg_.contains(m.sender); }
   /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command. A NOT
-  /// makes the desired state unknown (no reconcile) unless a command still queued sets it. Returns
-  /// stale_answer when it answered nothing pending (a copy, a late answer, a NOT to MASTER).
-  Ignored MasterAnswer(const Message& m) {
+  /// makes the desired state unknown (no reconcile) unless a command still queued sets it.
+  void MasterAnswer(const Message& m) {
     RegistryEntry& e = *reg_.find(m.sender);
     if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
     const auto ref = m.param_u32(0);
-    if (!e.pending || !ref || *ref != e.mid) return Ignored::stale_answer;
+    if (!e.pending || !ref || *ref != e.mid) return;
     e.heard = now_;
     rearm(e);
     const bool ack = m.type == MsgType::ACK;
-    if (!e.synced && !ack) return Ignored::stale_answer;  // an agent never refuses MASTER; a NOT is no answer to it
+    if (!e.synced && !ack) return;  // an agent never refuses MASTER; a NOT is no answer to it
     e.pending = false;
     if (!e.synced) {
       set_synced(e, true);
@@ -708,7 +713,6 @@ class Master {
     }
     start_next(e);
     rearm(e);
-    return Ignored::none;
   }
 
   /// MasterPing has an entry to act on: the sender is registered (others get no PONG).
