@@ -180,7 +180,7 @@ class Outcome:
 class Workspace:
     """A copy of the sources (build/mutate/src) and one ninja tree (build/mutate/build)."""
 
-    DIRS = ("cmake", "libev3proto", "io", "agent", "master", "tools/codec")
+    DIRS = ("cmake", "libev3proto", "io", "agent", "master", "tools/codec", "tools/loadgen")
 
     def __init__(self, root: Path, base: Path) -> None:
         self.root, self.base = root, base
