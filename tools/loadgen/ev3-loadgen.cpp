@@ -5,7 +5,7 @@
 // its own UDP socket on its own port: the master tells agents apart by their address, so one socket
 // per agent is what a fleet looks like to it. Everything an agent sends goes to the master address
 // (AGENT / PANIC broadcasts included), 3 copies a few ms apart as the real transport sends them. One
-// thread, one epoll over all sockets; agent deadlines in a DeadlineHeap.
+// thread, one epoll over all sockets; agent deadlines in a min-heap (lazy: stale items are skipped).
 //
 // Agents start spread over --ramp-s, sync, and then PING every --heartbeat-ms. Once all are synced
 // (or after --settle-s) the measurement window of --duration-s begins: PONG latency (PING's first
@@ -36,7 +36,6 @@
 #include <vector>
 
 #include <ev3proto/agent.hpp>
-#include <ev3proto/deadline_heap.hpp>
 #include <ev3proto/wire.hpp>
 
 #include "ev3io/cli.hpp"
@@ -46,6 +45,7 @@ namespace {
 using ev3proto::Millis;
 
 using Micros = std::uint64_t;
+constexpr Millis kNever = ~Millis{0};
 Micros now_us() {
   timespec ts{};
   clock_gettime(CLOCK_MONOTONIC, &ts);
@@ -147,6 +147,7 @@ struct Sim {
   bool synced = false;       // reached ACTIVE at least once
   bool synced_now = false;   // ACTIVE / WORKING / PAUSED now
   unsigned losses = 0;       // HeartbeatLost (synced -> PANIC) in the window
+  Millis due = ~Millis{0};   // the core's next deadline, as armed in the heap
 };
 
 /// A copy to send later.
@@ -191,9 +192,14 @@ class LoadGen {
         ++started;
       }
       // Deadlines of the agents, then the copies due.
-      for (std::size_t i; deadlines_.pop_due(now, i);) {
-        sims_[i].core->advance(now);
-        drain(i, now);
+      while (!due_.empty() && due_.top().first <= now) {
+        const Due d = due_.top();
+        due_.pop();
+        Sim& s = sims_[d.second];
+        if (s.due != d.first) continue;  // armed again since: a stale item
+        s.due = kNever;
+        s.core->advance(now);
+        drain(d.second, now);
       }
       flush_copies(now);
       // Phases: settle until all synced, then the window.
@@ -220,7 +226,8 @@ class LoadGen {
       }
       measuring_ = in_window;
       // Sleep until a datagram, an agent deadline, a copy or the next start.
-      Millis wake = std::min(deadlines_.next(), copies_.empty() ? ev3proto::DeadlineHeap<std::size_t>::kNever : copies_.top().at);
+      while (!due_.empty() && sims_[due_.top().second].due != due_.top().first) due_.pop();
+      Millis wake = std::min(due_.empty() ? kNever : due_.top().first, copies_.empty() ? kNever : copies_.top().at);
       wake = std::min(wake, next_report);
       if (in_window && !o_.master_status.empty()) wake = std::min(wake, next_status_check);
       if (in_window) wake = std::min(wake, window_end);
@@ -285,7 +292,7 @@ class LoadGen {
     c.timers.set(ev3proto::Timer::paused, o_.paused).set(ev3proto::Timer::sync, o_.sync);
     c.temp_id = static_cast<std::uint16_t>(o_.first_temp_id + i);
     sims_[i].core = std::make_unique<AgentCore>(c, now);
-    deadlines_.set(i, sims_[i].core->next_deadline());
+    arm(i);
   }
 
   /// One datagram waiting on agent @p i's socket (epoll is level-triggered: it reports the socket
@@ -340,7 +347,16 @@ class LoadGen {
       s.synced_now = synced;
       s.synced = s.synced || synced;
     }
-    deadlines_.set(i, s.core->next_deadline());
+    arm(i);
+  }
+
+  /// Puts agent @p i's next deadline in the heap (unless it is there already).
+  void arm(std::size_t i) {
+    Sim& s = sims_[i];
+    const Millis d = s.core->next_deadline();
+    if (d == s.due) return;
+    s.due = d;
+    if (d != kNever) due_.push(Due{d, i});
   }
 
   void flush_copies(Millis now) {
@@ -430,7 +446,8 @@ class LoadGen {
   int ep_ = -1;
   sockaddr_in master_{};
   std::vector<Sim> sims_;
-  ev3proto::DeadlineHeap<std::size_t> deadlines_;
+  using Due = std::pair<Millis, std::size_t>;  // (deadline, agent)
+  std::priority_queue<Due, std::vector<Due>, std::greater<Due>> due_;
   std::priority_queue<Copy, std::vector<Copy>, std::greater<Copy>> copies_;
   std::uint64_t seq_ = 0;
   ev3proto::Message rx_;

@@ -21,7 +21,7 @@
 #include <vector>
 
 #include "core.hpp"
-#include "deadline_heap.hpp"
+#include "deadline_list.hpp"
 #include "dedupe.hpp"
 #include "messages.hpp"
 #include "timers.hpp"
@@ -386,7 +386,7 @@ struct MasterTraceRecord {
 /// taking what it needs as parameters, and a handler `X` of the same name as the spec action. The
 /// entry points (handle_datagram / handle_message, advance, command) pick the action, run it and
 /// write its trace record; role changes happen only in become_master / become_candidate /
-/// become_stepped_down. Per-entry deadlines (resend, drop) live in a DeadlineHeap: handling a
+/// become_stepped_down. Per-entry deadlines (drop, resend) live in two DeadlineLists: handling a
 /// datagram, advance() and next_deadline() never walk the registry.
 /// @tparam Trace NoTrace (default) or a sink with `void record(const MasterTraceRecord&)`.
 template <typename Trace = NoTrace>
@@ -398,7 +398,7 @@ class Master {
   /// A master with an empty registry at time @p now.
   Master(const MasterConfig& config, Millis now, Trace* trace = nullptr)
       : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now),
-        copies_(config.drop_copies), epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
+        drops_(config.timers[Timer::drop]), resends_(config.timers[Timer::resend]), copies_(config.drop_copies), epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
         members_(config.members.begin(), config.members.end()) {
     if (!cfg_.election) return;  // Fleet.tla's master: MASTER for good, no LEADER
     if (config.candidate) {
@@ -489,11 +489,11 @@ class Master {
 
   /// When advance() must be called next at the latest (kNever when nothing is scheduled): the
   /// earliest of the LEADER heartbeat, the candidate's next election and (as MASTER) the entries'
-  /// deadlines, which a DeadlineHeap keeps (O(1) here, no walk of the registry).
+  /// deadlines, the fronts of two DeadlineLists (O(1) here, no walk of the registry).
   Millis next_deadline() const noexcept {
     Millis t = hb_at_ < cand_at_ ? hb_at_ : cand_at_;
     if (role_ != MasterRole::master) return t;
-    const Millis e = deadlines_.next();
+    const Millis e = entries_due();
     return e < t ? e : t;
   }
 
@@ -789,7 +789,7 @@ class Master {
 
   /// MasterTick is due at @p now: as MASTER, an entry's resend or drop time has come.
   bool MasterTickOk(Millis now) const noexcept {
-    return role_ == MasterRole::master && deadlines_.next() <= now;
+    return role_ == MasterRole::master && entries_due() <= now;
   }
   /// Spec MasterTick at now_: drop agents quiet for the drop timeout, resend due pending datagrams
   /// (an operator command fails after max_resends resends; MASTER is resent until ACK or drop and
@@ -798,8 +798,10 @@ class Master {
   /// be left as they are by the spec's walk of every entry.
   void MasterTick() {
     due_.clear();
-    for (std::uint16_t id; deadlines_.pop_due(now_, id);) due_.push_back(id);
+    for (std::uint16_t id; drops_.pop_due(now_, id);) due_.push_back(id);
+    for (std::uint16_t id; resends_.pop_due(now_, id);) due_.push_back(id);
     std::sort(due_.begin(), due_.end());
+    due_.erase(std::unique(due_.begin(), due_.end()), due_.end());
     for (std::uint16_t id : due_) {
       RegistryEntry& e = *reg_.find(id);
       if (now_ - e.heard >= cfg_.timers[Timer::drop]) {
@@ -1041,14 +1043,20 @@ class Master {
 
   // ------------------------------------------------ registry (indexes and deadlines)
 
-  /// An entry's deadline: the drop time, or the resend time of its pending datagram if earlier.
-  Millis due_at(const RegistryEntry& e) const noexcept {
-    const Millis drop = e.heard + cfg_.timers[Timer::drop];
-    const Millis resend = e.pending ? e.sent_at + cfg_.timers[Timer::resend] : kNever;
-    return resend < drop ? resend : drop;
+  /// The earliest deadline of an entry: a drop or a resend.
+  Millis entries_due() const noexcept {
+    const Millis d = drops_.next(), r = resends_.next();
+    return r < d ? r : d;
   }
-  /// After heard, pending or sent_at of @p e changed.
-  void rearm(const RegistryEntry& e) { deadlines_.set(e.id, due_at(e)); }
+  /// After heard, pending or sent_at of @p e changed: its drop time is heard + drop, its resend
+  /// time (while a datagram is pending) sent_at + resend.
+  void rearm(const RegistryEntry& e) {
+    drops_.refresh(e.id, e.heard);
+    if (e.pending)
+      resends_.refresh(e.id, e.sent_at);
+    else
+      resends_.remove(e.id);
+  }
 
   /// Adds @p e (its id not registered) to the registry and its deadline.
   RegistryEntry& insert(RegistryEntry e) {
@@ -1062,7 +1070,8 @@ class Master {
     const RegistryEntry* e = reg_.find(id);
     if (e == nullptr) return;
     if (e->synced) ++members_rev_;
-    deadlines_.clear(id);
+    drops_.remove(id);
+    resends_.remove(id);
     reg_.erase(id);
   }
   void set_synced(RegistryEntry& e, bool synced) {
@@ -1245,7 +1254,8 @@ class Master {
   std::uint32_t msgid_;
   Millis now_;
   Registry reg_;
-  DeadlineHeap<std::uint16_t> deadlines_;  // each entry's due_at()
+  DeadlineList<std::uint16_t> drops_;      // entries by heard: heard + drop
+  DeadlineList<std::uint16_t> resends_;    // pending entries by sent_at: sent_at + resend
   std::vector<std::uint16_t> due_;         // MasterTick's scratch
   CopyWindow copies_;                      // MasterConfig::drop_copies
   DedupeWindow<256> reports_;
