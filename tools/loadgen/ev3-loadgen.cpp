@@ -13,7 +13,8 @@
 // master (HeartbeatLost: no answer for --master-timeout-ms -> PANIC). With --master-status FILE (the
 // master's --status-json), the master's own count of agents it declared lost is read at the end,
 // and the file's age is sampled every 100 ms of the window (a master that starves its loop under
-// load stops rewriting it: it should be at most about 0.5 s old).
+// load stops rewriting it: it should be at most about 0.5 s old). The CPU time of this program and,
+// with --master-pid, of the master over the window are reported as a share of one core.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/epoll.h>
@@ -65,6 +66,7 @@ struct Options {
   Millis copy_gap = 3;
   std::uint16_t first_temp_id = ev3proto::kFirstTempId;
   std::string master_status;
+  long master_pid = 0;
   bool json = false;
 };
 
@@ -83,12 +85,14 @@ const std::vector<ev3io::OptionSpec> kSpecs = {
     {"copy-gap-ms", "N", "between two copies (default 3)"},
     {"first-temp-id", "N", "agent i announces temporary id N + i (default 50000)"},
     {"master-status", "FILE", "the master's --status-json: report its agents and lost ones at the end"},
+    {"master-pid", "PID", "the master's process: report its CPU time over the window"},
     {"json", "", "print the summary as one JSON object"},
 };
 
 const char* kSynopsis =
     "ev3-loadgen --master HOST:PORT --agents N [--heartbeat-ms N] [--duration-s S] [--ramp-s S]\n"
-    "            [--settle-s S] [--master-timeout-ms N] [--copies N] [--master-status FILE] [--json]";
+    "            [--settle-s S] [--master-timeout-ms N] [--copies N] [--master-status FILE]\n"
+    "            [--master-pid PID] [--json]";
 
 /// Parses the options; "" or an error naming the bad one.
 std::string parse(int argc, char** argv, Options& o, bool& help) {
@@ -132,6 +136,10 @@ std::string parse(int argc, char** argv, Options& o, bool& help) {
     o.first_temp_id = static_cast<std::uint16_t>(v);
   }
   o.master_status = a.get("master-status");
+  if (a.has("master-pid")) {
+    if (!ev3io::to_uint(a.get("master-pid"), 1, 4194304, v)) return "bad value for --master-pid: '" + a.get("master-pid") + "'";
+    o.master_pid = static_cast<long>(v);
+  }
   o.json = a.has("json");
   return {};
 }
@@ -209,6 +217,8 @@ class LoadGen {
         window_start = now;
         window_end = now + static_cast<Millis>(o_.duration_s * 1000.0);
         synced_at_window_ = synced_now_;
+        cpu_self_ = self_cpu();
+        cpu_master_ = master_cpu();
         std::fprintf(stderr, "ev3-loadgen: %zu of %zu synced after %.1f s; measuring for %.0f s\n", synced_now_,
                      o_.agents, static_cast<double>(now - t0) / 1000.0, o_.duration_s);
       }
@@ -237,6 +247,8 @@ class LoadGen {
       if (n < 0 && errno != EINTR) return fail("epoll_wait");
       for (int k = 0; k < n; ++k) receive(static_cast<std::size_t>(evs[static_cast<std::size_t>(k)].data.u64), buf);
     }
+    cpu_self_ = self_cpu() - cpu_self_;
+    cpu_master_ = master_cpu() - cpu_master_;
     return report(window_start, g_stop ? ms() : window_end);
   }
 
@@ -371,6 +383,31 @@ class LoadGen {
       ++send_errors_;
   }
 
+  /// CPU seconds of this process so far.
+  static double self_cpu() {
+    rusage u{};
+    getrusage(RUSAGE_SELF, &u);
+    return static_cast<double>(u.ru_utime.tv_sec + u.ru_stime.tv_sec) +
+           static_cast<double>(u.ru_utime.tv_usec + u.ru_stime.tv_usec) / 1e6;
+  }
+  /// CPU seconds of the master so far (utime + stime of /proc/PID/stat; 0 without --master-pid).
+  double master_cpu() const {
+    if (o_.master_pid == 0) return 0;
+    std::ifstream f("/proc/" + std::to_string(o_.master_pid) + "/stat");
+    std::string line;
+    std::getline(f, line);
+    const std::size_t close = line.rfind(')');  // the command name may hold spaces
+    if (close == std::string::npos) return 0;
+    std::istringstream in(line.substr(close + 2));
+    std::string field;
+    unsigned long long utime = 0, stime = 0;
+    for (int i = 3; i <= 15 && in >> field; ++i) {  // fields 14 and 15: utime, stime (clock ticks)
+      if (i == 14) utime = std::stoull(field);
+      if (i == 15) stime = std::stoull(field);
+    }
+    return static_cast<double>(utime + stime) / static_cast<double>(sysconf(_SC_CLK_TCK));
+  }
+
   /// Samples the age of the master's status file (CLOCK_REALTIME against its mtime).
   void status_age() {
     struct stat st {};
@@ -420,11 +457,13 @@ class LoadGen {
           "{\"agents\":%zu,\"heartbeat_ms\":%llu,\"window_s\":%.1f,\"synced_at_start\":%zu,\"synced_at_end\":%zu,"
           "\"agents_lost\":%zu,\"heartbeat_losses\":%llu,\"pings\":%llu,\"pongs\":%llu,\"unanswered\":%llu,"
           "\"pong_ms\":{\"samples\":%zu,\"p50\":%.2f,\"p90\":%.2f,\"p99\":%.2f,\"max\":%.2f},"
-          "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld,\"status_max_age_ms\":%.0f}\n",
+          "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld,\"status_max_age_ms\":%.0f,"
+          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.2f}\n",
           o_.agents, static_cast<unsigned long long>(o_.heartbeat), secs, synced_at_window_, synced_now_, agents_lost_,
           static_cast<unsigned long long>(losses_), static_cast<unsigned long long>(pings_),
           static_cast<unsigned long long>(pongs_), static_cast<unsigned long long>(unanswered_), samples, p50, p90,
-          p99, pmax, static_cast<unsigned long long>(send_errors_), m_agents, m_lost, status_max_age_);
+          p99, pmax, static_cast<unsigned long long>(send_errors_), m_agents, m_lost, status_max_age_,
+          cpu_self_ / secs, o_.master_pid ? cpu_master_ / secs : -1.0);
     } else {
       std::printf("agents %zu (heartbeat %llu ms), window %.1f s: synced %zu at start, %zu at end; %zu agents lost "
                   "the master (%llu heartbeat losses)\n",
@@ -435,6 +474,9 @@ class LoadGen {
                   static_cast<unsigned long long>(pings_), static_cast<unsigned long long>(pongs_),
                   static_cast<unsigned long long>(unanswered_), p50, p90, p99, pmax, samples,
                   static_cast<unsigned long long>(send_errors_));
+      std::printf("CPU over the window, in cores: ev3-loadgen %.2f", cpu_self_ / secs);
+      if (o_.master_pid != 0) std::printf(", master %.2f", cpu_master_ / secs);
+      std::printf("\n");
       if (m_agents >= 0)
         std::printf("master: %ld agents registered, %ld declared lost; status file at most %.0f ms old\n", m_agents,
                     m_lost, status_max_age_);
@@ -456,6 +498,7 @@ class LoadGen {
   std::uint64_t pings_ = 0, pongs_ = 0, unanswered_ = 0, losses_ = 0, send_errors_ = 0;
   std::vector<std::uint32_t> latencies_;  // microseconds
   double status_max_age_ = 0;            // ms
+  double cpu_self_ = 0, cpu_master_ = 0; // CPU seconds in the window
 };
 
 }  // namespace
