@@ -4,6 +4,7 @@
 #   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec, ev3-behaviour)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS per target, default 1800)
 #   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
+#   make bench-master  the master core per datagram at 100 and 10,000 agents, now and before (MASTER_BASELINE)
 #   make arm       static armel (EV3) build in build/arm/
 #   make spec      SANY + TLC on the small models, broken variants refuted, diagram up to date
 #   make spec-full the full models (minutes)
@@ -12,7 +13,7 @@ SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
 .PHONY: help deps build demo test test-unit test-python test-blackbox test-fuzz test-arm fuzz fuzz-build \
-        bench arm conformance mutate \
+        bench bench-master arm conformance mutate \
         spec spec-full diagrams clean
 
 PY := $(CURDIR)/.venv/bin/python
@@ -21,11 +22,13 @@ JOBS ?= $(shell nproc)
 FUZZ_SECONDS ?= 1800
 FUZZ_SMOKE_SECONDS ?= 30
 BENCH_RUNS ?= 9
+# The last commit whose master core walked its registry for next_deadline() (issue 14).
+MASTER_BASELINE ?= b1890d2
 CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
                 -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN)
 
 help:
-	@sed -n '2,10p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,11p' Makefile | sed 's/^# \{0,1\}//'
 
 deps:
 	@bash tools/deps.sh
@@ -89,6 +92,14 @@ bench: deps
 	   -DEV3_TOOLS=OFF >/dev/null
 	@ninja -C build/bench
 	@python3 bench/ratios.py --runs $(BENCH_RUNS)
+
+# The master core's CPU per datagram with 100 and with 10,000 agents (bench/bench_master.cpp), and
+# the same benchmark built against MASTER_BASELINE's headers (docs/benchmarks.md, "Master at scale").
+bench-master: deps
+	@cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEV3_BENCH=ON -DEV3_TESTS=OFF \
+	   -DEV3_TOOLS=OFF -DEV3_MASTER_BASELINE=$(MASTER_BASELINE) >/dev/null
+	@ninja -C build/bench bench_master bench_master_baseline
+	@python3 bench/master_scale.py --bin build/bench/bin
 
 arm: deps
 	@cmake -S . -B build/arm -G Ninja -DCMAKE_BUILD_TYPE=Release \

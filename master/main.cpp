@@ -15,10 +15,8 @@
 #include <string>
 #include <vector>
 
-#include <ev3proto/dedupe.hpp>
 #include <ev3proto/master.hpp>
 #include <ev3proto/trace.hpp>
-#include <ev3proto/wire.hpp>
 
 #include "console.hpp"
 #include "driver.hpp"
@@ -35,7 +33,6 @@ using ev3io::kError;
 using ev3io::kInfo;
 using ev3io::kVerbose;
 using ev3proto::Millis;
-using ev3proto::MsgType;
 
 using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;
 
@@ -44,10 +41,16 @@ constexpr Millis kRedrawEveryMs = 500;
 constexpr int kTableRows = 14;
 // --state-file: msgids are reserved in blocks (the file holds the end of the block in use), so a
 // restarted master continues above every msgid it may have sent without a write per datagram.
-constexpr std::uint32_t kMsgidBlock = 4096;  // rows reserved for the live table at the top of the terminal
+constexpr std::uint32_t kMsgidBlock = 4096;
+// The loop reads at most this many datagrams before it sends what it owes (PONGs, resends, the
+// copies due), acts on the deadlines due and writes the status: a flood cannot starve them.
+constexpr std::size_t kReadBatch = 64;
 
-std::string reason_key(ev3proto::Reason r) {
-  std::string k = "decode:" + std::string(ev3proto::to_string(r));
+/// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
+/// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
+std::string drop_key(const ev3proto::MasterReceipt& r) {
+  if (r.why != ev3proto::Ignored::malformed) return std::string(ev3proto::to_string(r.why));
+  std::string k = "decode:" + std::string(ev3proto::to_string(r.reason));
   for (char& c : k)
     if (c == ' ') c = '_';
   return k;
@@ -98,6 +101,7 @@ class Program {
     cfg.timers = opt_.timers;
     cfg.max_resends = opt_.max_resends;
     cfg.election = opt_.election;
+    cfg.drop_copies = true;  // every datagram arrives 3 times (the transport's copies)
     std::string restored;
     if (!load_state(cfg, restored)) return 2;
     master_.emplace(cfg, start_, trace_file_ != nullptr ? &trace_ : nullptr);
@@ -119,9 +123,13 @@ class Program {
     std::string dgram;
     ev3io::Endpoint from;
     while (signals_.stop_signal() == 0 && !quit_) {
-      Millis now = ev3io::monotonic_ms();
-      while (net_.receive(dgram, from)) on_datagram(dgram, from, ev3io::monotonic_ms());
-      now = ev3io::monotonic_ms();
+      std::size_t read = 0;
+      while (read < kReadBatch && net_.receive(dgram, from)) {
+        on_datagram(dgram, from, ev3io::monotonic_ms());
+        ++read;
+      }
+      const bool more = read == kReadBatch;  // the socket may hold more: no sleep before reading on
+      const Millis now = ev3io::monotonic_ms();
       master_->advance(now);
       pump(now);
       run_script(now);
@@ -147,6 +155,7 @@ class Program {
         }
         deadline = std::min(deadline, trace_flush_);
       }
+      if (more) deadline = now;
       pollfd p[2] = {{net_.fd(), POLLIN, 0}, {0, POLLIN, 0}};
       const std::size_t n = stdin_open_ ? 2 : 1;
       if (signals_.wait(p, n, deadline) > 0 && n == 2 && (p[1].revents & (POLLIN | POLLHUP | POLLERR)) != 0)
@@ -156,49 +165,20 @@ class Program {
 
   void drop(const std::string& why) { ++drops_[why]; }
 
+  /// A datagram for the core; what it ignored (or took without effect) is counted by the reason
+  /// the core gives.
   void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
-    const ev3proto::DecodeResult dr = ev3proto::decode(d, rx_);
-    if (!dr.ok()) {
-      drop(reason_key(dr.reason));
-      log_.log(kVerbose, "drop (%s) from %s", reason_key(dr.reason).c_str(), from.str().c_str());
-      return;
+    const ev3proto::MasterReceipt r = master_->handle_datagram(d, net_.peer_of(from), now);
+    if (r.why != ev3proto::Ignored::none) {
+      const std::string key = drop_key(r);
+      drop(key);
+      log_.log(kVerbose, "drop (%s) from %s", key.c_str(), from.str().c_str());
     }
-    if (rx_.receiver != ev3proto::kMasterId && rx_.receiver != ev3proto::kBroadcastId) {
-      drop("misaddressed");
-      return;
+    if (r.taken()) {
+      log_.log(kDebug, "recv %s from %s: %s", d.c_str(), from.str().c_str(),
+               std::string(to_string(r.action)).c_str());
+      pump(now);
     }
-    if (!copies_.first_time(rx_.sender, rx_.msgid)) {
-      drop("duplicate");  // one of the 3 copies (or a replay) of a datagram already taken
-      return;
-    }
-    switch (rx_.type) {
-      case MsgType::AGENT:
-      case MsgType::PANIC: break;
-      case MsgType::PING:
-      case MsgType::ACK:
-      case MsgType::NOT:
-      case MsgType::ACTION_OK:
-      case MsgType::ACTION_INTERR:
-      case MsgType::ACTION_ERR:
-      case MsgType::SENSOR_VALUE:
-      case MsgType::EVENT:
-        if (master_->registry().count(rx_.sender) == 0) drop("unknown_sender");
-        break;
-      case MsgType::LEADER:
-      case MsgType::VOTE:
-      case MsgType::EPOCH_STALE:
-      case MsgType::ELECT:
-      case MsgType::RELAY:
-      case MsgType::RELAY_ROUTE:
-      case MsgType::HANDOVER:
-        if (opt_.election) break;
-        drop("unexpected_type");
-        return;
-      default: drop("unexpected_type"); return;
-    }
-    log_.log(kDebug, "recv %s from %s", d.c_str(), from.str().c_str());
-    master_->handle_datagram(d, net_.peer_of(from), now);
-    pump(now);
   }
 
   void pump(Millis now) {
@@ -405,11 +385,13 @@ class Program {
   /// Writes the state file when next id, epoch or members changed or the msgid block is used up.
   void save_state(bool force) {
     if (opt_.state_file.empty()) return;
+    const bool same = master_->next_id() == saved_id_ && master_->epoch() == saved_epoch_ &&
+                      master_->next_msgid() + kMsgidBlock / 2 < msgid_limit_;
+    if (!force && same && master_->members_rev() == saved_rev_) return;  // no walk per datagram
+    saved_rev_ = master_->members_rev();
     std::string members;
     for (std::uint16_t m : master_->members()) members += (members.empty() ? "" : ",") + std::to_string(m);
-    if (!force && master_->next_id() == saved_id_ && master_->epoch() == saved_epoch_ && members == saved_members_ &&
-        master_->next_msgid() + kMsgidBlock / 2 < msgid_limit_)
-      return;
+    if (!force && same && members == saved_members_) return;
     msgid_limit_ = master_->next_msgid() + kMsgidBlock;
     saved_id_ = master_->next_id();
     saved_epoch_ = master_->epoch();
@@ -452,8 +434,6 @@ class Program {
   std::optional<MasterCore> master_;
   ev3master::FleetView view_;
   ev3master::Counters drops_;
-  ev3proto::DedupeWindow<4096> copies_;
-  ev3proto::Message rx_;
   std::vector<std::string> script_;
   std::size_t script_pos_ = 0;
   Millis script_at_ = 0;
@@ -465,6 +445,7 @@ class Program {
   // --state-file, election
   std::uint16_t saved_id_ = 0;
   std::uint32_t saved_epoch_ = 0, msgid_limit_ = 0;
+  std::uint64_t saved_rev_ = 0;
   std::string saved_members_;
   bool state_warned_ = false, seen_handover_ = false;
   ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;

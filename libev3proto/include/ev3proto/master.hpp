@@ -12,13 +12,16 @@
 #include <cstddef>
 #include <cstdint>
 #include <deque>
+#include <algorithm>
 #include <map>
+#include <memory>
 #include <set>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include "core.hpp"
+#include "deadline_list.hpp"
 #include "dedupe.hpp"
 #include "messages.hpp"
 #include "timers.hpp"
@@ -38,6 +41,10 @@ struct MasterConfig {
   std::uint16_t self_id = kMasterId; ///< The master's id: 1 (PC) or the elected agent's id.
   std::vector<std::uint16_t> members; ///< The fleet quorums count against (persisted / LEADER).
   bool candidate = false;         ///< Start as a candidate (the PC back after a crash: Restart(PC)).
+  /// Ignore a copy of a (sender, msgid) already taken (MasterReceipt: duplicate), in a window of
+  /// the last 4096. Off by default: MasterLogic has no window, every copy goes through its handler
+  /// (the conformance driver). Programs turn it on: each datagram arrives 3 times.
+  bool drop_copies = false;
 
   /// The configuration for an agent that won epoch @p epoch with membership @p members (see
   /// Agent::master_epoch()): no new ids (AGENT from a temporary id is ignored), msgids disjoint
@@ -151,29 +158,108 @@ constexpr bool sets_desired(MsgType command) noexcept {
   return desired_after(command, AgentState::IDLE) != AgentState::IDLE;
 }
 
+/// Why the master ignored a datagram, or why the action that took it changed nothing. The
+/// spellings are the programs' drop counters.
+enum class Ignored : std::uint8_t {
+  none,            ///< Taken, and acted on.
+  malformed,       ///< Does not decode (MasterReceipt::reason); no spec step.
+  misaddressed,    ///< Receiver neither this master nor broadcast (spec Handler: Ignore).
+  duplicate,       ///< A copy of a (sender, msgid) already taken (MasterConfig::drop_copies), or
+                   ///< of a report already passed on (MasterReport, no operator event).
+  unexpected_type, ///< A type the master has no handler for (MASTER, PONG, a command; the
+                   ///< election's types with election off).
+  own_broadcast,   ///< Our own LEADER / ELECT heard back (election).
+  not_master,      ///< Fleet traffic while CANDIDATE or stepped down (election).
+  not_enabled,     ///< An election datagram whose Election.tla rule is not enabled (epoch, role,
+                   ///< receiver, membership), or a RELAY not to us / inside a RELAY.
+  unknown_sender,  ///< MasterAnswer / MasterPing / MasterReport from an id not registered: the
+                   ///< spec step is taken and changes nothing (no PONG; a report is still shown).
+  stale_answer,    ///< MasterAnswer: ACK / NOT of no pending msgid (a copy, a late answer, a NOT
+                   ///< to MASTER): only the highest msgid heard moves.
+  ids_exhausted,   ///< MasterSync: a new agent, and no id left to give (or an elected agent's
+                   ///< master, which gives none).
+};
+
+/// The drop counter's spelling of @p i ("unknown_sender").
+constexpr std::string_view to_string(Ignored i) noexcept {
+  switch (i) {
+    case Ignored::none: return "none";
+    case Ignored::malformed: return "malformed";
+    case Ignored::misaddressed: return "misaddressed";
+    case Ignored::duplicate: return "duplicate";
+    case Ignored::unexpected_type: return "unexpected_type";
+    case Ignored::own_broadcast: return "own_broadcast";
+    case Ignored::not_master: return "not_master";
+    case Ignored::not_enabled: return "not_enabled";
+    case Ignored::unknown_sender: return "unknown_sender";
+    case Ignored::stale_answer: return "stale_answer";
+    case Ignored::ids_exhausted: return "ids_exhausted";
+  }
+  return {};
+}
+
+/// What Master::handle_datagram / handle_message did with a datagram.
+struct MasterReceipt {
+  Action action = Action::Ignore; ///< The spec action taken (its trace record was written), or Ignore.
+  Ignored why = Ignored::none;    ///< Ignore: why. With an action: why it changed nothing, else none.
+  Reason reason = Reason::ok;     ///< why == malformed: the decoder's reason.
+
+  /// True when a spec action took the datagram.
+  bool taken() const noexcept { return action != Action::Ignore; }
+};
+
+/// MasterConfig::drop_copies: the (sender, msgid) pairs taken lately. On the heap, and only when
+/// asked for: a Master is copied by the conformance driver's snapshots.
+class CopyWindow {
+ public:
+  /// A window when @p on, else nothing (every datagram is a first time).
+  explicit CopyWindow(bool on) : w_(on ? std::make_unique<Window>() : nullptr) {}
+  CopyWindow(const CopyWindow& o) : w_(o.w_ ? std::make_unique<Window>(*o.w_) : nullptr) {}
+  CopyWindow& operator=(const CopyWindow& o) {
+    w_ = o.w_ ? std::make_unique<Window>(*o.w_) : nullptr;
+    return *this;
+  }
+  CopyWindow(CopyWindow&&) noexcept = default;
+  CopyWindow& operator=(CopyWindow&&) noexcept = default;
+  ~CopyWindow() = default;
+
+  /// True when (sender, msgid) was not taken lately (and remembers it), or there is no window.
+  bool first_time(std::uint16_t sender, std::uint32_t msgid) {
+    return w_ == nullptr || w_->first_time(sender, msgid);
+  }
+
+ private:
+  using Window = DedupeWindow<4096>;
+  std::unique_ptr<Window> w_;
+};
+
 /// One registry entry (MasterLogic EntryType; spec field names in brackets), plus what the operator
 /// needs.
-struct RegistryEntry {
-  std::uint16_t ann = 0;        ///< [ann] Announced id (temporary, or the old id of a PANIC agent).
+/// Aligned to a cache line, with what every datagram reads in its first 64 bytes (ids, flags, times,
+/// the queue's bounds): at 10,000 agents an entry is rarely in cache when its agent's PING comes, and
+/// one line costs less than the two or three an unaligned entry spans (docs/benchmarks.md).
+struct alignas(64) RegistryEntry {
   std::uint16_t id = 0;         ///< [id] Assigned id.
+  std::uint16_t ann = 0;        ///< [ann] Announced id (temporary, or the old id of a PANIC agent).
   Peer peer = 0;                ///< [ep] Where the agent is.
   bool synced = false;          ///< [synced] The agent acknowledged MASTER.
+  bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
   bool has_state = false;       ///< A PING reported @c state.
   AgentState state = AgentState::IDLE; ///< State from the last PING.
-  Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
-  std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
-  std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
   AgentState desired = AgentState::ACTIVE; ///< [desired] What the operator last asked (desired_after).
   bool desired_known = true;    ///< [desired = UNKNOWN] False after a refused command that no queued
                                 ///< command overrides, and for an entry adopted by an elected master:
                                 ///< no reconcile until the operator's next desired-setting command.
-  bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
-  std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
-  Millis sent_at = 0;           ///< When it was last sent.
-  std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
-  std::deque<Command> queue;    ///< [queue] Operator commands; the front one is pending once synced.
-  std::uint32_t last_msgid = 0; ///< [hi] Highest msgid heard from the agent (orders its PANICs).
   std::uint16_t via = 0;        ///< The relay this agent is reached through (0 = direct; RELAY_ROUTE).
+  std::uint32_t last_msgid = 0; ///< [hi] Highest msgid heard from the agent (orders its PANICs).
+  std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
+  std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
+  Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
+  Millis sent_at = 0;           ///< When it was last sent.
+  std::vector<Command> queue;   ///< [queue] Operator commands; the front one is pending once synced
+                                ///< (a few at most; empty, it takes no memory).
+  std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
+  std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
 
   /// "MASTER" while not synced, the pending command's name, or "DONE" (for displays).
   std::string_view job() const noexcept {
@@ -181,6 +267,102 @@ struct RegistryEntry {
     if (pending && !queue.empty()) return to_string(queue.front().type);
     return "DONE";
   }
+};
+
+/// The master's registry: the entries by assigned id in a std::map (in order of id, as the spec's
+/// records and the operator's table list them), and what finds an entry without walking them: a
+/// flat index id -> entry, and ordered sets (announced id, id) and (peer, id). An entry's id, ann
+/// and peer change only through this class.
+class Registry {
+ public:
+  /// The entries by id.
+  using Map = std::map<std::uint16_t, RegistryEntry>;
+
+  Registry() = default;
+  /// A copy (the conformance driver's snapshots): the index points into the copy's own entries.
+  Registry(const Registry& o) : map_(o.map_), by_ann_(o.by_ann_), by_peer_(o.by_peer_) { reindex(); }
+  Registry& operator=(const Registry& o) {
+    if (this != &o) {
+      map_ = o.map_;
+      by_ann_ = o.by_ann_;
+      by_peer_ = o.by_peer_;
+      reindex();
+    }
+    return *this;
+  }
+  Registry(Registry&&) noexcept = default;  // a std::map's entries move with it: the index stays valid
+  Registry& operator=(Registry&&) noexcept = default;
+  ~Registry() = default;
+
+  /// The entries.
+  const Map& map() const noexcept { return map_; }
+  /// The entries, to change what they hold (not their id, ann or peer).
+  Map::iterator begin() noexcept { return map_.begin(); }
+  Map::iterator end() noexcept { return map_.end(); }
+
+  /// Entry @p id, or nullptr: O(1).
+  RegistryEntry* find(std::uint16_t id) noexcept { return id < index_.size() ? index_[id] : nullptr; }
+  const RegistryEntry* find(std::uint16_t id) const noexcept { return id < index_.size() ? index_[id] : nullptr; }
+  /// True when @p id is registered.
+  bool contains(std::uint16_t id) const noexcept { return find(id) != nullptr; }
+
+  /// Adds @p e (its id not registered); returns it.
+  RegistryEntry& insert(RegistryEntry e) {
+    const std::uint16_t id = e.id;
+    RegistryEntry& r = map_.emplace(id, std::move(e)).first->second;
+    if (id >= index_.size()) index_.resize(std::size_t{id} + 1, nullptr);
+    index_[id] = &r;
+    by_ann_.insert({r.ann, id});
+    by_peer_.insert({r.peer, id});
+    return r;
+  }
+  /// Removes entry @p id (if registered).
+  void erase(std::uint16_t id) {
+    RegistryEntry* e = find(id);
+    if (e == nullptr) return;
+    by_ann_.erase({e->ann, id});
+    by_peer_.erase({e->peer, id});
+    index_[id] = nullptr;
+    map_.erase(id);
+  }
+  /// Entry @p e now announces @p ann.
+  void set_ann(RegistryEntry& e, std::uint16_t ann) {
+    by_ann_.erase({e.ann, e.id});
+    e.ann = ann;
+    by_ann_.insert({ann, e.id});
+  }
+  /// Entry @p e is now at @p p.
+  void set_peer(RegistryEntry& e, Peer p) {
+    by_peer_.erase({e.peer, e.id});
+    e.peer = p;
+    by_peer_.insert({p, e.id});
+  }
+
+  /// Spec Known(reg, s): the ids of the entries whose announced or assigned id is s, in order.
+  std::vector<std::uint16_t> known(std::uint16_t s) const {
+    std::vector<std::uint16_t> k;
+    for (auto it = by_ann_.lower_bound({s, 0}); it != by_ann_.end() && it->first == s; ++it)
+      k.push_back(it->second);
+    if (contains(s) && !std::binary_search(k.begin(), k.end(), s))
+      k.insert(std::lower_bound(k.begin(), k.end(), s), s);
+    return k;
+  }
+  /// The lowest id of an entry at @p p (0: none).
+  std::uint16_t first_at(Peer p) const {
+    const auto it = by_peer_.lower_bound({p, 0});
+    return it != by_peer_.end() && it->first == p ? it->second : 0;
+  }
+
+ private:
+  void reindex() {
+    index_.assign(map_.empty() ? 0 : std::size_t{map_.rbegin()->first} + 1, nullptr);
+    for (auto& kv : map_) index_[kv.first] = &kv.second;
+  }
+
+  Map map_;
+  std::vector<RegistryEntry*> index_;                         // by id; up to the largest id held
+  std::set<std::pair<std::uint16_t, std::uint16_t>> by_ann_;  // (ann, id)
+  std::set<std::pair<Peer, std::uint16_t>> by_peer_;          // (peer, id)
 };
 
 /// One trace record of the master: a spec action, its message, and the master's variables.
@@ -199,6 +381,13 @@ struct MasterTraceRecord {
 };
 
 /// The master core.
+///
+/// Every MasterLogic.tla / Election.tla action the master performs has a const guard `XOk(...)`,
+/// taking what it needs as parameters, and a handler `X` of the same name as the spec action. The
+/// entry points (handle_datagram / handle_message, advance, command) pick the action, run it and
+/// write its trace record; role changes happen only in become_master / become_candidate /
+/// become_stepped_down. Per-entry deadlines (drop, resend) live in two DeadlineLists: handling a
+/// datagram, advance() and next_deadline() never walk the registry.
 /// @tparam Trace NoTrace (default) or a sink with `void record(const MasterTraceRecord&)`.
 template <typename Trace = NoTrace>
 class Master {
@@ -209,31 +398,36 @@ class Master {
   /// A master with an empty registry at time @p now.
   Master(const MasterConfig& config, Millis now, Trace* trace = nullptr)
       : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now),
-        role_(config.election && config.candidate ? MasterRole::candidate : MasterRole::master),
-        epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
+        drops_(config.timers[Timer::drop]), resends_(config.timers[Timer::resend]), copies_(config.drop_copies), epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
         members_(config.members.begin(), config.members.end()) {
-    if (cfg_.election) {
-      hb_at_ = role_ == MasterRole::master ? now : kNever;
-      cand_at_ = role_ == MasterRole::candidate ? now : kNever;
+    if (!cfg_.election) return;  // Fleet.tla's master: MASTER for good, no LEADER
+    if (config.candidate) {
+      become_candidate();  // Restart(PC): stands at once
+    } else {
+      become_master();
+      hb_at_ = now_;  // LEADER at once
     }
   }
 
   // ---------------------------------------------------------------- inputs
 
-  /// Time moves to @p now: resends and drops due up to then happen at their own times.
+  /// Time moves to @p now: every deadline due up to then is acted on at its own time, one spec
+  /// step each (Heartbeat, StartElection, or MasterTick of the entries due then).
   void advance(Millis now) {
     for (Millis t = next_deadline(); t <= now && t != kNever; t = next_deadline()) {
       Snapshot s = snap();  // before time moves: MasterTick's record shows quiet growing
       if (t > now_) now_ = t;
-      if (HeartbeatOk()) {
+      if (HeartbeatOk(now_)) {
         Heartbeat();
         record(Action::Heartbeat, s, {});
-      } else if (StartElectionOk()) {
+      } else if (StartElectionOk(now_)) {
         StartElection();
         record(Action::StartElection, s, {});
-      } else {
+      } else if (MasterTickOk(now_)) {
         MasterTick();
         record(Action::MasterTick, s, {});
+      } else {
+        break;  // not reached: next_deadline() is one of the three
       }
     }
     if (now > now_) now_ = now;
@@ -242,78 +436,36 @@ class Master {
   /// Same as advance().
   void handle_timeout(Millis now) { advance(now); }
 
-  /// A datagram arrived from @p from at @p now (spec Receive). Returns the action taken
-  /// (Ignore when it does not decode or is not for the master).
-  Action handle_datagram(std::string_view bytes, Peer from, Millis now) {
+  /// A datagram arrived from @p from at @p now (spec Receive). Returns the action taken, or why
+  /// the datagram was ignored (MasterReceipt): a datagram that does not decode is no spec step
+  /// (counted in rejected()).
+  MasterReceipt handle_datagram(std::string_view bytes, Peer from, Millis now) {
     advance(now);
-    if (!decode(bytes, rx_).ok()) {
+    const DecodeResult d = decode(bytes, rx_);
+    if (!d.ok()) {
       ++rejected_;
-      return Action::Ignore;
+      return MasterReceipt{Action::Ignore, Ignored::malformed, d.reason};
     }
-    Snapshot s = snap();
-    const Action a = Dispatch(rx_, from, 0);
-    if (a != Action::Ignore) record(a, s, bytes);
-    if (BecomeMasterOk()) {
-      Snapshot b = snap();
-      BecomeMaster();
-      record(Action::BecomeMaster, b, {});
-    }
-    return a;
+    return take(rx_, bytes, from);
   }
 
-  /// Takes @p m from @p from (through relay @p via, 0 = direct); returns the action taken.
-  Action Dispatch(const Message& m, Peer from, std::uint16_t via) {
-    if (m.receiver != self_ && m.receiver != kBroadcastId) return Action::Ignore;
-    if (cfg_.election) {
-      if (m.sender == self_) return Action::Ignore;  // our own broadcast
-      switch (m.type) {
-        case MsgType::ELECT: return HandleElect(m) ? Action::HandleElect : Action::Ignore;
-        case MsgType::VOTE: {
-          if (!HandleVoteOk(m)) return Action::Ignore;
-          HandleVote(m);
-          return Action::HandleVote;  // BecomeMaster follows as its own step (handle_datagram)
-        }
-        case MsgType::LEADER: return HandleHeartbeat(m, from) ? Action::HandleHeartbeat : Action::Ignore;
-        case MsgType::EPOCH_STALE: return HandleStale(m) ? Action::HandleStale : Action::Ignore;
-        case MsgType::RELAY_ROUTE: return MasterRoute(m, from) ? Action::MasterRoute : Action::Ignore;
-        case MsgType::HANDOVER: return MasterHandover(m) ? Action::MasterHandover : Action::Ignore;
-        case MsgType::RELAY: {
-          const auto target = m.param_u16(0);
-          if (via != 0 || role_ != MasterRole::master || !target || *target != self_ ||
-              !decode(m.param(1), inner_).ok() || inner_.type == MsgType::RELAY)
-            return Action::Ignore;
-          Message inner = inner_;
-          return Dispatch(inner, from, m.sender);
-        }
-        default: break;
-      }
-      if (role_ != MasterRole::master) return Action::Ignore;
-      note_route(m, from, via);
-    }
-    Action a = Action::Ignore;
-    switch (m.type) {
-      case MsgType::AGENT:
-      case MsgType::PANIC: a = Action::MasterSync; MasterSync(m, from); break;
-      case MsgType::ACK:
-      case MsgType::NOT: a = Action::MasterAnswer; MasterAnswer(m); break;
-      case MsgType::PING: a = Action::MasterPing; MasterPing(m, from); break;
-      case MsgType::ACTION_OK:
-      case MsgType::ACTION_INTERR:
-      case MsgType::ACTION_ERR:
-      case MsgType::SENSOR_VALUE:
-      case MsgType::EVENT: a = Action::MasterReport; MasterReport(m); break;
-      default: return Action::Ignore;
-    }
-    return a;
+  /// The same for a datagram the caller has decoded already (a node that runs an agent core too
+  /// decodes once): @p m decoded from @p bytes (the trace records the bytes).
+  MasterReceipt handle_message(const Message& m, std::string_view bytes, Peer from, Millis now) {
+    advance(now);
+    return take(m, bytes, from);
   }
 
   /// An operator command for agent @p agent (0 = every registered agent) at @p now. Queued behind
   /// the agent's pending command; sent at once when none is pending; the agent's desired state
-  /// follows it (desired_after). Unknown ids are reported.
+  /// follows it (desired_after). Unknown ids are reported (the spec step changes nothing).
   void command(std::uint16_t agent, const Command& c, Millis now) {
     advance(now);
     Snapshot s = snap();
-    MasterCommand(agent, c);
+    if (MasterCommandOk(agent))
+      MasterCommand(agent, c);
+    else
+      push(OperatorEvent::Kind::unknown_agent, agent, c.type, {});
     record(Action::MasterCommand, s, {});
   }
 
@@ -335,26 +487,20 @@ class Master {
     return true;
   }
 
-  /// When advance() must be called next at the latest (kNever when nothing is scheduled).
+  /// When advance() must be called next at the latest (kNever when nothing is scheduled): the
+  /// earliest of the LEADER heartbeat, the candidate's next election and (as MASTER) the entries'
+  /// deadlines, the fronts of two DeadlineLists (O(1) here, no walk of the registry).
   Millis next_deadline() const noexcept {
     Millis t = hb_at_ < cand_at_ ? hb_at_ : cand_at_;
     if (role_ != MasterRole::master) return t;
-    for (const auto& kv : reg_) {
-      const RegistryEntry& e = kv.second;
-      const Millis drop = e.heard + cfg_.timers[Timer::drop];
-      if (drop < t) t = drop;
-      if (e.pending) {
-        const Millis r = e.sent_at + cfg_.timers[Timer::resend];
-        if (r < t) t = r;
-      }
-    }
-    return t;
+    const Millis e = entries_due();
+    return e < t ? e : t;
   }
 
   // ---------------------------------------------------------------- observers
 
   /// The registry, by assigned id.
-  const std::map<std::uint16_t, RegistryEntry>& registry() const noexcept { return reg_; }
+  const std::map<std::uint16_t, RegistryEntry>& registry() const noexcept { return reg_.map(); }
   /// The next id to assign (persist it).
   std::uint16_t next_id() const noexcept { return next_id_; }
   /// The next msgid (persist it).
@@ -372,198 +518,112 @@ class Master {
   /// The fleet membership (persist it): the configured members and every agent registered since.
   std::vector<std::uint16_t> members() const {
     std::set<std::uint16_t> m = members_;
-    for (const auto& kv : reg_)
+    for (const auto& kv : reg_.map())
       if (kv.second.synced) m.insert(kv.first);
     return std::vector<std::uint16_t>(m.begin(), m.end());
   }
+  /// Changes whenever members() may have changed (a program persisting the membership compares
+  /// this instead of building members() after every datagram).
+  std::uint64_t members_rev() const noexcept { return members_rev_; }
   /// True once this (elected agent's) master handed its registry over (HANDOVER sent).
   bool handed_over() const noexcept { return handed_over_; }
 
  private:
-  // ------------------------------------------------ relay and election (Election.tla)
+  // ------------------------------------------------ receive: the spec's Handler(m)
 
-  bool HeartbeatOk() const noexcept { return role_ == MasterRole::master && hb_at_ <= now_; }
-  /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat.
-  void Heartbeat() {
-    hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
-    std::vector<std::string> p{std::to_string(epoch_), std::to_string(self_)};
-    for (std::uint16_t id : members()) {
-      if (p.size() == kMaxParams) break;
-      p.push_back(std::to_string(id));
+  /// Takes @p m: dispatch, its trace record, and BecomeMaster when a vote completed a majority.
+  MasterReceipt take(const Message& m, std::string_view bytes, Peer from) {
+    Snapshot s = snap();
+    const MasterReceipt r = Dispatch(m, from, 0);
+    if (r.action != Action::Ignore) record(r.action, s, bytes);
+    if (BecomeMasterOk()) {
+      Snapshot b = snap();
+      BecomeMaster();
+      record(Action::BecomeMaster, b, {});
     }
-    broadcast(MsgType::LEADER, p);
+    return r;
   }
 
-  bool StartElectionOk() const noexcept { return role_ == MasterRole::candidate && cand_at_ <= now_; }
-  /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, records) broadcast; again
-  /// after the candidate timeout without a majority.
-  void StartElection() {
-    ++epoch_;
-    votes_.clear();
-    cand_at_ = now_ + cfg_.timers[Timer::candidate];
-    broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", "0"});
-  }
+  static MasterReceipt taken(Action a, Ignored why = Ignored::none) noexcept { return MasterReceipt{a, why}; }
+  static MasterReceipt ignored(Ignored why) noexcept { return MasterReceipt{Action::Ignore, why}; }
 
-  bool HandleVoteOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    const auto c = m.param_u16(1);
-    return role_ == MasterRole::candidate && m.receiver == self_ && e && c && *e == epoch_ &&
-           *c == self_ && members_.count(m.sender) != 0 && votes_.count(m.sender) == 0;
-  }
-  /// Spec HandleVote: one more vote.
-  void HandleVote(const Message& m) { votes_.insert(m.sender); }
-
-  bool BecomeMasterOk() const {
-    return role_ == MasterRole::candidate && 2 * votes_.size() > members_.size();
-  }
-  /// Spec BecomeMaster: master of the epoch, LEADER at once.
-  void BecomeMaster() {
-    role_ = MasterRole::master;
-    cand_at_ = kNever;
-    Heartbeat();
-  }
-
-  /// Spec HandleElect, the master node's part: an elected agent's master steps down on a newer
-  /// epoch (its agent core votes); the PC ignores ELECT (it learns epochs from EPOCH_STALE).
-  bool HandleElect(const Message& m) {
-    const auto e = m.param_u32(0);
-    if (self_ == kMasterId || role_ == MasterRole::stepped_down || !e || *e <= epoch_) return false;
-    epoch_ = *e;
-    step_down();
-    return true;
-  }
-
-  /// Spec HandleHeartbeat, the master node's part: an older master's LEADER is answered
-  /// EPOCH_STALE; a newer one ends our term: an elected agent hands its registry over (HANDOVER)
-  /// and steps down, the PC stands again above it.
-  bool HandleHeartbeat(const Message& m, Peer from) {
-    const auto e = m.param_u32(0);
-    if (!e) return false;
-    if (*e < epoch_) {
-      if (role_ == MasterRole::stepped_down) return false;
-      send(from, m.sender, MsgType::EPOCH_STALE, {std::to_string(epoch_)});
-      return true;
-    }
-    if (*e == epoch_ && (role_ == MasterRole::master || self_ == kMasterId || handed_over_)) return false;
-    epoch_ = *e;
-    if (self_ == kMasterId) {
-      role_ = MasterRole::candidate;
-      hb_at_ = kNever;
-      cand_at_ = now_;
-      return true;
-    }
-    if (!handed_over_) {
-      std::vector<std::string> p{std::to_string(epoch_)};
-      for (std::uint16_t id : members()) {
-        if (p.size() == kMaxParams) break;
-        p.push_back(std::to_string(id));
+  /// Takes @p m from @p from (through relay @p via, 0 = direct): Election.tla's rules first (with
+  /// election on), then MasterLogic's Handler(m).
+  MasterReceipt Dispatch(const Message& m, Peer from, std::uint16_t via) {
+    if (m.receiver != self_ && m.receiver != kBroadcastId) return ignored(Ignored::misaddressed);
+    if (via == 0 && !copies_.first_time(m.sender, m.msgid)) return ignored(Ignored::duplicate);
+    if (cfg_.election) {
+      if (m.sender == self_) return ignored(Ignored::own_broadcast);
+      for (const ElectionRule& r : kElectionRules) {
+        if (r.type != m.type) continue;
+        if (!(this->*r.ok)(m)) return ignored(Ignored::not_enabled);
+        (this->*r.run)(m, from);
+        return taken(r.action);  // after HandleVote, BecomeMaster is a step of its own (take)
       }
-      send(from, m.sender, MsgType::HANDOVER, p);
-      handed_over_ = true;
-    }
-    step_down();
-    return true;
-  }
-
-  /// Spec HandleStale: a newer epoch exists: the PC stands again (CANDIDATE), an elected agent's
-  /// master steps down.
-  bool HandleStale(const Message& m) {
-    const auto e = m.param_u32(0);
-    if (m.receiver != self_ || !e || *e <= epoch_) return false;
-    epoch_ = *e;
-    if (self_ == kMasterId) {
-      role_ = MasterRole::candidate;
-      hb_at_ = kNever;
-      cand_at_ = now_;
-    } else {
-      step_down();
-    }
-    return true;
-  }
-
-  void step_down() {
-    role_ = MasterRole::stepped_down;
-    hb_at_ = cand_at_ = kNever;
-  }
-
-  /// RELAY_ROUTE(epoch, agent) from relay p (Election abstracts it: the master reads the table):
-  /// the agent is reached through p from now on.
-  bool MasterRoute(const Message& m, Peer from) {
-    const auto e = m.param_u32(0);
-    const auto a = m.param_u16(1);
-    if (role_ != MasterRole::master || m.receiver != self_ || !e || *e != epoch_ || !a) return false;
-    auto it = reg_.find(*a);
-    if (it == reg_.end()) {
-      if (members_.count(*a) == 0) return false;
-      it = adopt(*a, from);
-    }
-    it->second.via = m.sender;
-    it->second.peer = from;
-    return true;
-  }
-
-  /// HANDOVER(epoch, id...) from the elected agent we replace: its fleet joins our membership.
-  bool MasterHandover(const Message& m) {
-    const auto e = m.param_u32(0);
-    if (role_ != MasterRole::master || m.receiver != self_ || !e || *e > epoch_) return false;
-    for (std::size_t i = 1; i < m.param_count(); ++i)
-      if (const auto id = m.param_u16(i)) {
-        if (is_assigned_id(*id) && *id != self_) members_.insert(*id);
+      if (m.type == MsgType::RELAY) {
+        // A relayed agent's datagram, forwarded unchanged inside RELAY(master, datagram).
+        const auto target = m.param_u16(0);
+        if (via != 0 || role_ != MasterRole::master || !target || *target != self_ ||
+            !decode(m.param(1), inner_).ok() || inner_.type == MsgType::RELAY)
+          return ignored(Ignored::not_enabled);
+        const Message inner = inner_;
+        return Dispatch(inner, from, m.sender);
       }
-    return true;
-  }
-
-  /// Where a registered agent is (direct, or through relay @p via); a member we do not hold yet
-  /// (it follows our LEADER) is registered as synced when it pings.
-  void note_route(const Message& m, Peer from, std::uint16_t via) {
-    auto it = reg_.find(m.sender);
-    if (it == reg_.end()) {
-      if (m.type != MsgType::PING || members_.count(m.sender) == 0) return;
-      it = adopt(m.sender, from);
+      if (role_ != MasterRole::master) return ignored(Ignored::not_master);
+      note_route(m, from, via);
     }
-    RegistryEntry& e = it->second;
-    if (m.type == MsgType::PING && !e.synced && members_.count(m.sender) != 0) {
-      // A member we were syncing (its PANIC reached us) pings: it follows our LEADER already.
-      e.synced = true;
-      e.pending = false;
-      start_next(e);
+    switch (Handler(m)) {
+      case Action::MasterSync:
+        if (!MasterSyncOk(m.sender)) return taken(Action::MasterSync, Ignored::ids_exhausted);
+        MasterSync(m, from);
+        return taken(Action::MasterSync);
+      case Action::MasterAnswer: {
+        if (!MasterAnswerOk(m)) return taken(Action::MasterAnswer, Ignored::unknown_sender);
+        const RegistryEntry& e = *reg_.find(m.sender);
+        const bool was_pending = e.pending;
+        const std::uint32_t mid = e.mid;
+        MasterAnswer(m);  // an answer to nothing pending leaves the pending datagram as it was
+        const bool answered = e.pending != was_pending || e.mid != mid;
+        return taken(Action::MasterAnswer, answered ? Ignored::none : Ignored::stale_answer);
+      }
+      case Action::MasterPing:
+        if (!MasterPingOk(m)) return taken(Action::MasterPing, Ignored::unknown_sender);
+        MasterPing(m, from);
+        return taken(Action::MasterPing);
+      case Action::MasterReport: {
+        const Ignored why = reg_.contains(m.sender) ? Ignored::none : Ignored::unknown_sender;
+        if (!MasterReportOk(m)) return taken(Action::MasterReport, Ignored::duplicate);
+        MasterReport(m);
+        return taken(Action::MasterReport, why);
+      }
+      default: return ignored(Ignored::unexpected_type);
     }
-    // A relay forwards the agent's datagrams unchanged: from the relay's peer they are relayed.
-    if (via == 0 && e.via != 0 && from == e.peer) return;
-    e.peer = from;
-    e.via = via;
-  }
-  std::map<std::uint16_t, RegistryEntry>::iterator adopt(std::uint16_t id, Peer from) {
-    RegistryEntry e;
-    e.ann = id;
-    e.id = id;
-    e.peer = from;
-    e.synced = true;
-    e.desired_known = false;  // what the fleet's earlier master wanted is not known here
-    e.heard = now_;
-    return reg_.emplace(id, std::move(e)).first;
   }
 
-  void broadcast(MsgType t, const std::vector<std::string>& params) {
-    std::vector<std::string_view> p(params.begin(), params.end());
-    char buf[kMaxDatagram];
-    const EncodeResult r = encode_parts(self_, kBroadcastId, msgid_++, static_cast<std::uint8_t>(t),
-                                        p.data(), p.size(), buf, sizeof buf);
-    if (r.ok()) tx_.push_back(MasterTransmit{0, Dest::broadcast, std::string(buf, r.size)});
-  }
-  void send(Peer to, std::uint16_t id, MsgType t, const std::vector<std::string>& params) {
-    std::vector<std::string_view> p(params.begin(), params.end());
-    send(to, id, t, p.data(), p.size());
-  }
-
-  /// Spec Known(reg, s): entries whose announced or assigned id is s.
-  std::vector<std::uint16_t> Known(std::uint16_t s) const {
-    std::vector<std::uint16_t> k;
-    for (const auto& kv : reg_)
-      if (kv.second.ann == s || kv.second.id == s) k.push_back(kv.first);
-    return k;
+  /// Spec Handler(m) for a datagram addressed to the master: the MasterLogic action that takes it,
+  /// or Ignore (a type the master has no handler for).
+  static Action Handler(const Message& m) noexcept {
+    switch (m.type) {
+      case MsgType::AGENT:
+      case MsgType::PANIC: return Action::MasterSync;
+      case MsgType::ACK:
+      case MsgType::NOT: return Action::MasterAnswer;
+      case MsgType::PING: return Action::MasterPing;
+      case MsgType::ACTION_OK:
+      case MsgType::ACTION_INTERR:
+      case MsgType::ACTION_ERR:
+      case MsgType::SENSOR_VALUE:
+      case MsgType::EVENT: return Action::MasterReport;
+      default: return Action::Ignore;
+    }
   }
 
+  // ------------------------------------------------ MasterLogic.tla
+
+  /// MasterSync has an entry to act on: one the sender is known by, or an id to give it.
+  bool MasterSyncOk(std::uint16_t s) const {
+    return !reg_.known(s).empty() || is_assigned_id(s) || next_id_ <= kLastAssignedId;
+  }
   /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent is heard and gets its
   /// pending datagram again; a PANIC from a synced entry's own id with a msgid above every msgid
   /// heard from it re-syncs it (new MASTER naming that id, queue kept). A new one gets an id (its
@@ -571,16 +631,16 @@ class Master {
   /// An adopted id raises next_id past it (max(next_id, s + 1)): no later agent gets an id in use.
   void MasterSync(const Message& m, Peer from) {
     const std::uint16_t s = m.sender;
-    const std::vector<std::uint16_t> k = Known(s);
+    const std::vector<std::uint16_t> k = reg_.known(s);  // spec Known(reg, s)
     if (!k.empty()) {
       for (std::uint16_t id : k) {
-        RegistryEntry& e = reg_[id];
+        RegistryEntry& e = *reg_.find(id);
         e.heard = now_;
         if (m.type == MsgType::PANIC && e.synced && s == e.id && m.msgid > e.last_msgid) {
           // The agent lost us while we still hold it (its PONGs were lost): sync it again, a new
           // MASTER; its queued commands follow once it ACKs, reconcile restores its desired state.
-          e.synced = false;
-          e.ann = s;  // MASTER names the id the agent holds now
+          set_synced(e, false);
+          reg_.set_ann(e, s);  // MASTER names the id the agent holds now
           e.pending = true;
           e.mid = msgid_++;
           e.sent_at = now_;
@@ -588,23 +648,20 @@ class Master {
         }
         if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
         send_pending(e);
+        rearm(e);
       }
       return;
     }
     std::uint16_t nid = s;
     if (!is_assigned_id(s)) {
-      if (next_id_ > kLastAssignedId) return;  // ids exhausted: nobody else can join this run
       nid = next_id_++;
     } else if (next_id_ <= s) {
       next_id_ = static_cast<std::uint16_t>(s + 1);  // adopted: never hand s out again
     }
-    for (auto it = reg_.begin(); it != reg_.end();) {
-      if (it->second.peer == from) {
-        fail_queue(it->second);
-        it = reg_.erase(it);
-      } else {
-        ++it;
-      }
+    // Entries at the same peer, by id (an index lookup, not a walk).
+    for (std::uint16_t id; (id = reg_.first_at(from)) != 0;) {
+      fail_queue(*reg_.find(id));
+      erase(id);
     }
     RegistryEntry e;
     e.ann = s;
@@ -615,29 +672,30 @@ class Master {
     e.pending = true;
     e.mid = msgid_++;
     e.sent_at = now_;
-    RegistryEntry& r = reg_[nid] = std::move(e);
-    send_pending(r);
+    erase(nid);
+    send_pending(insert(std::move(e)));
   }
 
+  /// MasterAnswer has an entry to act on: the sender is registered.
+  bool MasterAnswerOk(const Message& m) const { return reg_.contains(m.sender); }
   /// Spec MasterAnswer: ACK or NOT of the pending msgid moves the agent to its next command. A NOT
   /// makes the desired state unknown (no reconcile) unless a command still queued sets it.
   void MasterAnswer(const Message& m) {
-    auto it = reg_.find(m.sender);
-    if (it == reg_.end()) return;
-    RegistryEntry& e = it->second;
+    RegistryEntry& e = *reg_.find(m.sender);
     if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
     const auto ref = m.param_u32(0);
     if (!e.pending || !ref || *ref != e.mid) return;
     e.heard = now_;
+    rearm(e);
     const bool ack = m.type == MsgType::ACK;
     if (!e.synced && !ack) return;  // an agent never refuses MASTER; a NOT is no answer to it
     e.pending = false;
     if (!e.synced) {
-      e.synced = true;
+      set_synced(e, true);
       push(OperatorEvent::Kind::registered, e.id, MsgType::MASTER, std::to_string(e.ann));
     } else if (!e.queue.empty()) {
       Command c = std::move(e.queue.front());
-      e.queue.pop_front();
+      e.queue.erase(e.queue.begin());
       if (ack) {
         if (c.type == MsgType::BEHAVIOUR) {
           e.behaviour = c.name;
@@ -654,17 +712,18 @@ class Master {
       }
     }
     start_next(e);
+    rearm(e);
   }
 
-  /// Spec MasterPing: PONG at once to a registered agent (which is heard); others get nothing.
+  /// MasterPing has an entry to act on: the sender is registered (others get no PONG).
+  bool MasterPingOk(const Message& m) const { return reg_.contains(m.sender); }
+  /// Spec MasterPing: PONG at once to a registered agent (which is heard).
   /// Reconcile: a synced agent with nothing pending or queued whose reported state is not the
   /// desired one gets the commands that restore it (Restore), after the PONG. Only a fresh PING
   /// (msgid above every msgid heard from the agent) reconciles: a stale one, sent before the agent's
   /// last answer, reports a state it has left.
   void MasterPing(const Message& m, Peer from) {
-    auto it = reg_.find(m.sender);
-    if (it == reg_.end()) return;
-    RegistryEntry& e = it->second;
+    RegistryEntry& e = *reg_.find(m.sender);
     e.heard = now_;
     const bool fresh = m.msgid > e.last_msgid;
     if (fresh) e.last_msgid = m.msgid;
@@ -681,6 +740,7 @@ class Master {
       Restore(*st, e);
       start_next(e);
     }
+    rearm(e);
   }
 
   /// Spec Restore(st, desired, beh): queues the commands that bring an agent reporting @p st back
@@ -701,9 +761,11 @@ class Master {
     }
   }
 
+  /// MasterReport has something for the operator: not a copy of a report already passed on.
+  bool MasterReportOk(const Message& m) const { return !reports_.contains(m.sender, m.msgid); }
   /// Reports are consumed (Fleet.tla); the operator sees each once (copies are deduplicated).
   void MasterReport(const Message& m) {
-    if (!reports_.first_time(m.sender, m.msgid)) return;
+    reports_.insert(m.sender, m.msgid, NoPayload{});
     std::string text;
     for (std::size_t i = 0; i < m.param_count(); ++i) {
       if (i) text += ':';
@@ -712,36 +774,46 @@ class Master {
     push(OperatorEvent::Kind::report, m.sender, m.type, std::move(text));
   }
 
+  /// MasterCommand has an entry to act on: @p agent is registered, or 0 (all).
+  bool MasterCommandOk(std::uint16_t agent) const {
+    return agent == kBroadcastId || reg_.contains(agent);
+  }
   /// Spec MasterCommand: the operator's command for agent @p agent (0 = all: not in the spec).
   void MasterCommand(std::uint16_t agent, const Command& c) {
-    if (agent == kBroadcastId) {
-      for (auto& kv : reg_) enqueue(kv.second, c);
+    if (agent != kBroadcastId) {
+      enqueue(*reg_.find(agent), c);
       return;
     }
-    auto it = reg_.find(agent);
-    if (it == reg_.end()) {
-      push(OperatorEvent::Kind::unknown_agent, agent, c.type, {});
-      return;
-    }
-    enqueue(it->second, c);
+    for (auto& kv : reg_) enqueue(kv.second, c);
   }
 
+  /// MasterTick is due at @p now: as MASTER, an entry's resend or drop time has come.
+  bool MasterTickOk(Millis now) const noexcept {
+    return role_ == MasterRole::master && entries_due() <= now;
+  }
   /// Spec MasterTick at now_: drop agents quiet for the drop timeout, resend due pending datagrams
   /// (an operator command fails after max_resends resends; MASTER is resent until ACK or drop and
   /// its resends are not counted).
+  /// Only the entries due (their deadline <= now_) are visited, in order of id: the others would
+  /// be left as they are by the spec's walk of every entry.
   void MasterTick() {
-    for (auto it = reg_.begin(); it != reg_.end();) {
-      RegistryEntry& e = it->second;
+    due_.clear();
+    for (std::uint16_t id; drops_.pop_due(now_, id);) due_.push_back(id);
+    for (std::uint16_t id; resends_.pop_due(now_, id);) due_.push_back(id);
+    std::sort(due_.begin(), due_.end());
+    due_.erase(std::unique(due_.begin(), due_.end()), due_.end());
+    for (std::uint16_t id : due_) {
+      RegistryEntry& e = *reg_.find(id);
       if (now_ - e.heard >= cfg_.timers[Timer::drop]) {
         fail_queue(e);
         push(OperatorEvent::Kind::dropped, e.id, MsgType::PING, {});
-        it = reg_.erase(it);
+        erase(id);
         continue;
       }
       if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
         if (e.synced && e.resends >= cfg_.max_resends) {
           push(OperatorEvent::Kind::timed_out, e.id, e.queue.front().type, {});
-          e.queue.pop_front();
+          e.queue.erase(e.queue.begin());
           e.pending = false;
           start_next(e);
         } else {
@@ -750,8 +822,261 @@ class Master {
           send_pending(e);
         }
       }
-      ++it;
+      rearm(e);
     }
+  }
+
+  // ------------------------------------------------ relay and election (Election.tla)
+
+  /// Heartbeat is due at @p now (MASTER).
+  bool HeartbeatOk(Millis now) const noexcept { return role_ == MasterRole::master && hb_at_ <= now; }
+  /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat.
+  void Heartbeat() {
+    hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
+    std::vector<std::string> p{std::to_string(epoch_), std::to_string(self_)};
+    for (std::uint16_t id : members()) {
+      if (p.size() == kMaxParams) break;
+      p.push_back(std::to_string(id));
+    }
+    broadcast(MsgType::LEADER, p);
+  }
+
+  /// StartElection is due at @p now (CANDIDATE).
+  bool StartElectionOk(Millis now) const noexcept {
+    return role_ == MasterRole::candidate && cand_at_ <= now;
+  }
+  /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, records) broadcast; again
+  /// after the candidate timeout without a majority.
+  void StartElection() {
+    ++epoch_;
+    votes_.clear();
+    cand_at_ = now_ + cfg_.timers[Timer::candidate];
+    broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", "0"});
+  }
+
+  /// A candidate's VOTE for us in our epoch, from a member not counted yet.
+  bool HandleVoteOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    const auto c = m.param_u16(1);
+    return role_ == MasterRole::candidate && m.receiver == self_ && e && c && *e == epoch_ &&
+           *c == self_ && members_.count(m.sender) != 0 && votes_.count(m.sender) == 0;
+  }
+  /// Spec HandleVote: one more vote.
+  void HandleVote(const Message& m, Peer) { votes_.insert(m.sender); }
+
+  /// A candidate holds the votes of a strict majority of the membership.
+  bool BecomeMasterOk() const {
+    return role_ == MasterRole::candidate && 2 * votes_.size() > members_.size();
+  }
+  /// Spec BecomeMaster: master of the epoch, LEADER at once.
+  void BecomeMaster() {
+    become_master();
+    Heartbeat();
+  }
+
+  /// ELECT of a newer epoch, to an elected agent's master (the PC learns epochs from EPOCH_STALE).
+  bool HandleElectOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    return self_ != kMasterId && role_ != MasterRole::stepped_down && e && *e > epoch_;
+  }
+  /// Spec HandleElect, the master node's part: an elected agent's master steps down on a newer
+  /// epoch (its agent core votes).
+  void HandleElect(const Message& m, Peer) {
+    epoch_ = *m.param_u32(0);
+    become_stepped_down();
+  }
+
+  /// LEADER of an older epoch (while we have not stepped down: it is told), a newer one, or our own
+  /// epoch's other master while an elected agent that has not handed over yet.
+  bool HandleHeartbeatOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    if (!e) return false;
+    if (*e < epoch_) return role_ != MasterRole::stepped_down;
+    return *e > epoch_ || (role_ != MasterRole::master && self_ != kMasterId && !handed_over_);
+  }
+  /// Spec HandleHeartbeat, the master node's part: an older master's LEADER is answered
+  /// EPOCH_STALE; a newer one ends our term: an elected agent hands its registry over (HANDOVER)
+  /// and steps down, the PC stands again above it.
+  void HandleHeartbeat(const Message& m, Peer from) {
+    const std::uint32_t e = *m.param_u32(0);
+    if (e < epoch_) {
+      send(from, m.sender, MsgType::EPOCH_STALE, {std::to_string(epoch_)});
+      return;
+    }
+    epoch_ = e;
+    if (self_ == kMasterId) {
+      become_candidate();
+      return;
+    }
+    if (!handed_over_) {
+      std::vector<std::string> p{std::to_string(epoch_)};
+      for (std::uint16_t id : members()) {
+        if (p.size() == kMaxParams) break;
+        p.push_back(std::to_string(id));
+      }
+      send(from, m.sender, MsgType::HANDOVER, p);
+      handed_over_ = true;
+    }
+    become_stepped_down();
+  }
+
+  /// EPOCH_STALE to us naming a newer epoch.
+  bool HandleStaleOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    return m.receiver == self_ && e && *e > epoch_;
+  }
+  /// Spec HandleStale: a newer epoch exists: the PC stands again (CANDIDATE), an elected agent's
+  /// master steps down.
+  void HandleStale(const Message& m, Peer) {
+    epoch_ = *m.param_u32(0);
+    if (self_ == kMasterId)
+      become_candidate();
+    else
+      become_stepped_down();
+  }
+
+  /// RELAY_ROUTE of our epoch to us (MASTER) for an agent registered or a member.
+  bool MasterRouteOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    const auto a = m.param_u16(1);
+    return role_ == MasterRole::master && m.receiver == self_ && e && *e == epoch_ && a &&
+           (reg_.contains(*a) || members_.count(*a) != 0);
+  }
+  /// RELAY_ROUTE(epoch, agent) from relay p (Election abstracts it: the master reads the table):
+  /// the agent is reached through p from now on (a member not registered yet is adopted).
+  void MasterRoute(const Message& m, Peer from) {
+    const std::uint16_t a = *m.param_u16(1);
+    RegistryEntry* e = reg_.find(a);
+    if (e == nullptr) e = &adopt(a, from);
+    e->via = m.sender;
+    reg_.set_peer(*e, from);
+  }
+
+  /// HANDOVER to us (MASTER) from the master of an epoch not newer than ours.
+  bool MasterHandoverOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    return role_ == MasterRole::master && m.receiver == self_ && e && *e <= epoch_;
+  }
+  /// HANDOVER(epoch, id...) from the elected agent we replace: its fleet joins our membership.
+  void MasterHandover(const Message& m, Peer) {
+    for (std::size_t i = 1; i < m.param_count(); ++i)
+      if (const auto id = m.param_u16(i)) {
+        if (is_assigned_id(*id) && *id != self_ && members_.insert(*id).second) ++members_rev_;
+      }
+  }
+
+  /// Election.tla's rules for the datagrams they take, as a table: the type, the action, its guard
+  /// and its handler. A datagram whose rule's guard fails is ignored (not_enabled).
+  struct ElectionRule {
+    MsgType type;
+    Action action;
+    bool (Master::*ok)(const Message&) const;
+    void (Master::*run)(const Message&, Peer);
+  };
+  static constexpr ElectionRule kElectionRules[] = {
+      {MsgType::ELECT, Action::HandleElect, &Master::HandleElectOk, &Master::HandleElect},
+      {MsgType::VOTE, Action::HandleVote, &Master::HandleVoteOk, &Master::HandleVote},
+      {MsgType::LEADER, Action::HandleHeartbeat, &Master::HandleHeartbeatOk, &Master::HandleHeartbeat},
+      {MsgType::EPOCH_STALE, Action::HandleStale, &Master::HandleStaleOk, &Master::HandleStale},
+      {MsgType::RELAY_ROUTE, Action::MasterRoute, &Master::MasterRouteOk, &Master::MasterRoute},
+      {MsgType::HANDOVER, Action::MasterHandover, &Master::MasterHandoverOk, &Master::MasterHandover},
+  };
+
+  // Role changes, each in one place (raft's become*): the timers of the role left are cleared.
+  void become_master() {
+    role_ = MasterRole::master;
+    cand_at_ = kNever;
+  }
+  void become_candidate() {
+    role_ = MasterRole::candidate;
+    hb_at_ = kNever;
+    cand_at_ = now_;  // stands at once
+  }
+  void become_stepped_down() {
+    role_ = MasterRole::stepped_down;
+    hb_at_ = cand_at_ = kNever;
+  }
+
+  /// Where a registered agent is (direct, or through relay @p via); a member we do not hold yet
+  /// (it follows our LEADER) is registered as synced when it pings.
+  void note_route(const Message& m, Peer from, std::uint16_t via) {
+    RegistryEntry* found = reg_.find(m.sender);
+    if (found == nullptr) {
+      if (m.type != MsgType::PING || members_.count(m.sender) == 0) return;
+      found = &adopt(m.sender, from);
+    }
+    RegistryEntry& e = *found;
+    if (m.type == MsgType::PING && !e.synced && members_.count(m.sender) != 0) {
+      // A member we were syncing (its PANIC reached us) pings: it follows our LEADER already.
+      set_synced(e, true);
+      e.pending = false;
+      start_next(e);
+      rearm(e);
+    }
+    // A relay forwards the agent's datagrams unchanged: from the relay's peer they are relayed.
+    if (via == 0 && e.via != 0 && from == e.peer) return;
+    reg_.set_peer(e, from);
+    e.via = via;
+  }
+  RegistryEntry& adopt(std::uint16_t id, Peer from) {
+    RegistryEntry e;
+    e.ann = id;
+    e.id = id;
+    e.peer = from;
+    e.synced = true;
+    e.desired_known = false;  // what the fleet's earlier master wanted is not known here
+    e.heard = now_;
+    return insert(std::move(e));
+  }
+
+  void broadcast(MsgType t, const std::vector<std::string>& params) {
+    std::vector<std::string_view> p(params.begin(), params.end());
+    char buf[kMaxDatagram];
+    const EncodeResult r = encode_parts(self_, kBroadcastId, msgid_++, static_cast<std::uint8_t>(t),
+                                        p.data(), p.size(), buf, sizeof buf);
+    if (r.ok()) tx_.push_back(MasterTransmit{0, Dest::broadcast, std::string(buf, r.size)});
+  }
+  void send(Peer to, std::uint16_t id, MsgType t, const std::vector<std::string>& params) {
+    std::vector<std::string_view> p(params.begin(), params.end());
+    send(to, id, t, p.data(), p.size());
+  }
+
+  // ------------------------------------------------ registry (indexes and deadlines)
+
+  /// The earliest deadline of an entry: a drop or a resend.
+  Millis entries_due() const noexcept {
+    const Millis d = drops_.next(), r = resends_.next();
+    return r < d ? r : d;
+  }
+  /// After heard, pending or sent_at of @p e changed: its drop time is heard + drop, its resend
+  /// time (while a datagram is pending) sent_at + resend.
+  void rearm(const RegistryEntry& e) {
+    drops_.refresh(e.id, e.heard);
+    if (e.pending)
+      resends_.refresh(e.id, e.sent_at);
+    else
+      resends_.remove(e.id);
+  }
+
+  /// Adds @p e (its id not registered) to the registry and its deadline.
+  RegistryEntry& insert(RegistryEntry e) {
+    RegistryEntry& r = reg_.insert(std::move(e));
+    rearm(r);
+    if (r.synced) ++members_rev_;
+    return r;
+  }
+  /// Removes entry @p id from the registry and its deadline.
+  void erase(std::uint16_t id) {
+    const RegistryEntry* e = reg_.find(id);
+    if (e == nullptr) return;
+    if (e->synced) ++members_rev_;
+    drops_.remove(id);
+    resends_.remove(id);
+    reg_.erase(id);
+  }
+  void set_synced(RegistryEntry& e, bool synced) {
+    if (e.synced != synced) ++members_rev_;
+    e.synced = synced;
   }
 
   void enqueue(RegistryEntry& e, const Command& c) {
@@ -761,6 +1086,7 @@ class Master {
       e.desired_known = true;
     }
     if (e.synced && !e.pending) start_next(e);
+    rearm(e);
   }
 
   /// Sends the next queued command, if any, with a new msgid.
@@ -813,9 +1139,8 @@ class Master {
       if (epoch_ > 1 && (t == MsgType::MASTER || is_command(t)))
         bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(epoch_), bytes);
       // Relay: an agent behind a relay gets RELAY(agent, datagram) through it.
-      const auto it = reg_.find(id);
-      if (it != reg_.end() && it->second.via != 0)
-        bytes = wrap(it->second.via, mid, MsgType::RELAY, std::to_string(id), bytes);
+      const RegistryEntry* e = reg_.find(id);
+      if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, std::to_string(id), bytes);
     }
     if (!bytes.empty()) tx_.push_back(MasterTransmit{to, Dest::peer, std::move(bytes)});
   }
@@ -866,7 +1191,7 @@ class Master {
       s += '"';
     };
     std::string s = "[";
-    for (const auto& kv : reg_) {
+    for (const auto& kv : reg_.map()) {
       const RegistryEntry& e = kv.second;
       if (s.size() > 1) s += ',';
       s += "{\"ann\":" + std::to_string(e.ann) + ",\"id\":" + std::to_string(e.id) +
@@ -928,17 +1253,22 @@ class Master {
   std::uint16_t next_id_;
   std::uint32_t msgid_;
   Millis now_;
-  std::map<std::uint16_t, RegistryEntry> reg_;
+  Registry reg_;
+  DeadlineList<std::uint16_t> drops_;      // entries by heard: heard + drop
+  DeadlineList<std::uint16_t> resends_;    // pending entries by sent_at: sent_at + resend
+  std::vector<std::uint16_t> due_;         // MasterTick's scratch
+  CopyWindow copies_;                      // MasterConfig::drop_copies
   DedupeWindow<256> reports_;
   std::deque<MasterTransmit> tx_;
   std::deque<OperatorEvent> ev_;
   std::uint32_t rejected_ = 0;
   Message rx_;
   // Election.tla
-  MasterRole role_;
+  MasterRole role_ = MasterRole::master;
   std::uint32_t epoch_;
   std::uint16_t self_;
   std::set<std::uint16_t> members_;
+  std::uint64_t members_rev_ = 0;
   std::set<std::uint16_t> votes_;
   Millis hb_at_ = kNever, cand_at_ = kNever;
   bool handed_over_ = false;
