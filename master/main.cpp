@@ -49,7 +49,7 @@ constexpr std::size_t kReadBatch = 64;
 /// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
 /// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
 std::string drop_key(const ev3proto::MasterReceipt& r) {
-  if (r.why != ev3proto::Ignored::malformed) return std::string(ev3proto::to_string(r.why));
+  if (r.why != ev3proto::MasterIgnored::malformed) return std::string(ev3proto::to_string(r.why));
   std::string k = "decode:" + std::string(ev3proto::to_string(r.reason));
   for (char& c : k)
     if (c == ' ') c = '_';
@@ -169,7 +169,7 @@ class Program {
   /// the core gives.
   void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
     const ev3proto::MasterReceipt r = master_->handle_datagram(d, net_.peer_of(from), now);
-    if (r.why != ev3proto::Ignored::none) {
+    if (r.why != ev3proto::MasterIgnored::none) {
       const std::string key = drop_key(r);
       drop(key);
       log_.log(kVerbose, "drop (%s) from %s", key.c_str(), from.str().c_str());

@@ -160,7 +160,7 @@ constexpr bool sets_desired(MsgType command) noexcept {
 
 /// Why the master ignored a datagram, or why the action that took it changed nothing. The
 /// spellings are the programs' drop counters.
-enum class Ignored : std::uint8_t {
+enum class MasterIgnored : std::uint8_t {
   none,            ///< Taken, and acted on.
   malformed,       ///< Does not decode (MasterReceipt::reason); no spec step.
   misaddressed,    ///< Receiver neither this master nor broadcast (spec Handler: Ignore).
@@ -181,19 +181,19 @@ enum class Ignored : std::uint8_t {
 };
 
 /// The drop counter's spelling of @p i ("unknown_sender").
-constexpr std::string_view to_string(Ignored i) noexcept {
+constexpr std::string_view to_string(MasterIgnored i) noexcept {
   switch (i) {
-    case Ignored::none: return "none";
-    case Ignored::malformed: return "malformed";
-    case Ignored::misaddressed: return "misaddressed";
-    case Ignored::duplicate: return "duplicate";
-    case Ignored::unexpected_type: return "unexpected_type";
-    case Ignored::own_broadcast: return "own_broadcast";
-    case Ignored::not_master: return "not_master";
-    case Ignored::not_enabled: return "not_enabled";
-    case Ignored::unknown_sender: return "unknown_sender";
-    case Ignored::stale_answer: return "stale_answer";
-    case Ignored::ids_exhausted: return "ids_exhausted";
+    case MasterIgnored::none: return "none";
+    case MasterIgnored::malformed: return "malformed";
+    case MasterIgnored::misaddressed: return "misaddressed";
+    case MasterIgnored::duplicate: return "duplicate";
+    case MasterIgnored::unexpected_type: return "unexpected_type";
+    case MasterIgnored::own_broadcast: return "own_broadcast";
+    case MasterIgnored::not_master: return "not_master";
+    case MasterIgnored::not_enabled: return "not_enabled";
+    case MasterIgnored::unknown_sender: return "unknown_sender";
+    case MasterIgnored::stale_answer: return "stale_answer";
+    case MasterIgnored::ids_exhausted: return "ids_exhausted";
   }
   return {};
 }
@@ -201,7 +201,7 @@ constexpr std::string_view to_string(Ignored i) noexcept {
 /// What Master::handle_datagram / handle_message did with a datagram.
 struct MasterReceipt {
   Action action = Action::Ignore; ///< The spec action taken (its trace record was written), or Ignore.
-  Ignored why = Ignored::none;    ///< Ignore: why. With an action: why it changed nothing, else none.
+  MasterIgnored why = MasterIgnored::none;    ///< Ignore: why. With an action: why it changed nothing, else none.
   Reason reason = Reason::ok;     ///< why == malformed: the decoder's reason.
 
   /// True when a spec action took the datagram.
@@ -444,7 +444,7 @@ class Master {
     const DecodeResult d = decode(bytes, rx_);
     if (!d.ok()) {
       ++rejected_;
-      return MasterReceipt{Action::Ignore, Ignored::malformed, d.reason};
+      return MasterReceipt{Action::Ignore, MasterIgnored::malformed, d.reason};
     }
     return take(rx_, bytes, from);
   }
@@ -544,19 +544,19 @@ class Master {
     return r;
   }
 
-  static MasterReceipt taken(Action a, Ignored why = Ignored::none) noexcept { return MasterReceipt{a, why}; }
-  static MasterReceipt ignored(Ignored why) noexcept { return MasterReceipt{Action::Ignore, why}; }
+  static MasterReceipt taken(Action a, MasterIgnored why = MasterIgnored::none) noexcept { return MasterReceipt{a, why}; }
+  static MasterReceipt ignored(MasterIgnored why) noexcept { return MasterReceipt{Action::Ignore, why}; }
 
   /// Takes @p m from @p from (through relay @p via, 0 = direct): Election.tla's rules first (with
   /// election on), then MasterLogic's Handler(m).
   MasterReceipt Dispatch(const Message& m, Peer from, std::uint16_t via) {
-    if (m.receiver != self_ && m.receiver != kBroadcastId) return ignored(Ignored::misaddressed);
-    if (via == 0 && !copies_.first_time(m.sender, m.msgid)) return ignored(Ignored::duplicate);
+    if (m.receiver != self_ && m.receiver != kBroadcastId) return ignored(MasterIgnored::misaddressed);
+    if (via == 0 && !copies_.first_time(m.sender, m.msgid)) return ignored(MasterIgnored::duplicate);
     if (cfg_.election) {
-      if (m.sender == self_) return ignored(Ignored::own_broadcast);
+      if (m.sender == self_) return ignored(MasterIgnored::own_broadcast);
       for (const ElectionRule& r : kElectionRules) {
         if (r.type != m.type) continue;
-        if (!(this->*r.ok)(m)) return ignored(Ignored::not_enabled);
+        if (!(this->*r.ok)(m)) return ignored(MasterIgnored::not_enabled);
         (this->*r.run)(m, from);
         return taken(r.action);  // after HandleVote, BecomeMaster is a step of its own (take)
       }
@@ -565,38 +565,38 @@ class Master {
         const auto target = m.param_u16(0);
         if (via != 0 || role_ != MasterRole::master || !target || *target != self_ ||
             !decode(m.param(1), inner_).ok() || inner_.type == MsgType::RELAY)
-          return ignored(Ignored::not_enabled);
+          return ignored(MasterIgnored::not_enabled);
         const Message inner = inner_;
         return Dispatch(inner, from, m.sender);
       }
-      if (role_ != MasterRole::master) return ignored(Ignored::not_master);
+      if (role_ != MasterRole::master) return ignored(MasterIgnored::not_master);
       note_route(m, from, via);
     }
     switch (Handler(m)) {
       case Action::MasterSync:
-        if (!MasterSyncOk(m.sender)) return taken(Action::MasterSync, Ignored::ids_exhausted);
+        if (!MasterSyncOk(m.sender)) return taken(Action::MasterSync, MasterIgnored::ids_exhausted);
         MasterSync(m, from);
         return taken(Action::MasterSync);
       case Action::MasterAnswer: {
-        if (!MasterAnswerOk(m)) return taken(Action::MasterAnswer, Ignored::unknown_sender);
+        if (!MasterAnswerOk(m)) return taken(Action::MasterAnswer, MasterIgnored::unknown_sender);
         const RegistryEntry& e = *reg_.find(m.sender);
         const bool was_pending = e.pending;
         const std::uint32_t mid = e.mid;
         MasterAnswer(m);  // an answer to nothing pending leaves the pending datagram as it was
         const bool answered = e.pending != was_pending || e.mid != mid;
-        return taken(Action::MasterAnswer, answered ? Ignored::none : Ignored::stale_answer);
+        return taken(Action::MasterAnswer, answered ? MasterIgnored::none : MasterIgnored::stale_answer);
       }
       case Action::MasterPing:
-        if (!MasterPingOk(m)) return taken(Action::MasterPing, Ignored::unknown_sender);
+        if (!MasterPingOk(m)) return taken(Action::MasterPing, MasterIgnored::unknown_sender);
         MasterPing(m, from);
         return taken(Action::MasterPing);
       case Action::MasterReport: {
-        const Ignored why = reg_.contains(m.sender) ? Ignored::none : Ignored::unknown_sender;
-        if (!MasterReportOk(m)) return taken(Action::MasterReport, Ignored::duplicate);
+        const MasterIgnored why = reg_.contains(m.sender) ? MasterIgnored::none : MasterIgnored::unknown_sender;
+        if (!MasterReportOk(m)) return taken(Action::MasterReport, MasterIgnored::duplicate);
         MasterReport(m);
         return taken(Action::MasterReport, why);
       }
-      default: return ignored(Ignored::unexpected_type);
+      default: return ignored(MasterIgnored::unexpected_type);
     }
   }
 

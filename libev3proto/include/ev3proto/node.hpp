@@ -136,7 +136,7 @@ class Node {
   /// Same as advance().
   void handle_timeout(Millis now) { advance(now); }
 
-  /// A datagram from @p from at @p now: decoded once; the first copy of each (sender, msgid) goes
+  /// A datagram from @p from at @p now: decoded once, for both cores; the first copy of each (sender, msgid) goes
   /// to the Master core (when one runs), then the agent core takes it. Returns what each did.
   NodeHandled handle_datagram(std::string_view bytes, Peer from, Millis now) {
     NodeHandled h;
@@ -151,8 +151,7 @@ class Node {
     }
     if (master_) {
       if (copies_.first_time(rx_.sender, rx_.msgid)) {
-        // master.hpp takes bytes: it decodes them again (an API taking the Message would spare it).
-        h.master = master_->handle_datagram(bytes, from, now);
+        h.master = master_->handle_message(rx_, bytes, from, now).action;  // decoded once, here
       } else {
         h.copy = true;
       }

@@ -270,7 +270,7 @@ class FleetDriver {
         block(0).push_back("  lost: the pc is down");
         return;
       }
-      if (pc_->handle_datagram(x.bytes, from, now_) == Action::Ignore) block(0).push_back("  ignored");
+      if (!pc_->handle_datagram(x.bytes, from, now_).taken()) block(0).push_back("  ignored");
       return;
     }
     Robot& r = *robots_[x.to - 1]->node;

@@ -119,7 +119,7 @@ class MasterDriver {
           continue;
         }
         master_->advance(now_);
-        if (master_->handle_datagram(d, from, now_) == Action::Ignore) lines_.push_back("ignored");
+        if (!master_->handle_datagram(d, from, now_).taken()) lines_.push_back("ignored");
       } else if (w[0] == "cmd" && w.size() >= 3) {
         MsgType t;
         if (!command_type(w[1], t)) {

@@ -172,7 +172,7 @@ std::vector<std::string> sent(Master<>& m) {
   return out;
 }
 
-void expect_receipt(const MasterReceipt& r, Action a, Ignored why, Reason reason = Reason::ok) {
+void expect_receipt(const MasterReceipt& r, Action a, MasterIgnored why, Reason reason = Reason::ok) {
   EXPECT_EQ(to_string(r.action), to_string(a));
   EXPECT_EQ(to_string(r.why), to_string(why));
   EXPECT_EQ(to_string(r.reason), to_string(reason));
@@ -180,40 +180,40 @@ void expect_receipt(const MasterReceipt& r, Action a, Ignored why, Reason reason
 
 TEST(MasterReceipts, SayWhatWasTakenAndWhyTheRestWasIgnored) {
   Master<> m(MasterConfig{}, 0);
-  expect_receipt(m.handle_datagram("1:x:3:5:ACTIVE", 9, 1), Action::Ignore, Ignored::malformed, Reason::bad_number);
+  expect_receipt(m.handle_datagram("1:x:3:5:ACTIVE", 9, 1), Action::Ignore, MasterIgnored::malformed, Reason::bad_number);
   EXPECT_EQ(m.rejected(), 1u);
-  expect_receipt(m.handle_datagram("5:7:3:5:ACTIVE", 9, 2), Action::Ignore, Ignored::misaddressed);
-  expect_receipt(m.handle_datagram("5:1:3:6:2", 9, 3), Action::Ignore, Ignored::unexpected_type);  // PONG
-  expect_receipt(m.handle_datagram("5:1:4:5:ACTIVE", 9, 4), Action::MasterPing, Ignored::unknown_sender);
+  expect_receipt(m.handle_datagram("5:7:3:5:ACTIVE", 9, 2), Action::Ignore, MasterIgnored::misaddressed);
+  expect_receipt(m.handle_datagram("5:1:3:6:2", 9, 3), Action::Ignore, MasterIgnored::unexpected_type);  // PONG
+  expect_receipt(m.handle_datagram("5:1:4:5:ACTIVE", 9, 4), Action::MasterPing, MasterIgnored::unknown_sender);
   EXPECT_TRUE(sent(m).empty()) << "no PONG to an id not registered";
-  expect_receipt(m.handle_datagram("5:1:5:3:1", 9, 5), Action::MasterAnswer, Ignored::unknown_sender);
-  expect_receipt(m.handle_datagram("5:1:6:20:x", 9, 6), Action::MasterReport, Ignored::unknown_sender);
+  expect_receipt(m.handle_datagram("5:1:5:3:1", 9, 5), Action::MasterAnswer, MasterIgnored::unknown_sender);
+  expect_receipt(m.handle_datagram("5:1:6:20:x", 9, 6), Action::MasterReport, MasterIgnored::unknown_sender);
 
-  expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 10), Action::MasterSync, Ignored::none);
+  expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 10), Action::MasterSync, MasterIgnored::none);
   EXPECT_EQ(sent(m), std::vector<std::string>{"1:2:1:2:50001"});
-  expect_receipt(m.handle_datagram("2:1:2:3:99", 11, 11), Action::MasterAnswer, Ignored::stale_answer);
-  expect_receipt(m.handle_datagram("2:1:3:3:1", 11, 12), Action::MasterAnswer, Ignored::none);
-  expect_receipt(m.handle_datagram("2:1:3:3:1", 11, 13), Action::MasterAnswer, Ignored::stale_answer);
-  expect_receipt(m.handle_datagram("2:1:4:5:ACTIVE", 11, 14), Action::MasterPing, Ignored::none);
+  expect_receipt(m.handle_datagram("2:1:2:3:99", 11, 11), Action::MasterAnswer, MasterIgnored::stale_answer);
+  expect_receipt(m.handle_datagram("2:1:3:3:1", 11, 12), Action::MasterAnswer, MasterIgnored::none);
+  expect_receipt(m.handle_datagram("2:1:3:3:1", 11, 13), Action::MasterAnswer, MasterIgnored::stale_answer);
+  expect_receipt(m.handle_datagram("2:1:4:5:ACTIVE", 11, 14), Action::MasterPing, MasterIgnored::none);
   EXPECT_EQ(sent(m), std::vector<std::string>{"1:2:2:6:4"});
-  expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 15), Action::MasterReport, Ignored::none);
-  expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 16), Action::MasterReport, Ignored::duplicate);
+  expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 15), Action::MasterReport, MasterIgnored::none);
+  expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 16), Action::MasterReport, MasterIgnored::duplicate);
 }
 
 TEST(MasterReceipts, CopiesReachTheHandlerUnlessDropCopiesIsOn) {
   Master<> spec(MasterConfig{}, 0);  // MasterLogic: every copy goes through its handler
   for (int copy = 0; copy < 3; ++copy)
-    expect_receipt(spec.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, Ignored::none);
+    expect_receipt(spec.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, MasterIgnored::none);
   EXPECT_EQ(sent(spec).size(), 3u) << "each copy of AGENT resends MASTER";
 
   MasterConfig c;
   c.drop_copies = true;
   Master<> program(c, 0);
-  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, Ignored::none);
-  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 1), Action::Ignore, Ignored::duplicate);
-  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 2), Action::Ignore, Ignored::duplicate);
-  expect_receipt(program.handle_datagram("9:7:1:5:ACTIVE", 11, 3), Action::Ignore, Ignored::misaddressed);
-  expect_receipt(program.handle_datagram("50001:0:2:1:A", 11, 4), Action::MasterSync, Ignored::none);
+  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, MasterIgnored::none);
+  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 1), Action::Ignore, MasterIgnored::duplicate);
+  expect_receipt(program.handle_datagram("50001:0:1:1:A", 11, 2), Action::Ignore, MasterIgnored::duplicate);
+  expect_receipt(program.handle_datagram("9:7:1:5:ACTIVE", 11, 3), Action::Ignore, MasterIgnored::misaddressed);
+  expect_receipt(program.handle_datagram("50001:0:2:1:A", 11, 4), Action::MasterSync, MasterIgnored::none);
   EXPECT_EQ(sent(program).size(), 2u);
 }
 
@@ -238,14 +238,14 @@ TEST(MasterReceipts, ElectionReasons) {
   // An elected agent's master (id 7, epoch 2, members 7 8 9) gives no ids.
   Master<> m(MasterConfig::for_elected_agent(Timers{}, 7, 2, {7, 8, 9}, 1000), 0);
   sent(m);
-  expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, Ignored::ids_exhausted);
-  expect_receipt(m.handle_datagram("7:0:1003:29:2:7:8:9", 11, 2), Action::Ignore, Ignored::own_broadcast);
-  expect_receipt(m.handle_datagram("8:7:5:28:1:8", 12, 3), Action::Ignore, Ignored::not_enabled);  // VOTE: not standing
-  expect_receipt(m.handle_datagram("8:7:6:5:ACTIVE", 12, 4), Action::MasterPing, Ignored::none);  // a member: adopted
+  expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, MasterIgnored::ids_exhausted);
+  expect_receipt(m.handle_datagram("7:0:1003:29:2:7:8:9", 11, 2), Action::Ignore, MasterIgnored::own_broadcast);
+  expect_receipt(m.handle_datagram("8:7:5:28:1:8", 12, 3), Action::Ignore, MasterIgnored::not_enabled);  // VOTE: not standing
+  expect_receipt(m.handle_datagram("8:7:6:5:ACTIVE", 12, 4), Action::MasterPing, MasterIgnored::none);  // a member: adopted
   EXPECT_EQ(m.registry().count(8), 1u);
-  expect_receipt(m.handle_datagram("1:7:1:30:3", 1, 5), Action::HandleStale, Ignored::none);  // epoch 3: step down
+  expect_receipt(m.handle_datagram("1:7:1:30:3", 1, 5), Action::HandleStale, MasterIgnored::none);  // epoch 3: step down
   EXPECT_EQ(m.role(), MasterRole::stepped_down);
-  expect_receipt(m.handle_datagram("8:7:7:5:ACTIVE", 12, 6), Action::Ignore, Ignored::not_master);
+  expect_receipt(m.handle_datagram("8:7:7:5:ACTIVE", 12, 6), Action::Ignore, MasterIgnored::not_master);
 }
 
 }  // namespace
