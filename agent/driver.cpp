@@ -12,16 +12,17 @@
 #include <vector>
 
 #include <ev3proto/agent.hpp>
+#include <ev3proto/json.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
-#include "driver_json.hpp"
+#include "ev3prog/driver_json.hpp"
 
 namespace ev3agent {
 namespace {
 
-using ev3driver::Json;
-using ev3driver::put_string;
+using ev3prog::Json;
+using ev3proto::json_string;
 using ev3proto::Millis;
 
 /// The spec variables of the agent (AgentLogic AgentType) as a JSON object.
@@ -29,11 +30,11 @@ template <typename A>
 std::string vars_json(const ev3proto::AgentVars& v, const A& agent) {
   std::string s = "{\"state\":\"" + std::string(to_string(v.state)) + "\",\"led\":\"" +
                   std::string(to_string(v.led)) + "\",\"id\":" + std::to_string(v.id) + ",\"beh\":";
-  put_string(s, v.beh_len == 0 ? std::string_view("NONE") : v.beh_name());
+  json_string(s, v.beh_len == 0 ? std::string_view("NONE") : v.beh_name());
   s += ",\"step\":" + std::to_string(v.step) + ",\"wait\":\"" + std::string(to_string(v.wait)) +
        "\",\"motors\":\"" + (v.motors ? "ON" : "OFF") + "\",\"devOk\":" + (v.dev_ok ? "true" : "false") +
        ",\"silence\":" + std::to_string(v.silence) + ",\"clk\":" + std::to_string(v.clk) +
-       ",\"win\":" + ev3proto::trace_detail::window_json(agent.window()) + "}";
+       ",\"win\":" + ev3proto::window_json(agent.window()) + "}";
   return s;
 }
 
@@ -48,13 +49,13 @@ struct DriverSink {
     bool first = true;
     if (!r.msg.empty()) {
       s += "\"msg\":";
-      put_string(s, r.msg);
+      json_string(s, r.msg);
       first = false;
     }
     if (!r.event.empty()) {
       if (!first) s += ',';
       s += "\"e\":";
-      put_string(s, r.event);
+      json_string(s, r.event);
       first = false;
     }
     if (r.action == ev3proto::Action::Tick) {
@@ -135,8 +136,8 @@ class CoreW final : public Core {
       s += "{\"to\":\"" + std::string(to_string(t.dest)) + "\"";
       if (t.dest == ev3proto::Dest::master) s += ",\"peer\":" + std::to_string(t.peer);
       s += ",\"text\":";
-      put_string(s, t.bytes);
-      s += ",\"hex\":\"" + ev3driver::hex(t.bytes) + "\"}";
+      json_string(s, t.bytes);
+      s += ",\"hex\":\"" + ev3prog::hex(t.bytes) + "\"}";
     }
     return s + "]";
   }
@@ -149,11 +150,11 @@ class CoreW final : public Core {
         if (controls.size() > 1) controls += ',';
         controls += "{\"control\":\"" + std::string(to_string(e.control)) + "\",\"behaviour\":";
         const ev3proto::BehaviourView b = a_.behaviour();
-        put_string(controls, b.name);
+        json_string(controls, b.name);
         controls += ",\"args\":[";
         for (std::size_t i = 0; i < b.arg_count; ++i) {
           if (i) controls += ',';
-          put_string(controls, b.arg(i));
+          json_string(controls, b.arg(i));
         }
         controls += "]}";
         continue;
@@ -188,10 +189,10 @@ class Driver {
   explicit Driver(std::FILE* trace) { sink_.trace = trace; }
 
   int run() {
-    return ev3driver::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
+    return ev3prog::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
   }
 
-  // Below: what ev3driver::dispatch_input() asks of a driver (configure() among it), then output().
+  // Below: what ev3prog::dispatch_input() asks of a driver (configure() among it), then output().
   bool configure(const Json& in, std::string& err) {
     ev3proto::AgentConfig c;
     const Json& t = in["timers"];
@@ -252,9 +253,9 @@ class Driver {
     return true;
   }
 
-  std::string handle(const std::string& line) { return ev3driver::dispatch_input(*this, line); }
+  std::string handle(const std::string& line) { return ev3prog::dispatch_input(*this, line); }
 
-  std::string error(const std::string& msg) { return ev3driver::driver_error("ev3-agent --driver", seq_, msg); }
+  std::string error(const std::string& msg) { return ev3prog::driver_error("ev3-agent --driver", seq_, msg); }
   void clear_actions() { sink_.actions.clear(); }
   bool has_core() const { return core_ != nullptr; }
   Millis core_now() const { return core_->now(); }
@@ -324,7 +325,7 @@ class Driver {
 
 int run_driver(int argc, char** argv) {
   std::FILE* trace = nullptr;
-  const int rc = ev3driver::driver_options(argc, argv, "ev3-agent", "agent",
+  const int rc = ev3prog::driver_options(argc, argv, "ev3-agent", "agent",
                                            "config, random, recv, advance, event, save, restore", trace);
   if (rc >= 0) return rc;
   static Driver d(trace);  // static: the cores are large

@@ -21,7 +21,7 @@
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
-#include "console.hpp"
+#include "ev3prog/console.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
 #include "ev3io/state_file.hpp"
@@ -435,9 +435,9 @@ class Program {
     while (node_->master() != nullptr && node_->master()->role() == ev3proto::MasterRole::master &&
            script_pos_ < script_.size() && now >= script_at_) {
       const std::string line = script_[script_pos_++];
-      ev3master::ConsoleCommand c;
-      const std::string err = ev3master::parse_console_line(line, c);
-      using K = ev3master::ConsoleCommand::Kind;
+      ev3prog::ConsoleCommand c;
+      const std::string err = ev3prog::parse_console_line(line, c);
+      using K = ev3prog::ConsoleCommand::Kind;
       if (!err.empty()) {
         log_.log(kError, "master script: %s", err.c_str());
       } else if (c.kind == K::wait) {
@@ -469,7 +469,7 @@ class Program {
   // election
   std::string state_path_;
   std::optional<ev3proto::NdjsonTrace> mtrace_;  // the Master core's records (--trace)
-  ev3master::FleetView view_;
+  ev3prog::FleetView view_;
   std::vector<std::string> script_;
   std::size_t script_pos_ = 0;
   Millis script_at_ = 0;

@@ -18,7 +18,7 @@
 #include <ev3proto/master.hpp>
 #include <ev3proto/trace.hpp>
 
-#include "console.hpp"
+#include "ev3prog/console.hpp"
 #include "driver.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
@@ -232,8 +232,8 @@ class Program {
   void run_script(Millis now) {
     while (!quit_ && script_pos_ < script_.size() && now >= script_at_) {
       const std::string line = script_[script_pos_++];
-      ev3master::ConsoleCommand c;
-      if (ev3master::parse_console_line(line, c).empty() && c.kind == ev3master::ConsoleCommand::Kind::wait) {
+      ev3prog::ConsoleCommand c;
+      if (ev3prog::parse_console_line(line, c).empty() && c.kind == ev3prog::ConsoleCommand::Kind::wait) {
         script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
         continue;
       }
@@ -242,16 +242,16 @@ class Program {
   }
 
   void handle_line(const std::string& line, bool script, Millis now) {
-    ev3master::ConsoleCommand c;
-    const std::string err = ev3master::parse_console_line(line, c);
+    ev3prog::ConsoleCommand c;
+    const std::string err = ev3prog::parse_console_line(line, c);
     if (!err.empty()) {
       say("error: " + err);
       return;
     }
-    using K = ev3master::ConsoleCommand::Kind;
+    using K = ev3prog::ConsoleCommand::Kind;
     switch (c.kind) {
       case K::none: return;
-      case K::help: say(ev3master::console_help()); return;
+      case K::help: say(ev3prog::console_help()); return;
       case K::list:
         for (const std::string& l : view_.table(master_->registry(), drops_, now)) say(l);
         return;
@@ -291,7 +291,7 @@ class Program {
     winsize ws{};
     rows_ = ioctl(1, TIOCGWINSZ, &ws) == 0 && ws.ws_row > kTableRows + 4 ? ws.ws_row : 24;
     std::printf("\033[2J\033[%d;%dr\033[%d;1H", kTableRows + 1, rows_, rows_);
-    say("ev3-master listening on " + listening_ + "; " + ev3master::console_help());
+    say("ev3-master listening on " + listening_ + "; " + ev3prog::console_help());
     redraw(ev3io::monotonic_ms());
   }
 
@@ -432,8 +432,8 @@ class Program {
   std::FILE* trace_file_ = nullptr;
   Millis trace_flush_ = 0;
   std::optional<MasterCore> master_;
-  ev3master::FleetView view_;
-  ev3master::Counters drops_;
+  ev3prog::FleetView view_;
+  ev3prog::Counters drops_;
   std::vector<std::string> script_;
   std::size_t script_pos_ = 0;
   Millis script_at_ = 0;

@@ -5,7 +5,7 @@
 #include <string>
 #include <vector>
 
-#include "console.hpp"
+#include "ev3prog/console.hpp"
 #include "ev3io/cli.hpp"
 #include "ev3io/fault.hpp"
 #include "ev3io/udp.hpp"
@@ -211,30 +211,30 @@ TEST(Leds, Colours) {
 }
 
 TEST(Console, Commands) {
-  ev3master::ConsoleCommand c;
-  EXPECT_EQ(ev3master::parse_console_line("behaviour 2 wait seconds=3", c), "");
-  EXPECT_EQ(c.kind, ev3master::ConsoleCommand::Kind::send);
+  ev3prog::ConsoleCommand c;
+  EXPECT_EQ(ev3prog::parse_console_line("behaviour 2 wait seconds=3", c), "");
+  EXPECT_EQ(c.kind, ev3prog::ConsoleCommand::Kind::send);
   EXPECT_EQ(c.agent, 2);
   EXPECT_EQ(c.command.type, ev3proto::MsgType::BEHAVIOUR);
   EXPECT_EQ(c.command.name, "wait");
   ASSERT_EQ(c.command.args.size(), 1u);
   EXPECT_EQ(c.command.args[0], "seconds=3");
-  EXPECT_EQ(ev3master::parse_console_line("  pause   all ", c), "");
+  EXPECT_EQ(ev3prog::parse_console_line("  pause   all ", c), "");
   EXPECT_EQ(c.agent, 0);
   EXPECT_EQ(c.command.type, ev3proto::MsgType::PAUSE);
-  EXPECT_EQ(ev3master::parse_console_line("wait 1.5", c), "");
+  EXPECT_EQ(ev3prog::parse_console_line("wait 1.5", c), "");
   EXPECT_DOUBLE_EQ(c.seconds, 1.5);
-  EXPECT_EQ(ev3master::parse_console_line("# comment", c), "");
-  EXPECT_EQ(c.kind, ev3master::ConsoleCommand::Kind::none);
-  EXPECT_NE(ev3master::parse_console_line("fly 2", c).find("unknown command 'fly'"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("start two", c).find("bad agent id 'two'"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("start", c).find("bad argument"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("behaviour 2 wait 3", c).find("'3'"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("list x", c), "");
+  EXPECT_EQ(ev3prog::parse_console_line("# comment", c), "");
+  EXPECT_EQ(c.kind, ev3prog::ConsoleCommand::Kind::none);
+  EXPECT_NE(ev3prog::parse_console_line("fly 2", c).find("unknown command 'fly'"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("start two", c).find("bad agent id 'two'"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("start", c).find("bad argument"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("behaviour 2 wait 3", c).find("'3'"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("list x", c), "");
 }
 
 TEST(Console, ViewAndStatusJson) {
-  ev3master::FleetView v;
+  ev3prog::FleetView v;
   ev3proto::OperatorEvent e{ev3proto::OperatorEvent::Kind::registered, 2, ev3proto::MsgType::MASTER, "50001"};
   EXPECT_NE(v.on_event(e, "127.0.0.1:4000", 10).find("agent 2 registered"), std::string::npos);
   e = {ev3proto::OperatorEvent::Kind::refused, 2, ev3proto::MsgType::START, "no behaviour"};

@@ -3,7 +3,7 @@
 // integers, booleans, null. Shared by ev3-agent --driver and ev3-master --driver.
 #pragma once
 
-#include <ev3proto/trace.hpp>
+#include <ev3proto/json.hpp>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -13,7 +13,7 @@
 #include <string_view>
 #include <vector>
 
-namespace ev3driver {
+namespace ev3prog {
 
 /// A parsed JSON value.
 struct Json {
@@ -204,10 +204,6 @@ int run_driver_lines(std::FILE* trace, unsigned long long& seq, Handle&& handle)
   return 0;
 }
 
-/// Appends @p s as a JSON string (bytes >= 0x7F and control bytes as \u00XX), exactly as the core's
-/// NDJSON trace writes strings.
-inline void put_string(std::string& out, std::string_view s) { ev3proto::trace_detail::json_string(out, s); }
-
 /// Where an "advance" input moves the clock: `now + ms`, or `to`. False, with @p err, if the input has
 /// neither.
 inline bool advance_target(const Json& in, std::uint64_t now, std::uint64_t& to, std::string& err) {
@@ -225,7 +221,7 @@ inline bool advance_target(const Json& in, std::uint64_t now, std::uint64_t& to,
 inline std::string driver_error(const char* program, unsigned long long seq, const std::string& msg) {
   std::fprintf(stderr, "%s: input %llu: %s\n", program, seq, msg.c_str());
   std::string s = "{\"in\":" + std::to_string(seq) + ",\"error\":";
-  put_string(s, msg);
+  ev3proto::json_string(s, msg);
   return s + "}";
 }
 
@@ -350,4 +346,4 @@ inline int driver_options(int argc, char** argv, const char* program, const char
   return -1;
 }
 
-}  // namespace ev3driver
+}  // namespace ev3prog
