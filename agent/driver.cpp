@@ -4,7 +4,6 @@
 #include "driver.hpp"
 
 #include <cstdio>
-#include <iostream>
 #include <map>
 #include <memory>
 #include <optional>
@@ -17,6 +16,7 @@
 #include <ev3proto/wire.hpp>
 
 #include "ev3prog/driver_json.hpp"
+#include "ev3prog/program.hpp"
 
 namespace ev3agent {
 namespace {
@@ -293,15 +293,8 @@ class Driver {
     return error("unknown input type '" + type + "'");
   }
   std::string output(bool taken) {
-    std::string s = "{\"in\":" + std::to_string(seq_) + ",\"ok\":" + (taken ? "true" : "false");
-    if (!core_) return s + "}";
-    s += ",\"now\":" + std::to_string(core_->now()) + ",\"actions\":[";
-    for (std::size_t i = 0; i < sink_.actions.size(); ++i) {
-      if (i) s += ',';
-      s += sink_.actions[i];
-    }
-    sink_.actions.clear();
-    s += "],\"sent\":" + core_->drain_sent();
+    if (!core_) return ev3prog::output_start(seq_, taken) + "}";
+    std::string s = ev3prog::output_start(seq_, taken, core_->now(), sink_.actions) + ",\"sent\":" + core_->drain_sent();
     std::string controls;
     s += ",\"events\":" + core_->drain_events(controls);
     s += ",\"controls\":" + controls;
@@ -324,14 +317,7 @@ class Driver {
 }  // namespace
 
 int run_driver(int argc, char** argv) {
-  std::FILE* trace = nullptr;
-  const int rc = ev3prog::driver_options(argc, argv, "ev3-agent", "agent",
-                                           "config, random, recv, advance, event, save, restore", trace);
-  if (rc >= 0) return rc;
-  static Driver d(trace);  // static: the cores are large
-  const int status = d.run();
-  if (trace != nullptr) std::fclose(trace);
-  return status;
+  return ev3prog::driver_main<Driver>(argc, argv, "ev3-agent", "agent", "config, random, recv, advance, event, save, restore");
 }
 
 }  // namespace ev3agent

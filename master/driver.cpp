@@ -4,7 +4,6 @@
 #include "driver.hpp"
 
 #include <cstdio>
-#include <iostream>
 #include <map>
 #include <optional>
 #include <string>
@@ -16,6 +15,7 @@
 #include <ev3proto/wire.hpp>
 
 #include "ev3prog/driver_json.hpp"
+#include "ev3prog/program.hpp"
 
 namespace ev3master {
 namespace {
@@ -175,15 +175,8 @@ class Driver {
   }
 
   std::string output(bool taken) {
-    std::string s = "{\"in\":" + std::to_string(seq_) + ",\"ok\":" + (taken ? "true" : "false");
-    if (!core_) return s + "}";
-    s += ",\"now\":" + std::to_string(core_->now()) + ",\"actions\":[";
-    for (std::size_t i = 0; i < sink_.actions.size(); ++i) {
-      if (i) s += ',';
-      s += sink_.actions[i];
-    }
-    sink_.actions.clear();
-    s += "],\"sent\":[";
+    if (!core_) return ev3prog::output_start(seq_, taken) + "}";
+    std::string s = ev3prog::output_start(seq_, taken, core_->now(), sink_.actions) + ",\"sent\":[";
     ev3proto::MasterTransmit t;
     bool first = true;
     while (core_->poll_transmit(t)) {
@@ -221,14 +214,7 @@ class Driver {
 }  // namespace
 
 int run_driver(int argc, char** argv) {
-  std::FILE* trace = nullptr;
-  const int rc = ev3prog::driver_options(argc, argv, "ev3-master", "master",
-                                           "config, recv, command, advance, save, restore", trace);
-  if (rc >= 0) return rc;
-  static Driver d(trace);  // static: the cores are large
-  const int status = d.run();
-  if (trace != nullptr) std::fclose(trace);
-  return status;
+  return ev3prog::driver_main<Driver>(argc, argv, "ev3-master", "master", "config, recv, command, advance, save, restore");
 }
 
 }  // namespace ev3master

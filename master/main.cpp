@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <string>
@@ -19,6 +18,9 @@
 #include <ev3proto/trace.hpp>
 
 #include "ev3prog/console.hpp"
+#include "ev3prog/program.hpp"
+#include "ev3prog/script.hpp"
+#include "ev3prog/trace_file.hpp"
 #include "driver.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
@@ -72,24 +74,19 @@ class Program {
     if (tty_ && opt_.common.log_file.empty() && opt_.common.log_level > kError)
       log_.set_level(kError);  // the terminal shows the table; only errors go to stderr there
     if (!opt_.common.trace_file.empty()) {
-      trace_file_ = std::fopen(opt_.common.trace_file.c_str(), "w");
-      if (trace_file_ == nullptr) {
-        std::fprintf(stderr, "ev3-master: bad value for --trace: cannot open '%s': %s\n",
-                     opt_.common.trace_file.c_str(), std::strerror(errno));
+      const std::string e = trace_file_.open(opt_.common.trace_file);
+      if (!e.empty()) {
+        std::fprintf(stderr, "ev3-master: bad value for --trace: %s\n", e.c_str());
         return 2;
       }
-      trace_.set_output([this](const std::string& line) {
-        std::fwrite(line.data(), 1, line.size(), trace_file_);
-        std::fputc('\n', trace_file_);
-      });
+      trace_.set_output(trace_file_.output());
     }
     if (!opt_.script.empty()) {
-      std::ifstream in(opt_.script);
-      if (!in) {
-        std::fprintf(stderr, "ev3-master: bad value for --script: cannot open '%s'\n", opt_.script.c_str());
+      const std::string e = script_.load(opt_.script);
+      if (!e.empty()) {
+        std::fprintf(stderr, "ev3-master: bad value for --script: %s\n", e.c_str());
         return 2;
       }
-      for (std::string l; std::getline(in, l);) script_.push_back(l);
     }
     std::string err;
     if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
@@ -97,6 +94,7 @@ class Program {
       return 1;
     }
     start_ = ev3io::monotonic_ms();
+    script_.start(start_);
     ev3proto::MasterConfig cfg;
     cfg.timers = opt_.timers;
     cfg.max_resends = opt_.max_resends;
@@ -104,7 +102,7 @@ class Program {
     cfg.drop_copies = true;  // every datagram arrives 3 times (the transport's copies)
     std::string restored;
     if (!load_state(cfg, restored)) return 2;
-    master_.emplace(cfg, start_, trace_file_ != nullptr ? &trace_ : nullptr);
+    master_.emplace(cfg, start_, trace_file_.is_open() ? &trace_ : nullptr);
     save_state(true);
     listening_ = net_.local().str();
     log_.log(kInfo, "listening on %s", listening_.c_str());
@@ -145,16 +143,10 @@ class Program {
       if (quit_) break;
       Millis deadline = std::min(master_->next_deadline(), net_.next_send());
       deadline = std::min(deadline, log_.tick(now));
-      if (script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
+      deadline = std::min(deadline, script_.deadline());
       if (!opt_.status_json.empty()) deadline = std::min(deadline, next_status_);
       if (tty_) deadline = std::min(deadline, next_redraw_);
-      if (trace_file_ != nullptr) {
-        if (now >= trace_flush_) {
-          std::fflush(trace_file_);
-          trace_flush_ = now + 200;
-        }
-        deadline = std::min(deadline, trace_flush_);
-      }
+      deadline = std::min(deadline, trace_file_.tick(now));
       if (more) deadline = now;
       pollfd p[2] = {{net_.fd(), POLLIN, 0}, {0, POLLIN, 0}};
       const std::size_t n = stdin_open_ ? 2 : 1;
@@ -230,15 +222,8 @@ class Program {
   }
 
   void run_script(Millis now) {
-    while (!quit_ && script_pos_ < script_.size() && now >= script_at_) {
-      const std::string line = script_[script_pos_++];
-      ev3prog::ConsoleCommand c;
-      if (ev3prog::parse_console_line(line, c).empty() && c.kind == ev3prog::ConsoleCommand::Kind::wait) {
-        script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
-        continue;
-      }
-      handle_line(line, true, now);
-    }
+    std::string line;
+    while (!quit_ && script_.next(now, line)) handle_line(line, true, now);
   }
 
   void handle_line(const std::string& line, bool script, Millis now) {
@@ -342,8 +327,7 @@ class Program {
     for (const auto& kv : drops_) d += " " + kv.first + "=" + std::to_string(kv.second);
     log_.log(kInfo, "stopping (signal %d); drops:%s", signals_.stop_signal(), d.empty() ? " none" : d.c_str());
     log_.flush();
-    if (trace_file_ != nullptr) std::fclose(trace_file_);
-    trace_file_ = nullptr;
+    trace_file_.close();
   }
 
   /// --state-file: restores next id, msgid (the end of the reserved block), epoch and members; the
@@ -429,14 +413,11 @@ class Program {
   ev3io::Signals signals_;
   ev3io::UdpTransport net_;
   ev3proto::NdjsonTrace trace_{"master"};
-  std::FILE* trace_file_ = nullptr;
-  Millis trace_flush_ = 0;
+  ev3prog::TraceFile trace_file_;
   std::optional<MasterCore> master_;
   ev3prog::FleetView view_;
   ev3prog::Counters drops_;
-  std::vector<std::string> script_;
-  std::size_t script_pos_ = 0;
-  Millis script_at_ = 0;
+  ev3prog::Script script_;
   std::string inbuf_;
   std::string listening_;
   Millis start_ = 0, next_status_ = 0, next_redraw_ = 0;
@@ -452,21 +433,14 @@ class Program {
   std::uint32_t seen_epoch_ = 0;
 };
 
+/// The program with its options (static: the core is large).
+int run(const ev3master::MasterOptions& o) {
+  static Program p(o);
+  return p.run();
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Driver mode (docs/driver.md): the core on a virtual clock, NDJSON on stdin/stdout; no sockets.
-  for (int i = 1; i < argc; ++i)
-    if (std::strcmp(argv[i], "--driver") == 0) return ev3master::run_driver(argc, argv);
-  ev3master::MasterOptions o;
-  std::string msg;
-  switch (ev3master::parse_master_options(argc, argv, o, msg)) {
-    case ev3master::ParseOutcome::help: std::printf("%s", msg.c_str()); return 0;
-    case ev3master::ParseOutcome::error:
-      std::fprintf(stderr, "ev3-master: %s (try --help)\n", msg.c_str());
-      return 2;
-    case ev3master::ParseOutcome::run: break;
-  }
-  static Program p(o);
-  return p.run();
+  return ev3prog::program_main(argc, argv, "ev3-master", ev3master::run_driver, ev3master::parse_master_options, run);
 }
