@@ -30,6 +30,7 @@
 #include "ev3io/udp.hpp"
 #include "leds.hpp"
 #include "agent_options.hpp"
+#include "agent_sink.hpp"
 #include "driver.hpp"
 #include "wait_runner.hpp"
 
@@ -91,7 +92,7 @@ std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
   return s.empty() ? "none" : s;
 }
 
-using RobotNode = ev3proto::Node<ev3proto::NdjsonTrace, ev3proto::NdjsonTrace>;
+using ev3agent::RobotNode;
 
 std::string role_name(ev3proto::Role r) {
   switch (r) {
@@ -120,7 +121,7 @@ class Program {
         std::fprintf(stderr, "ev3-agent: bad value for --trace: %s\n", e.c_str());
         return 2;
       }
-      trace_.set_output(trace_file_.output());
+      trace_.ndjson = trace_file_.output();
     }
     std::string err;
     if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
@@ -289,7 +290,7 @@ class Program {
   }
 
   void on_event(const ev3proto::NodeEvent& e, Millis now) {
-    const ev3proto::Agent<ev3proto::NdjsonTrace>& a = node_->agent();
+    const ev3agent::AgentCore& a = node_->agent();
     using K = ev3proto::NodeEvent::Kind;
     // Without --election the master followed is always the PC: nothing to say about roles.
     if (!opt_.election && (e.kind == K::role || e.kind == K::leader || e.kind == K::relays)) return;
@@ -438,7 +439,7 @@ class Program {
   ev3io::Logger log_;
   ev3io::Signals signals_;
   ev3io::UdpTransport net_;
-  ev3proto::NdjsonTrace trace_{"agent"};
+  ev3agent::AgentSink trace_;  // the agent core's records (--trace)
   ev3prog::TraceFile trace_file_;
   std::optional<RobotNode> node_;
   std::optional<ev3agent::Leds> leds_;
