@@ -108,21 +108,8 @@ class Program {
   explicit Program(const ev3agent::AgentOptions& o) : opt_(o), net_(o.common.faults) {}
 
   int run() {
-    log_.set_name("agent");
-    log_.set_level(opt_.common.log_level);
-    if (!opt_.common.log_file.empty() && !log_.open(opt_.common.log_file)) {
-      std::fprintf(stderr, "ev3-agent: bad value for --log-file: cannot open '%s': %s\n",
-                   opt_.common.log_file.c_str(), std::strerror(errno));
-      return 2;
-    }
-    if (!opt_.common.trace_file.empty()) {
-      const std::string e = trace_file_.open(opt_.common.trace_file);
-      if (!e.empty()) {
-        std::fprintf(stderr, "ev3-agent: bad value for --trace: %s\n", e.c_str());
-        return 2;
-      }
-      trace_.ndjson = trace_file_.output();
-    }
+    if (!ev3prog::open_outputs("ev3-agent", "agent", opt_.common, log_, trace_file_)) return 2;
+    if (trace_file_.is_open()) trace_.ndjson = trace_file_.output();
     std::string err;
     if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
       log_.log(kError, "%s", err.c_str());
@@ -139,13 +126,7 @@ class Program {
     cfg.election.enabled = opt_.election;
     if (opt_.election) cfg.election.score = opt_.score;
     if (!load_state(cfg.election)) return 2;
-    if (!opt_.master_script.empty()) {
-      const std::string e = script_.load(opt_.master_script);
-      if (!e.empty()) {
-        std::fprintf(stderr, "ev3-agent: bad value for --master-script: %s\n", e.c_str());
-        return 2;
-      }
-    }
+    if (!ev3prog::load_script("ev3-agent", "--master-script", opt_.master_script, script_)) return 2;
     if (opt_.model != "A")
       log_.log(kInfo, "model %s: using model A's capability table (wait)", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
@@ -280,11 +261,7 @@ class Program {
     }
     ev3proto::OperatorEvent oe;
     while (node_->poll_operator_event(oe)) {
-      std::string addr;
-      const auto& reg = node_->master()->registry();
-      const auto it = reg.find(oe.agent);
-      if (it != reg.end())
-        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
+      const std::string addr = ev3prog::agent_address(node_->master()->registry(), oe.agent, net_);
       log_.log(kInfo, "master: %s", view_.on_event(oe, addr, now).c_str());
     }
   }
@@ -454,14 +431,8 @@ class Program {
   ev3prog::Script script_;
 };
 
-/// The program with its options (static: the core and the receive message are large).
-int run(const ev3agent::AgentOptions& o) {
-  static Program p(o);
-  return p.run();
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  return ev3prog::program_main(argc, argv, "ev3-agent", ev3agent::run_driver, ev3agent::parse_agent_options, run);
+  return ev3prog::program_main<Program>(argc, argv, "ev3-agent", ev3agent::run_driver, ev3agent::parse_agent_options);
 }

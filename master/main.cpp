@@ -63,31 +63,12 @@ class Program {
   explicit Program(const ev3master::MasterOptions& o) : opt_(o), net_(o.common.faults) {}
 
   int run() {
-    log_.set_name("master");
-    log_.set_level(opt_.common.log_level);
     tty_ = isatty(0) && isatty(1);
-    if (!opt_.common.log_file.empty() && !log_.open(opt_.common.log_file)) {
-      std::fprintf(stderr, "ev3-master: bad value for --log-file: cannot open '%s': %s\n",
-                   opt_.common.log_file.c_str(), std::strerror(errno));
-      return 2;
-    }
+    if (!ev3prog::open_outputs("ev3-master", "master", opt_.common, log_, trace_file_)) return 2;
     if (tty_ && opt_.common.log_file.empty() && opt_.common.log_level > kError)
       log_.set_level(kError);  // the terminal shows the table; only errors go to stderr there
-    if (!opt_.common.trace_file.empty()) {
-      const std::string e = trace_file_.open(opt_.common.trace_file);
-      if (!e.empty()) {
-        std::fprintf(stderr, "ev3-master: bad value for --trace: %s\n", e.c_str());
-        return 2;
-      }
-      trace_.set_output(trace_file_.output());
-    }
-    if (!opt_.script.empty()) {
-      const std::string e = script_.load(opt_.script);
-      if (!e.empty()) {
-        std::fprintf(stderr, "ev3-master: bad value for --script: %s\n", e.c_str());
-        return 2;
-      }
-    }
+    if (trace_file_.is_open()) trace_.set_output(trace_file_.output());
+    if (!ev3prog::load_script("ev3-master", "--script", opt_.script, script_)) return 2;
     std::string err;
     if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
       std::fprintf(stderr, "ev3-master: %s\n", err.c_str());
@@ -190,11 +171,7 @@ class Program {
     }
     ev3proto::OperatorEvent e;
     while (master_->poll_event(e)) {
-      std::string addr;
-      auto it = master_->registry().find(e.agent);
-      if (it != master_->registry().end())
-        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
-      say(view_.on_event(e, addr, now));
+      say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, net_), now));
       dirty_ = true;
     }
     if (dirty_ && tty_) {
@@ -433,14 +410,8 @@ class Program {
   std::uint32_t seen_epoch_ = 0;
 };
 
-/// The program with its options (static: the core is large).
-int run(const ev3master::MasterOptions& o) {
-  static Program p(o);
-  return p.run();
-}
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  return ev3prog::program_main(argc, argv, "ev3-master", ev3master::run_driver, ev3master::parse_master_options, run);
+  return ev3prog::program_main<Program>(argc, argv, "ev3-master", ev3master::run_driver, ev3master::parse_master_options);
 }

@@ -1,28 +1,37 @@
 /// @file program.hpp
-/// @brief The main() of ev3-agent and ev3-master, written once: `--driver` anywhere on the command
-///        line selects the driver mode (docs/driver.md), otherwise the options are parsed (usage on
-///        --help, a clear error and exit status 2 on a bad flag) and the program runs.
+/// @brief What ev3-agent and ev3-master do alike around their cores, written once: main()
+///        (`--driver` anywhere on the command line selects the driver mode, docs/driver.md;
+///        otherwise the options are parsed: usage on --help, a clear error and exit status 2 on a bad
+///        flag), the driver mode's main, opening the log and trace outputs, loading a console script,
+///        an agent's address for the operator.
 #pragma once
 
+#include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <map>
 #include <string>
 
+#include <ev3proto/master.hpp>
+
 #include "ev3io/cli.hpp"
+#include "ev3io/log.hpp"
+#include "ev3io/udp.hpp"
 #include "ev3prog/driver_json.hpp"
+#include "ev3prog/script.hpp"
+#include "ev3prog/trace_file.hpp"
 
 namespace ev3prog {
 
 /// A program's main(): @p name ("ev3-agent") for the messages; @p run_driver the driver mode;
-/// @p parse the options parser; @p run the program with its options (it keeps its state in a
-/// static: the cores are large).
-template <typename Options>
+/// @p parse the options parser; then a @p Program (constructed from the options, kept in a static:
+/// the cores are large) runs: its run() gives the exit status.
+template <typename Program, typename Options>
 int program_main(int argc, char** argv, const char* name, int (*run_driver)(int, char**),
-                 ev3io::ParseOutcome (*parse)(int, const char* const*, Options&, std::string&),
-                 int (*run)(const Options&)) {
+                 ev3io::ParseOutcome (*parse)(int, const char* const*, Options&, std::string&)) {
   for (int i = 1; i < argc; ++i)
     if (std::strcmp(argv[i], "--driver") == 0) return run_driver(argc, argv);
-  Options o;
+  static Options o;
   std::string msg;
   switch (parse(argc, argv, o, msg)) {
     case ev3io::ParseOutcome::help: std::printf("%s", msg.c_str()); return 0;
@@ -31,7 +40,8 @@ int program_main(int argc, char** argv, const char* name, int (*run_driver)(int,
       return 2;
     case ev3io::ParseOutcome::run: break;
   }
-  return run(o);
+  static Program p(o);
+  return p.run();
 }
 
 /// The driver mode's main (`PROGRAM --driver [--trace FILE]`, docs/driver.md): reads the options
@@ -47,5 +57,19 @@ int driver_main(int argc, char** argv, const char* program, const char* core, co
   if (trace != nullptr) std::fclose(trace);
   return status;
 }
+
+/// Opens what a program writes first: the logger (named @p log_name, at --log-level, into
+/// --log-file when given, else stderr) and the --trace file when given. False after saying on stderr
+/// what could not be opened ("@p program: bad value for --log-file: cannot open 'F': reason").
+bool open_outputs(const char* program, const char* log_name, const ev3io::CommonOptions& o, ev3io::Logger& log,
+                  TraceFile& trace);
+
+/// Loads the console script @p path (given with @p flag, "--script") into @p script; nothing when
+/// @p path is empty. False after saying on stderr why it cannot be read.
+bool load_script(const char* program, const char* flag, const std::string& path, Script& script);
+
+/// The address of @p agent in @p reg as @p net knows it ("127.0.0.1:40001"); "" when unknown.
+std::string agent_address(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg, std::uint16_t agent,
+                          const ev3io::UdpTransport& net);
 
 }  // namespace ev3prog
