@@ -38,19 +38,13 @@ using SimAgent = SimNode::AgentCore;
 class ElectionFleet {
  public:
   static constexpr Peer kPcPeer = 1000;
-  static Peer agent_peer(std::size_t i) { return static_cast<Peer>(i + 1); }
+  static Peer agent_peer(std::size_t i) { return ev3sim::agent_peer(i); }
 
   ElectionFleet(std::size_t n, std::uint64_t seed, NetConfig net, Timers timers = Timers{})
       : net_(seed, net), timers_(timers) {
-    std::set<std::uint16_t> temps;
-    std::uniform_int_distribution<std::uint32_t> tid(kFirstTempId, 65535);
+    std::vector<AgentConfig> configs = net_.agents(n, timers_);
     for (std::size_t i = 0; i < n; ++i) {
-      std::uint16_t t;
-      do t = static_cast<std::uint16_t>(tid(net_.rng())); while (!temps.insert(t).second);
-      AgentConfig c;
-      c.caps = Capabilities{"A", kBehaviours, 1, 1u};
-      c.timers = timers_;
-      c.temp_id = t;
+      AgentConfig& c = configs[i];
       c.election.enabled = true;
       c.election.score = static_cast<std::uint32_t>(10 + (i * 7) % n);  // distinct, arbitrary order
       auto node = std::make_unique<Robot>();
@@ -138,7 +132,6 @@ class ElectionFleet {
   }
 
  private:
-  static constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}};
   struct Robot {
     FenceCheck trace;
     std::unique_ptr<SimNode> node;

@@ -25,22 +25,10 @@ using namespace ev3proto;
 class Fleet {
  public:
   static constexpr Peer kMasterPeer = 1000;
-  static Peer agent_peer(std::size_t i) { return static_cast<Peer>(i + 1); }
 
   Fleet(std::size_t n, std::uint64_t seed, NetConfig net, Timers timers = Timers{})
       : net_(seed, net), timers_(timers) {
-    caps_ = Capabilities{"A", kBehaviours, 1, 1u};
-    std::set<std::uint16_t> temps;
-    std::uniform_int_distribution<std::uint32_t> tid(kFirstTempId, 65535);
-    for (std::size_t i = 0; i < n; ++i) {
-      std::uint16_t t;
-      do t = static_cast<std::uint16_t>(tid(net_.rng())); while (!temps.insert(t).second);
-      AgentConfig c;
-      c.caps = caps_;
-      c.timers = timers_;
-      c.temp_id = t;
-      agents_.push_back(std::make_unique<Agent<>>(c, net_.now()));
-    }
+    for (const AgentConfig& c : net_.agents(n, timers_)) agents_.push_back(std::make_unique<Agent<>>(c, net_.now()));
     restart_master();
   }
 
@@ -83,7 +71,6 @@ class Fleet {
   std::vector<OperatorEvent> ops;
 
  private:
-  static constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}};
 
   friend class SimNet;  // the event loop: next_deadline, deliver, advance, flush
 
@@ -135,7 +122,6 @@ class Fleet {
 
   SimNet net_;
   Timers timers_;
-  Capabilities caps_;
   std::vector<std::unique_ptr<Agent<>>> agents_;
   std::unique_ptr<Master<>> master_;
   std::uint16_t next_id_ = kFirstAssignedId;

@@ -9,9 +9,12 @@
 #include <cstdint>
 #include <map>
 #include <random>
+#include <set>
 #include <string>
 #include <tuple>
+#include <vector>
 
+#include "ev3proto/agent.hpp"
 #include "ev3proto/core.hpp"
 
 namespace ev3sim {
@@ -26,6 +29,12 @@ struct NetConfig {
   Millis max_delay = 20;
   int copies = 3;            ///< Copies per datagram (the transport's rule).
 };
+
+/// The peer handle of agent @p i in both harnesses (the master's, the PC's, is 1000).
+inline Peer agent_peer(std::size_t i) { return static_cast<Peer>(i + 1); }
+
+/// What the simulated robots offer: model A with one behaviour needing device bit 1.
+inline constexpr BehaviourSpec kSimBehaviours[] = {{"explore", 1u}};
 
 /// One copy of a datagram on the wire.
 struct Packet {
@@ -46,6 +55,24 @@ class SimNet {
       const int n = u(rng_) < net_.dup ? 2 : 1;
       for (int k = 0; k < n; ++k) inflight_.emplace(std::make_tuple(now_ + delay(rng_), seq_++), Packet{from, to, bytes});
     }
+  }
+
+  /// Configurations of @p n agents (model A, kSimBehaviours, @p timers) with distinct temporary ids
+  /// drawn from the seeded generator, before any datagram.
+  std::vector<AgentConfig> agents(std::size_t n, const Timers& timers) {
+    std::vector<AgentConfig> out;
+    std::set<std::uint16_t> temps;
+    std::uniform_int_distribution<std::uint32_t> tid(kFirstTempId, 65535);
+    for (std::size_t i = 0; i < n; ++i) {
+      std::uint16_t t;
+      do t = static_cast<std::uint16_t>(tid(rng_)); while (!temps.insert(t).second);
+      AgentConfig c;
+      c.caps = Capabilities{"A", kSimBehaviours, 1, 1u};
+      c.timers = timers;
+      c.temp_id = t;
+      out.push_back(c);
+    }
+    return out;
   }
 
   /// The event loop of @p fleet until @p until: the clock jumps to the next event (a node's
@@ -76,8 +103,6 @@ class SimNet {
 
   Millis now() const { return now_; }
   std::size_t inflight() const { return inflight_.size(); }
-  /// The seeded generator (the harnesses draw the agents' temporary ids from it first).
-  std::mt19937_64& rng() { return rng_; }
   /// Changes the loss probability from now on (1.0: a partition; the nodes keep running).
   void set_loss(double loss) { net_.loss = loss; }
 
