@@ -161,16 +161,13 @@ class Program {
 
  private:
   void loop() {
-    std::string dgram;
-    ev3io::Endpoint from;
     Millis next_summary = ev3io::monotonic_ms() + 5000;
     while (signals_.stop_signal() == 0) {
-      Millis now = ev3io::monotonic_ms();
-      while (net_.receive(dgram, from)) {
-        now = ev3io::monotonic_ms();
-        on_datagram(dgram, from, now);
-      }
-      now = ev3io::monotonic_ms();
+      // At most Receiver::kBatch datagrams, then the behaviour, the node's deadlines and the copies due.
+      const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
+        on_datagram(d, from, now);
+      });
+      const Millis now = ev3io::monotonic_ms();
       run_behaviour(now);
       node_->advance(now);
       pump(now);
@@ -188,6 +185,7 @@ class Program {
       deadline = std::min(deadline, log_.tick(now));
       deadline = std::min(deadline, next_summary);
       deadline = std::min(deadline, trace_file_.tick(now));
+      if (more) deadline = now;
       pollfd p{net_.fd(), POLLIN, 0};
       signals_.wait(&p, 1, deadline);
     }
@@ -416,6 +414,7 @@ class Program {
   ev3io::Logger log_;
   ev3io::Signals signals_;
   ev3io::UdpTransport net_;
+  ev3prog::Receiver rx_;
   ev3agent::AgentSink trace_;  // the agent core's records (--trace)
   ev3prog::TraceFile trace_file_;
   std::optional<RobotNode> node_;

@@ -44,9 +44,6 @@ constexpr int kTableRows = 14;
 // --state-file: msgids are reserved in blocks (the file holds the end of the block in use), so a
 // restarted master continues above every msgid it may have sent without a write per datagram.
 constexpr std::uint32_t kMsgidBlock = 4096;
-// The loop reads at most this many datagrams before it sends what it owes (PONGs, resends, the
-// copies due), acts on the deadlines due and writes the status: a flood cannot starve them.
-constexpr std::size_t kReadBatch = 64;
 
 /// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
 /// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
@@ -99,15 +96,11 @@ class Program {
 
  private:
   void loop() {
-    std::string dgram;
-    ev3io::Endpoint from;
     while (signals_.stop_signal() == 0 && !quit_) {
-      std::size_t read = 0;
-      while (read < kReadBatch && net_.receive(dgram, from)) {
-        on_datagram(dgram, from, ev3io::monotonic_ms());
-        ++read;
-      }
-      const bool more = read == kReadBatch;  // the socket may hold more: no sleep before reading on
+      // At most Receiver::kBatch datagrams, then what is owed (PONGs, resends, copies, status).
+      const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
+        on_datagram(d, from, now);
+      });
       const Millis now = ev3io::monotonic_ms();
       master_->advance(now);
       pump(now);
@@ -389,6 +382,7 @@ class Program {
   ev3io::Logger log_;
   ev3io::Signals signals_;
   ev3io::UdpTransport net_;
+  ev3prog::Receiver rx_;
   ev3proto::NdjsonTrace trace_{"master"};
   ev3prog::TraceFile trace_file_;
   std::optional<MasterCore> master_;

@@ -16,6 +16,7 @@
 
 #include "ev3io/cli.hpp"
 #include "ev3io/log.hpp"
+#include "ev3io/loop.hpp"
 #include "ev3io/udp.hpp"
 #include "ev3prog/driver_json.hpp"
 #include "ev3prog/script.hpp"
@@ -57,6 +58,28 @@ int driver_main(int argc, char** argv, const char* program, const char* core, co
   if (trace != nullptr) std::fclose(trace);
   return status;
 }
+
+/// The receive side of a program's event loop: it reads at most kBatch datagrams before the loop
+/// sends what it owes (answers, resends, the copies due), acts on the deadlines due and writes its
+/// status, so a flood cannot starve them.
+class Receiver {
+ public:
+  static constexpr std::size_t kBatch = 64;
+  /// Reads up to kBatch datagrams from @p net, each to @p on(bytes, from, now). True when it stopped
+  /// at the bound: the socket may hold more, and the loop must not sleep before reading on.
+  template <typename On>
+  bool read(ev3io::UdpTransport& net, On&& on) {
+    for (std::size_t n = 0; n < kBatch; ++n) {
+      if (!net.receive(bytes_, from_)) return false;
+      on(bytes_, from_, ev3io::monotonic_ms());
+    }
+    return true;
+  }
+
+ private:
+  std::string bytes_;
+  ev3io::Endpoint from_;
+};
 
 /// Opens what a program writes first: the logger (named @p log_name, at --log-level, into
 /// --log-file when given, else stderr) and the --trace file when given. False after saying on stderr
