@@ -3,7 +3,7 @@
 ///        spec action) and its --driver mode (each action with the variables after it, for the
 ///        conformance runner) share it, so the binary compiles the agent core once: AgentCore, with
 ///        the dedupe window's size a run-time setting (AgentConfig::window) rather than a template
-///        argument (docs/programs.md, "The EV3 binary").
+///        argument (docs/benchmarks.md, "The EV3 binary").
 #pragma once
 
 #include <functional>
