@@ -289,6 +289,7 @@ TEST(Script, LinesDueWithWaitsBetween) {
   EXPECT_EQ(line, "# note");  // comments are the program's to skip (parse_console_line: none)
   ASSERT_TRUE(s.next(2500, line));
   EXPECT_EQ(line, "pause 2");
+  EXPECT_FALSE(s.next(2500, line));  // the program asks again at once: the wait starts now
   EXPECT_FALSE(s.next(2999, line));
   ASSERT_TRUE(s.next(3000, line));
   EXPECT_EQ(line, "list");
@@ -312,6 +313,7 @@ TEST(Script, LoadsAFileAndNamesAMissingOne) {
   std::string line;
   ASSERT_TRUE(s.next(0, line));
   EXPECT_EQ(line, "start all");
+  EXPECT_FALSE(s.next(0, line));
   ASSERT_TRUE(s.next(1000, line));
   EXPECT_EQ(line, "stop all");
   std::remove(path.c_str());
