@@ -23,8 +23,7 @@ struct AgentOptions {
   std::string master_script;  ///< --master-script FILE: console commands run when elected master
 };
 
-/// Result of parse_agent_options().
-enum class ParseOutcome { run, help, error };
+using ParseOutcome = ev3io::ParseOutcome;
 
 /// Parses the command line; @p message gets the usage (help) or the error naming the bad flag.
 ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions& out, std::string& message);

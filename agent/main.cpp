@@ -12,7 +12,6 @@
 #include <cstdio>
 #include <optional>
 #include <cstring>
-#include <fstream>
 #include <map>
 #include <string>
 #include <vector>
@@ -21,13 +20,17 @@
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
-#include "console.hpp"
+#include "ev3prog/console.hpp"
+#include "ev3prog/program.hpp"
+#include "ev3prog/script.hpp"
+#include "ev3prog/trace_file.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
 #include "ev3io/state_file.hpp"
 #include "ev3io/udp.hpp"
 #include "leds.hpp"
 #include "agent_options.hpp"
+#include "agent_sink.hpp"
 #include "driver.hpp"
 #include "wait_runner.hpp"
 
@@ -89,7 +92,7 @@ std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
   return s.empty() ? "none" : s;
 }
 
-using RobotNode = ev3proto::Node<ev3proto::NdjsonTrace, ev3proto::NdjsonTrace>;
+using ev3agent::RobotNode;
 
 std::string role_name(ev3proto::Role r) {
   switch (r) {
@@ -105,25 +108,8 @@ class Program {
   explicit Program(const ev3agent::AgentOptions& o) : opt_(o), net_(o.common.faults) {}
 
   int run() {
-    log_.set_name("agent");
-    log_.set_level(opt_.common.log_level);
-    if (!opt_.common.log_file.empty() && !log_.open(opt_.common.log_file)) {
-      std::fprintf(stderr, "ev3-agent: bad value for --log-file: cannot open '%s': %s\n",
-                   opt_.common.log_file.c_str(), std::strerror(errno));
-      return 2;
-    }
-    if (!opt_.common.trace_file.empty()) {
-      trace_file_ = std::fopen(opt_.common.trace_file.c_str(), "w");
-      if (trace_file_ == nullptr) {
-        std::fprintf(stderr, "ev3-agent: bad value for --trace: cannot open '%s': %s\n",
-                     opt_.common.trace_file.c_str(), std::strerror(errno));
-        return 2;
-      }
-      trace_.set_output([this](const std::string& line) {
-        std::fwrite(line.data(), 1, line.size(), trace_file_);
-        std::fputc('\n', trace_file_);
-      });
-    }
+    if (!ev3prog::open_outputs("ev3-agent", "agent", opt_.common, log_, trace_file_)) return 2;
+    if (trace_file_.is_open()) trace_.ndjson = trace_file_.output();
     std::string err;
     if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
       log_.log(kError, "%s", err.c_str());
@@ -140,33 +126,22 @@ class Program {
     cfg.election.enabled = opt_.election;
     if (opt_.election) cfg.election.score = opt_.score;
     if (!load_state(cfg.election)) return 2;
-    if (!opt_.master_script.empty()) {
-      std::ifstream in(opt_.master_script);
-      if (!in) {
-        std::fprintf(stderr, "ev3-agent: bad value for --master-script: cannot open '%s'\n",
-                     opt_.master_script.c_str());
-        return 2;
-      }
-      for (std::string l; std::getline(in, l);) script_.push_back(l);
-    }
+    if (!ev3prog::load_script("ev3-agent", "--master-script", opt_.master_script, script_)) return 2;
     if (opt_.model != "A")
       log_.log(kInfo, "model %s: using model A's capability table (wait)", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
     RobotNode::Config nc;
     nc.agent = cfg;
-    if (trace_file_ != nullptr) {
+    if (trace_file_.is_open()) {
       // The Master core's records go to the same file, node "master:ID:EPOCH" (one Master core per
       // epoch won; docs/spec.md "Election master traces").
       nc.master_trace = [this](std::uint16_t id, std::uint32_t epoch) {
         mtrace_.emplace("master:" + std::to_string(id) + ":" + std::to_string(epoch));
-        mtrace_->set_output([this](const std::string& line) {
-          std::fwrite(line.data(), 1, line.size(), trace_file_);
-          std::fputc('\n', trace_file_);
-        });
+        mtrace_->set_output(trace_file_.output());
         return &*mtrace_;
       };
     }
-    node_.emplace(nc, now, trace_file_ != nullptr ? &trace_ : nullptr);
+    node_.emplace(nc, now, trace_file_.is_open() ? &trace_ : nullptr);
     leds_.emplace(opt_.sysfs_root, log_);
     leds_->set(node_->agent().led());
     std::string bc;
@@ -186,16 +161,13 @@ class Program {
 
  private:
   void loop() {
-    std::string dgram;
-    ev3io::Endpoint from;
     Millis next_summary = ev3io::monotonic_ms() + 5000;
     while (signals_.stop_signal() == 0) {
-      Millis now = ev3io::monotonic_ms();
-      while (net_.receive(dgram, from)) {
-        now = ev3io::monotonic_ms();
-        on_datagram(dgram, from, now);
-      }
-      now = ev3io::monotonic_ms();
+      // At most Receiver::kBatch datagrams, then the behaviour, the node's deadlines and the copies due.
+      const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
+        on_datagram(d, from, now);
+      });
+      const Millis now = ev3io::monotonic_ms();
       run_behaviour(now);
       node_->advance(now);
       pump(now);
@@ -207,18 +179,13 @@ class Program {
         next_summary = now + 5000;
       }
       Millis deadline = node_->next_deadline();
-      if (node_->master() != nullptr && script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
+      if (node_->master() != nullptr) deadline = std::min(deadline, script_.deadline());
       deadline = std::min(deadline, runner_.deadline());
       deadline = std::min(deadline, net_.next_send());
       deadline = std::min(deadline, log_.tick(now));
       deadline = std::min(deadline, next_summary);
-      if (trace_file_ != nullptr) {
-        if (now >= trace_flush_) {
-          std::fflush(trace_file_);
-          trace_flush_ = now + 200;
-        }
-        deadline = std::min(deadline, trace_flush_);
-      }
+      deadline = std::min(deadline, trace_file_.tick(now));
+      if (more) deadline = now;
       pollfd p{net_.fd(), POLLIN, 0};
       signals_.wait(&p, 1, deadline);
     }
@@ -292,17 +259,13 @@ class Program {
     }
     ev3proto::OperatorEvent oe;
     while (node_->poll_operator_event(oe)) {
-      std::string addr;
-      const auto& reg = node_->master()->registry();
-      const auto it = reg.find(oe.agent);
-      if (it != reg.end())
-        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
+      const std::string addr = ev3prog::agent_address(node_->master()->registry(), oe.agent, net_);
       log_.log(kInfo, "master: %s", view_.on_event(oe, addr, now).c_str());
     }
   }
 
   void on_event(const ev3proto::NodeEvent& e, Millis now) {
-    const ev3proto::Agent<ev3proto::NdjsonTrace>& a = node_->agent();
+    const ev3agent::AgentCore& a = node_->agent();
     using K = ev3proto::NodeEvent::Kind;
     // Without --election the master followed is always the PC: nothing to say about roles.
     if (!opt_.election && (e.kind == K::role || e.kind == K::leader || e.kind == K::relays)) return;
@@ -351,8 +314,7 @@ class Program {
         for (std::size_t i = 0; i < a.member_count(); ++i) m += " " + std::to_string(a.member(i));
         log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", e.epoch, a.id(),
                  m.c_str(), script_.empty() ? "" : "; running --master-script");
-        script_pos_ = 0;
-        script_at_ = now;
+        script_.start(now);
         break;
       }
       case K::master_stopped:
@@ -387,10 +349,7 @@ class Program {
     log_.log(kInfo, "drops: %s", counters_line(drops_).c_str());
     leds_->set(ev3proto::Led::DARK);
     log_.flush();
-    if (trace_file_ != nullptr) {
-      std::fclose(trace_file_);
-      trace_file_ = nullptr;
-    }
+    trace_file_.close();
   }
 
   void broadcast(std::string_view bytes, Millis now) {
@@ -432,16 +391,14 @@ class Program {
 
   /// --master-script: console commands for the Master core, from the moment this agent won.
   void run_script(Millis now) {
+    std::string line;
     while (node_->master() != nullptr && node_->master()->role() == ev3proto::MasterRole::master &&
-           script_pos_ < script_.size() && now >= script_at_) {
-      const std::string line = script_[script_pos_++];
-      ev3master::ConsoleCommand c;
-      const std::string err = ev3master::parse_console_line(line, c);
-      using K = ev3master::ConsoleCommand::Kind;
+           script_.next(now, line)) {
+      ev3prog::ConsoleCommand c;
+      const std::string err = ev3prog::parse_console_line(line, c);
+      using K = ev3prog::ConsoleCommand::Kind;
       if (!err.empty()) {
         log_.log(kError, "master script: %s", err.c_str());
-      } else if (c.kind == K::wait) {
-        script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
       } else if (c.kind == K::send) {
         log_.log(kInfo, "master script> %s", line.c_str());
         node_->command(c.agent, c.command, now);
@@ -457,9 +414,9 @@ class Program {
   ev3io::Logger log_;
   ev3io::Signals signals_;
   ev3io::UdpTransport net_;
-  ev3proto::NdjsonTrace trace_{"agent"};
-  std::FILE* trace_file_ = nullptr;
-  Millis trace_flush_ = 0;
+  ev3prog::Receiver rx_;
+  ev3agent::AgentSink trace_;  // the agent core's records (--trace)
+  ev3prog::TraceFile trace_file_;
   std::optional<RobotNode> node_;
   std::optional<ev3agent::Leds> leds_;
   ev3agent::WaitRunner runner_;
@@ -469,27 +426,12 @@ class Program {
   // election
   std::string state_path_;
   std::optional<ev3proto::NdjsonTrace> mtrace_;  // the Master core's records (--trace)
-  ev3master::FleetView view_;
-  std::vector<std::string> script_;
-  std::size_t script_pos_ = 0;
-  Millis script_at_ = 0;
+  ev3prog::FleetView view_;
+  ev3prog::Script script_;
 };
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Driver mode (docs/driver.md): the core on a virtual clock, NDJSON on stdin/stdout; no sockets.
-  for (int i = 1; i < argc; ++i)
-    if (std::strcmp(argv[i], "--driver") == 0) return ev3agent::run_driver(argc, argv);
-  ev3agent::AgentOptions o;
-  std::string msg;
-  switch (ev3agent::parse_agent_options(argc, argv, o, msg)) {
-    case ev3agent::ParseOutcome::help: std::printf("%s", msg.c_str()); return 0;
-    case ev3agent::ParseOutcome::error:
-      std::fprintf(stderr, "ev3-agent: %s (try --help)\n", msg.c_str());
-      return 2;
-    case ev3agent::ParseOutcome::run: break;
-  }
-  static Program p(o);  // static: the core and the receive message are large
-  return p.run();
+  return ev3prog::program_main<Program>(argc, argv, "ev3-agent", ev3agent::run_driver, ev3agent::parse_agent_options);
 }

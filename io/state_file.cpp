@@ -5,8 +5,8 @@
 
 #include <cerrno>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
-#include <fstream>
 
 namespace ev3io {
 
@@ -50,13 +50,33 @@ bool write_state_file(const std::string& path, const std::map<std::string, std::
   return true;
 }
 
-bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err) {
-  std::ifstream in(path);
-  if (!in) {
+bool read_lines(const std::string& path, std::vector<std::string>& lines, std::string& err) {
+  std::FILE* f = std::fopen(path.c_str(), "r");
+  if (f == nullptr) {
     err = errno == ENOENT ? std::string() : "cannot read " + path + ": " + std::strerror(errno);
     return false;
   }
-  for (std::string l; std::getline(in, l);) {
+  char* buf = nullptr;
+  std::size_t cap = 0;
+  for (ssize_t n; (n = ::getline(&buf, &cap, f)) >= 0;) {
+    std::string l(buf, static_cast<std::size_t>(n));
+    if (!l.empty() && l.back() == '\n') l.pop_back();
+    lines.push_back(std::move(l));
+  }
+  const bool failed = std::ferror(f) != 0;
+  std::free(buf);
+  std::fclose(f);
+  if (failed) {
+    err = "cannot read " + path;
+    return false;
+  }
+  return true;
+}
+
+bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err) {
+  std::vector<std::string> lines;
+  if (!read_lines(path, lines, err)) return false;
+  for (const std::string& l : lines) {
     const std::size_t eq = l.find('=');
     if (eq == std::string::npos || l.empty() || l[0] == '#') continue;
     kv[l.substr(0, eq)] = l.substr(eq + 1);

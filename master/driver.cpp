@@ -4,23 +4,24 @@
 #include "driver.hpp"
 
 #include <cstdio>
-#include <iostream>
 #include <map>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include <ev3proto/master.hpp>
+#include <ev3proto/json.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
-#include "../agent/driver_json.hpp"
+#include "ev3prog/driver_json.hpp"
+#include "ev3prog/program.hpp"
 
 namespace ev3master {
 namespace {
 
-using ev3driver::Json;
-using ev3driver::put_string;
+using ev3prog::Json;
+using ev3proto::json_string;
 using ev3proto::Millis;
 
 struct MasterSink;
@@ -45,11 +46,11 @@ std::string vars_json(const Core& m) {
       if (!q1) s += ',';
       q1 = false;
       s += "{\"type\":\"" + std::string(to_string(c.type)) + "\",\"name\":";
-      put_string(s, c.type == ev3proto::MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
+      json_string(s, c.type == ev3proto::MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
       s += "}";
     }
     s += "],\"beh\":";
-    put_string(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
+    json_string(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
     s += ",\"desired\":\"" +
          (e.desired_known ? std::string(to_string(e.desired)) : std::string("UNKNOWN")) + "\"";
     s += ",\"heard\":" + std::to_string(e.heard) + ",\"quiet_ms\":" + std::to_string(m.now() - e.heard) +
@@ -70,7 +71,7 @@ struct MasterSink {
     std::string s = "{\"action\":\"" + std::string(to_string(r.action)) + "\",\"args\":{";
     if (!r.msg.empty()) {
       s += "\"msg\":";
-      put_string(s, r.msg);
+      json_string(s, r.msg);
     }
     s += "},\"now\":" + std::to_string(r.now) + ",\"next_msgid\":" + std::to_string(r.msgid_after);
     if (core != nullptr) s += ",\"vars\":" + vars_json(*core);
@@ -100,11 +101,11 @@ class Driver {
   explicit Driver(std::FILE* trace) { sink_.trace = trace; }
 
   int run() {
-    return ev3driver::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
+    return ev3prog::run_driver_lines(sink_.trace, seq_, [this](const std::string& line) { return handle(line); });
   }
 
-  // Below: what ev3driver::dispatch_input() asks of a driver (configure() among it), then output().
-  std::string error(const std::string& msg) { return ev3driver::driver_error("ev3-master --driver", seq_, msg); }
+  // Below: what ev3prog::dispatch_input() asks of a driver (configure() among it), then output().
+  std::string error(const std::string& msg) { return ev3prog::driver_error("ev3-master --driver", seq_, msg); }
 
   bool configure(const Json& in, std::string& err) {
     ev3proto::MasterConfig c;
@@ -129,7 +130,7 @@ class Driver {
     return true;
   }
 
-  std::string handle(const std::string& line) { return ev3driver::dispatch_input(*this, line); }
+  std::string handle(const std::string& line) { return ev3prog::dispatch_input(*this, line); }
 
   void clear_actions() { sink_.actions.clear(); }
   bool has_core() const { return core_.has_value(); }
@@ -174,15 +175,8 @@ class Driver {
   }
 
   std::string output(bool taken) {
-    std::string s = "{\"in\":" + std::to_string(seq_) + ",\"ok\":" + (taken ? "true" : "false");
-    if (!core_) return s + "}";
-    s += ",\"now\":" + std::to_string(core_->now()) + ",\"actions\":[";
-    for (std::size_t i = 0; i < sink_.actions.size(); ++i) {
-      if (i) s += ',';
-      s += sink_.actions[i];
-    }
-    sink_.actions.clear();
-    s += "],\"sent\":[";
+    if (!core_) return ev3prog::output_start(seq_, taken) + "}";
+    std::string s = ev3prog::output_start(seq_, taken, core_->now(), sink_.actions) + ",\"sent\":[";
     ev3proto::MasterTransmit t;
     bool first = true;
     while (core_->poll_transmit(t)) {
@@ -190,8 +184,8 @@ class Driver {
       first = false;
       s += std::string("{\"to\":\"") + (t.dest == ev3proto::Dest::broadcast ? "broadcast" : "peer") +
            "\",\"peer\":" + std::to_string(t.peer) + ",\"text\":";
-      put_string(s, t.bytes);
-      s += ",\"hex\":\"" + ev3driver::hex(t.bytes) + "\"}";
+      json_string(s, t.bytes);
+      s += ",\"hex\":\"" + ev3prog::hex(t.bytes) + "\"}";
     }
     s += "],\"events\":[";
     ev3proto::OperatorEvent e;
@@ -201,7 +195,7 @@ class Driver {
       first = false;
       s += std::string("{\"kind\":\"") + event_kind(e.kind) + "\",\"agent\":" + std::to_string(e.agent) +
            ",\"command\":\"" + std::string(to_string(e.command)) + "\",\"text\":";
-      put_string(s, e.text);
+      json_string(s, e.text);
       s += "}";
     }
     const Millis d = core_->next_deadline();
@@ -220,14 +214,7 @@ class Driver {
 }  // namespace
 
 int run_driver(int argc, char** argv) {
-  std::FILE* trace = nullptr;
-  const int rc = ev3driver::driver_options(argc, argv, "ev3-master", "master",
-                                           "config, recv, command, advance, save, restore", trace);
-  if (rc >= 0) return rc;
-  static Driver d(trace);  // static: the cores are large
-  const int status = d.run();
-  if (trace != nullptr) std::fclose(trace);
-  return status;
+  return ev3prog::driver_main<Driver>(argc, argv, "ev3-master", "master", "config, recv, command, advance, save, restore");
 }
 
 }  // namespace ev3master

@@ -9,7 +9,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <cstring>
-#include <fstream>
 #include <map>
 #include <optional>
 #include <string>
@@ -18,7 +17,10 @@
 #include <ev3proto/master.hpp>
 #include <ev3proto/trace.hpp>
 
-#include "console.hpp"
+#include "ev3prog/console.hpp"
+#include "ev3prog/program.hpp"
+#include "ev3prog/script.hpp"
+#include "ev3prog/trace_file.hpp"
 #include "driver.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
@@ -42,9 +44,6 @@ constexpr int kTableRows = 14;
 // --state-file: msgids are reserved in blocks (the file holds the end of the block in use), so a
 // restarted master continues above every msgid it may have sent without a write per datagram.
 constexpr std::uint32_t kMsgidBlock = 4096;
-// The loop reads at most this many datagrams before it sends what it owes (PONGs, resends, the
-// copies due), acts on the deadlines due and writes the status: a flood cannot starve them.
-constexpr std::size_t kReadBatch = 64;
 
 /// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
 /// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
@@ -61,42 +60,19 @@ class Program {
   explicit Program(const ev3master::MasterOptions& o) : opt_(o), net_(o.common.faults) {}
 
   int run() {
-    log_.set_name("master");
-    log_.set_level(opt_.common.log_level);
     tty_ = isatty(0) && isatty(1);
-    if (!opt_.common.log_file.empty() && !log_.open(opt_.common.log_file)) {
-      std::fprintf(stderr, "ev3-master: bad value for --log-file: cannot open '%s': %s\n",
-                   opt_.common.log_file.c_str(), std::strerror(errno));
-      return 2;
-    }
+    if (!ev3prog::open_outputs("ev3-master", "master", opt_.common, log_, trace_file_)) return 2;
     if (tty_ && opt_.common.log_file.empty() && opt_.common.log_level > kError)
       log_.set_level(kError);  // the terminal shows the table; only errors go to stderr there
-    if (!opt_.common.trace_file.empty()) {
-      trace_file_ = std::fopen(opt_.common.trace_file.c_str(), "w");
-      if (trace_file_ == nullptr) {
-        std::fprintf(stderr, "ev3-master: bad value for --trace: cannot open '%s': %s\n",
-                     opt_.common.trace_file.c_str(), std::strerror(errno));
-        return 2;
-      }
-      trace_.set_output([this](const std::string& line) {
-        std::fwrite(line.data(), 1, line.size(), trace_file_);
-        std::fputc('\n', trace_file_);
-      });
-    }
-    if (!opt_.script.empty()) {
-      std::ifstream in(opt_.script);
-      if (!in) {
-        std::fprintf(stderr, "ev3-master: bad value for --script: cannot open '%s'\n", opt_.script.c_str());
-        return 2;
-      }
-      for (std::string l; std::getline(in, l);) script_.push_back(l);
-    }
+    if (trace_file_.is_open()) trace_.set_output(trace_file_.output());
+    if (!ev3prog::load_script("ev3-master", "--script", opt_.script, script_)) return 2;
     std::string err;
     if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
       std::fprintf(stderr, "ev3-master: %s\n", err.c_str());
       return 1;
     }
     start_ = ev3io::monotonic_ms();
+    script_.start(start_);
     ev3proto::MasterConfig cfg;
     cfg.timers = opt_.timers;
     cfg.max_resends = opt_.max_resends;
@@ -104,7 +80,7 @@ class Program {
     cfg.drop_copies = true;  // every datagram arrives 3 times (the transport's copies)
     std::string restored;
     if (!load_state(cfg, restored)) return 2;
-    master_.emplace(cfg, start_, trace_file_ != nullptr ? &trace_ : nullptr);
+    master_.emplace(cfg, start_, trace_file_.is_open() ? &trace_ : nullptr);
     save_state(true);
     listening_ = net_.local().str();
     log_.log(kInfo, "listening on %s", listening_.c_str());
@@ -120,15 +96,11 @@ class Program {
 
  private:
   void loop() {
-    std::string dgram;
-    ev3io::Endpoint from;
     while (signals_.stop_signal() == 0 && !quit_) {
-      std::size_t read = 0;
-      while (read < kReadBatch && net_.receive(dgram, from)) {
-        on_datagram(dgram, from, ev3io::monotonic_ms());
-        ++read;
-      }
-      const bool more = read == kReadBatch;  // the socket may hold more: no sleep before reading on
+      // At most Receiver::kBatch datagrams, then what is owed (PONGs, resends, copies, status).
+      const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
+        on_datagram(d, from, now);
+      });
       const Millis now = ev3io::monotonic_ms();
       master_->advance(now);
       pump(now);
@@ -145,16 +117,10 @@ class Program {
       if (quit_) break;
       Millis deadline = std::min(master_->next_deadline(), net_.next_send());
       deadline = std::min(deadline, log_.tick(now));
-      if (script_pos_ < script_.size()) deadline = std::min(deadline, script_at_);
+      deadline = std::min(deadline, script_.deadline());
       if (!opt_.status_json.empty()) deadline = std::min(deadline, next_status_);
       if (tty_) deadline = std::min(deadline, next_redraw_);
-      if (trace_file_ != nullptr) {
-        if (now >= trace_flush_) {
-          std::fflush(trace_file_);
-          trace_flush_ = now + 200;
-        }
-        deadline = std::min(deadline, trace_flush_);
-      }
+      deadline = std::min(deadline, trace_file_.tick(now));
       if (more) deadline = now;
       pollfd p[2] = {{net_.fd(), POLLIN, 0}, {0, POLLIN, 0}};
       const std::size_t n = stdin_open_ ? 2 : 1;
@@ -198,11 +164,7 @@ class Program {
     }
     ev3proto::OperatorEvent e;
     while (master_->poll_event(e)) {
-      std::string addr;
-      auto it = master_->registry().find(e.agent);
-      if (it != master_->registry().end())
-        if (const ev3io::Endpoint* ep = net_.endpoint_of(it->second.peer)) addr = ep->str();
-      say(view_.on_event(e, addr, now));
+      say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, net_), now));
       dirty_ = true;
     }
     if (dirty_ && tty_) {
@@ -230,28 +192,21 @@ class Program {
   }
 
   void run_script(Millis now) {
-    while (!quit_ && script_pos_ < script_.size() && now >= script_at_) {
-      const std::string line = script_[script_pos_++];
-      ev3master::ConsoleCommand c;
-      if (ev3master::parse_console_line(line, c).empty() && c.kind == ev3master::ConsoleCommand::Kind::wait) {
-        script_at_ = now + static_cast<Millis>(c.seconds * 1000.0);
-        continue;
-      }
-      handle_line(line, true, now);
-    }
+    std::string line;
+    while (!quit_ && script_.next(now, line)) handle_line(line, true, now);
   }
 
   void handle_line(const std::string& line, bool script, Millis now) {
-    ev3master::ConsoleCommand c;
-    const std::string err = ev3master::parse_console_line(line, c);
+    ev3prog::ConsoleCommand c;
+    const std::string err = ev3prog::parse_console_line(line, c);
     if (!err.empty()) {
       say("error: " + err);
       return;
     }
-    using K = ev3master::ConsoleCommand::Kind;
+    using K = ev3prog::ConsoleCommand::Kind;
     switch (c.kind) {
       case K::none: return;
-      case K::help: say(ev3master::console_help()); return;
+      case K::help: say(ev3prog::console_help()); return;
       case K::list:
         for (const std::string& l : view_.table(master_->registry(), drops_, now)) say(l);
         return;
@@ -291,7 +246,7 @@ class Program {
     winsize ws{};
     rows_ = ioctl(1, TIOCGWINSZ, &ws) == 0 && ws.ws_row > kTableRows + 4 ? ws.ws_row : 24;
     std::printf("\033[2J\033[%d;%dr\033[%d;1H", kTableRows + 1, rows_, rows_);
-    say("ev3-master listening on " + listening_ + "; " + ev3master::console_help());
+    say("ev3-master listening on " + listening_ + "; " + ev3prog::console_help());
     redraw(ev3io::monotonic_ms());
   }
 
@@ -342,8 +297,7 @@ class Program {
     for (const auto& kv : drops_) d += " " + kv.first + "=" + std::to_string(kv.second);
     log_.log(kInfo, "stopping (signal %d); drops:%s", signals_.stop_signal(), d.empty() ? " none" : d.c_str());
     log_.flush();
-    if (trace_file_ != nullptr) std::fclose(trace_file_);
-    trace_file_ = nullptr;
+    trace_file_.close();
   }
 
   /// --state-file: restores next id, msgid (the end of the reserved block), epoch and members; the
@@ -428,15 +382,13 @@ class Program {
   ev3io::Logger log_;
   ev3io::Signals signals_;
   ev3io::UdpTransport net_;
+  ev3prog::Receiver rx_;
   ev3proto::NdjsonTrace trace_{"master"};
-  std::FILE* trace_file_ = nullptr;
-  Millis trace_flush_ = 0;
+  ev3prog::TraceFile trace_file_;
   std::optional<MasterCore> master_;
-  ev3master::FleetView view_;
-  ev3master::Counters drops_;
-  std::vector<std::string> script_;
-  std::size_t script_pos_ = 0;
-  Millis script_at_ = 0;
+  ev3prog::FleetView view_;
+  ev3prog::Counters drops_;
+  ev3prog::Script script_;
   std::string inbuf_;
   std::string listening_;
   Millis start_ = 0, next_status_ = 0, next_redraw_ = 0;
@@ -455,18 +407,5 @@ class Program {
 }  // namespace
 
 int main(int argc, char** argv) {
-  // Driver mode (docs/driver.md): the core on a virtual clock, NDJSON on stdin/stdout; no sockets.
-  for (int i = 1; i < argc; ++i)
-    if (std::strcmp(argv[i], "--driver") == 0) return ev3master::run_driver(argc, argv);
-  ev3master::MasterOptions o;
-  std::string msg;
-  switch (ev3master::parse_master_options(argc, argv, o, msg)) {
-    case ev3master::ParseOutcome::help: std::printf("%s", msg.c_str()); return 0;
-    case ev3master::ParseOutcome::error:
-      std::fprintf(stderr, "ev3-master: %s (try --help)\n", msg.c_str());
-      return 2;
-    case ev3master::ParseOutcome::run: break;
-  }
-  static Program p(o);
-  return p.run();
+  return ev3prog::program_main<Program>(argc, argv, "ev3-master", ev3master::run_driver, ev3master::parse_master_options);
 }

@@ -20,7 +20,7 @@ struct MasterOptions {
   std::string state_file;        ///< --state-file FILE: next id, msgid, epoch, members across restarts
 };
 
-enum class ParseOutcome { run, help, error };
+using ParseOutcome = ev3io::ParseOutcome;
 
 /// Parses the command line; @p message gets the usage (help) or the error naming the bad flag.
 ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptions& out, std::string& message);

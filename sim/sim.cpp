@@ -4,6 +4,8 @@
 #include <cstdio>
 #include <cstdlib>
 
+#include <ev3proto/json.hpp>
+
 namespace ev3sim {
 
 namespace {
@@ -14,16 +16,6 @@ bool to_number(const std::string& s, double& out) {
   if (s.empty() || *end != '\0' || !std::isfinite(v)) return false;
   out = v;
   return true;
-}
-
-std::string json_string(const std::string& s) {
-  std::string out = "\"";
-  for (char c : s) {
-    if (c == '"' || c == '\\') out += '\\';
-    if (static_cast<unsigned char>(c) < 0x20) continue;
-    out += c;
-  }
-  return out + "\"";
 }
 
 std::string fixed(double v, int decimals) {
@@ -230,7 +222,7 @@ std::string Sim::status_json() const {
     s += first_robot ? "\n" : ",\n";
     first_robot = false;
     double heading = std::fmod(rad2deg(r.pose().heading) + 360.0, 360.0);
-    s += "  {\"name\": " + json_string(r.name()) + ", \"x\": " + fixed(r.pose().p.x, 2) +
+    s += "  {\"name\": " + ev3proto::json_quote(r.name()) + ", \"x\": " + fixed(r.pose().p.x, 2) +
          ", \"y\": " + fixed(r.pose().p.y, 2) + ", \"heading\": " + fixed(heading, 2) +
          ", \"heading_total\": " + fixed(r.heading_total(), 2) + ", \"speed\": " + fixed(r.speed(), 2) +
          ", \"bumper\": " + (r.bumper() ? "true" : "false") + ", \"travelled\": " + fixed(r.distance_travelled(), 2) +
@@ -240,14 +232,14 @@ std::string Sim::status_json() const {
     for (const char* port : {"in1", "in2", "in3", "in4", "outA", "outB", "outC", "outD"}) {
       const std::string driver = r.plugged(port);
       if (driver.empty()) continue;
-      s += std::string(first ? "" : ", ") + json_string(port) + ": {\"driver\": " + json_string(driver) +
-           ", \"class\": " + json_string(r.class_path(port));
+      s += std::string(first ? "" : ", ") + ev3proto::json_quote(port) + ": {\"driver\": " + ev3proto::json_quote(driver) +
+           ", \"class\": " + ev3proto::json_quote(r.class_path(port));
       first = false;
       if (TachoMotor* m = r.motor(port)) {
         s += ", \"position\": " + std::to_string(m->position()) + ", \"speed\": " + fixed(m->speed(), 1) +
-             ", \"state\": " + json_string(m->state());
+             ", \"state\": " + ev3proto::json_quote(m->state());
       } else if (Sensor* se = r.sensor(port)) {
-        s += ", \"mode\": " + json_string(se->mode().name) + ", \"values\": [";
+        s += ", \"mode\": " + ev3proto::json_quote(se->mode().name) + ", \"values\": [";
         for (int i = 0; i < se->mode().num_values; ++i) s += (i ? ", " : "") + std::to_string(se->value(i));
         s += std::string("], \"garbage\": ") + (se->garbage() ? "true" : "false") +
              ", \"locked\": " + (se->locked(now_) ? "true" : "false");
@@ -257,8 +249,8 @@ std::string Sim::status_json() const {
     s += "}, \"leds\": {";
     first = true;
     for (const Led& l : r.leds()) {
-      s += std::string(first ? "" : ", ") + json_string(l.name) + ": {\"brightness\": " + std::to_string(l.brightness) +
-           ", \"trigger\": " + json_string(l.trigger) + ", \"delay_on\": " + std::to_string(l.delay_on) +
+      s += std::string(first ? "" : ", ") + ev3proto::json_quote(l.name) + ": {\"brightness\": " + std::to_string(l.brightness) +
+           ", \"trigger\": " + ev3proto::json_quote(l.trigger) + ", \"delay_on\": " + std::to_string(l.delay_on) +
            ", \"delay_off\": " + std::to_string(l.delay_off) + "}";
       first = false;
     }

@@ -182,3 +182,41 @@ def cover(g: Graph, ok=None) -> PathSet:
         paths += 1
         max_len = max(max_len, depth[u] + 1)
     return PathSet(tree, order, depth, paths, max_len, unreachable)
+
+
+def walk(g: Graph, ps: PathSet, ok=None):
+    """The replay of every path of @p ps as driver operations, depth-first over the prefix tree:
+    ("save", d) snapshots the node reached at depth d in slot d, ("restore", d) goes back to it,
+    ("edge", ei) replays edge ei. A tree child is expanded right after the edge into it, so slot
+    d + 1 holds it until its subtree is done. Edges for which ok(ei) is false are left out (all are
+    replayed when ok is None). Both spec-graph replays (agent, master) walk this way."""
+    ok = ok or (lambda ei: True)
+    for root in g.init:
+        yield ("save", 0)
+        stack = [(root, 0, iter(g.out.get(root, [])))]
+        while stack:
+            _, d, it = stack[-1]
+            ei = next(it, None)
+            if ei is None:
+                stack.pop()
+                continue
+            if not ok(ei):
+                continue
+            v = g.edges[ei][1]
+            yield ("restore", d)
+            yield ("edge", ei)
+            if ps.tree_edge.get(v) == ei and g.out.get(v):
+                yield ("save", d + 1)
+                stack.append((v, d + 1, iter(g.out.get(v, []))))
+
+
+def driver_inputs(g: Graph, ops, edge_input) -> list[tuple]:
+    """(op, driver input) for each operation of walk(): save and restore as the drivers take them
+    (docs/driver.md), an edge as edge_input(the lastAction of the state it leads to)."""
+    res = []
+    for op in ops:
+        if op[0] in ("save", "restore"):
+            res.append((op, {"type": op[0], "slot": op[1]}))
+        else:
+            res.append((op, edge_input(g.states[g.edges[op[1]][1]]["lastAction"])))
+    return res

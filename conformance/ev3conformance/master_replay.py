@@ -150,22 +150,8 @@ class MasterReplay:
         self.fig = MasterFigures(states=len(g.states), edges=len(g.edges))
 
     def ops(self, ps: gr.PathSet):
-        g = self.g
-        for root in g.init:
-            yield ("save", 0)
-            stack = [(root, 0, iter(g.out.get(root, [])))]
-            while stack:
-                u, d, it = stack[-1]
-                ei = next(it, None)
-                if ei is None:
-                    stack.pop()
-                    continue
-                v = g.edges[ei][1]
-                yield ("restore", d)
-                yield ("edge", ei)
-                if ps.tree_edge.get(v) == ei and g.out.get(v):
-                    yield ("save", d + 1)
-                    stack.append((v, d + 1, iter(g.out.get(v, []))))
+        """The replay as a sequence of ops: ('save', d), ('restore', d), ('edge', ei)."""
+        return gr.walk(self.g, ps)
 
     def run(self) -> MasterFigures:
         g = self.g
@@ -180,15 +166,7 @@ class MasterReplay:
             if "error" in first:
                 raise RuntimeError(f"driver refused the configuration: {first['error']}")
             if "tagged" not in self.cache:
-                tagged = []
-                for op in self.ops(ps):
-                    if op[0] == "save":
-                        tagged.append((op, {"type": "save", "slot": op[1]}))
-                    elif op[0] == "restore":
-                        tagged.append((op, {"type": "restore", "slot": op[1]}))
-                    else:
-                        tagged.append((op, master_input(g.states[g.edges[op[1]][1]]["lastAction"])))
-                self.cache["tagged"] = tagged
+                self.cache["tagged"] = gr.driver_inputs(g, self.ops(ps), master_input)
             tagged = self.cache["tagged"]
             outs = d.stream([i for _, i in tagged])
             bad_at: dict[int, bool] = {0: False}

@@ -184,29 +184,7 @@ class AgentReplay:
 
     def ops(self, ps: gr.PathSet):
         """The replay as a sequence of ops: ('save', d), ('restore', d), ('edge', ei)."""
-        g = self.g
-        children: dict[str, list[int]] = {}
-        for v, ei in ps.tree_edge.items():
-            children.setdefault(g.edges[ei][0], []).append(ei)
-        for root in g.init:
-            yield ("save", 0)
-            # Depth-first: a tree child is expanded right after the edge into it is replayed, so
-            # slot d + 1 holds it until its subtree is done.
-            stack = [(root, 0, iter(g.out.get(root, [])))]
-            while stack:
-                u, d, it = stack[-1]
-                ei = next(it, None)
-                if ei is None:
-                    stack.pop()
-                    continue
-                if not self.replayable(ei):
-                    continue
-                v = g.edges[ei][1]
-                yield ("restore", d)
-                yield ("edge", ei)
-                if ps.tree_edge.get(v) == ei and g.out.get(v):
-                    yield ("save", d + 1)
-                    stack.append((v, d + 1, iter(g.out.get(v, []))))
+        return gr.walk(self.g, ps, self.replayable)
 
     def run(self) -> Figures:
         g, c = self.g, self.c
@@ -229,18 +207,6 @@ class AgentReplay:
         self.fig.seconds = time.monotonic() - t0
         return self.fig
 
-    def _inputs(self, ops):
-        """Driver inputs of the ops (pipelined), each tagged via a parallel list."""
-        for op in ops:
-            if op[0] == "save":
-                yield op, {"type": "save", "slot": op[1]}
-            elif op[0] == "restore":
-                yield op, {"type": "restore", "slot": op[1]}
-            else:
-                la = self.g.states[self.g.edges[op[1]][1]]["lastAction"]
-                inp = agent_input(la)
-                yield op, inp
-
     def _replay(self, d: drv.Driver, ps: gr.PathSet) -> None:
         g, c = self.g, self.c
         first = d.ask(agent_config(c))
@@ -249,7 +215,7 @@ class AgentReplay:
         init = g.init[0]
         self._check_vars(g.states[init]["ag"], first["vars"], [], "Init")
         if "tagged" not in self.cache:
-            self.cache["tagged"] = list(self._inputs(self.ops(ps)))
+            self.cache["tagged"] = gr.driver_inputs(g, self.ops(ps), agent_input)
             self.cache["lines"] = [inp for _, inp in self.cache["tagged"] if inp is not None]
         tagged, lines = self.cache["tagged"], self.cache["lines"]
         outs = d.stream(lines)

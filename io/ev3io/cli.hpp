@@ -16,6 +16,10 @@
 
 namespace ev3io {
 
+/// What a command line asks for: run the program, print its usage (message: the usage), or stop
+/// with an error (message: the error naming the bad flag).
+enum class ParseOutcome { run, help, error };
+
 /// One flag a program accepts.
 struct OptionSpec {
   std::string name;     ///< Without the dashes ("port").

@@ -6,6 +6,7 @@
 
 #include <map>
 #include <string>
+#include <vector>
 
 namespace ev3io {
 
@@ -15,5 +16,10 @@ bool write_state_file(const std::string& path, const std::map<std::string, std::
 /// Reads @p path into @p kv. False when it does not exist or cannot be read (@p err says which;
 /// empty when it does not exist).
 bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err);
+
+/// Appends the lines of text file @p path (without their newlines) to @p lines: stdio, no iostreams
+/// (the EV3 binary carries none). False when it does not exist or cannot be read (@p err says
+/// which; empty when it does not exist).
+bool read_lines(const std::string& path, std::vector<std::string>& lines, std::string& err);
 
 }  // namespace ev3io

@@ -48,6 +48,8 @@ struct AgentConfig {
   std::uint16_t temp_id = 50000; ///< Temporary id drawn at random by the caller (50000..65535).
   std::uint32_t first_msgid = 1; ///< msgid of the first datagram the agent sends.
   ElectionConfig election;       ///< Relay and election (off by default).
+  std::size_t window = 0;        ///< Dedupe window entries (spec Window): 0 = the Window template
+                                 ///< argument; at most that (one compiled core serves every size).
 };
 
 /// The answer recorded in the dedupe window for a command: sent again for a duplicate.
@@ -184,6 +186,7 @@ class Agent {
   Agent(const AgentConfig& config, Millis now, Trace* trace = nullptr) noexcept
       : cfg_(config), trace_(trace), id_(config.temp_id), msgid_(config.first_msgid), now_(now),
         heard_(now), plugged_(config.caps.devices), el_(config.election), durable_(el_.durable()) {
+    win_.set_limit(config.window);
     timers_.set(AgentTimer::periodic, now + cfg_.timers[Timer::heartbeat]);
     arm_lifecycle();
   }

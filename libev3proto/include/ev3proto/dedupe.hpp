@@ -15,7 +15,8 @@ namespace ev3proto {
 /// Payload type for a DedupeWindow that only needs to know "seen before or not".
 struct NoPayload {};
 
-/// A window of the last @p Capacity distinct (sender, msgid) keys, each with a payload @p V.
+/// A window of the last @p Capacity distinct (sender, msgid) keys, each with a payload @p V (or of
+/// fewer: set_limit(), for one compiled size that serves every window the spec is checked with).
 ///
 /// Storage is inline (no heap): a ring of the keys in insertion order and an open-addressing index
 /// (linear probing, a power of two >= 2 * Capacity slots, backward-shift deletion). find() and
@@ -42,6 +43,16 @@ class DedupeWindow {
   /// An empty window.
   DedupeWindow() noexcept { clear(); }
 
+  /// Holds at most @p n keys from now on (1..Capacity; 0 or more than Capacity: Capacity) and
+  /// forgets every key.
+  void set_limit(std::size_t n) noexcept {
+    limit_ = n == 0 || n > Capacity ? Capacity : n;
+    clear();
+  }
+
+  /// Most keys held at once (set_limit(); Capacity unless limited).
+  std::size_t limit() const noexcept { return limit_; }
+
   /// Forgets every key.
   void clear() noexcept {
     for (std::size_t i = 0; i < kIndexSize; ++i) index_[i] = kEmpty;
@@ -49,7 +60,7 @@ class DedupeWindow {
     head_ = 0;
   }
 
-  /// Number of keys held (at most Capacity).
+  /// Number of keys held (at most limit()).
   std::size_t size() const noexcept { return size_; }
 
   /// Most keys held at once.
@@ -74,7 +85,7 @@ class DedupeWindow {
 
   /// Records (sender, msgid) with @p value. A key already present keeps its place in the FIFO order
   /// and gets the new value; returns false then. Otherwise the key becomes the newest, evicting the
-  /// oldest key if the window is full, and true is returned.
+  /// oldest key if the window is full (limit() keys), and true is returned.
   bool insert(std::uint16_t sender, std::uint32_t msgid, const V& value) noexcept(
       std::is_nothrow_copy_assignable<V>::value) {
     const std::uint64_t key = make_key(sender, msgid);
@@ -84,14 +95,14 @@ class DedupeWindow {
       return false;
     }
     std::size_t ring_slot;
-    if (size_ == Capacity) {
+    if (size_ == limit_) {
       ring_slot = head_;  // the oldest key
       erase_index(locate(keys_[ring_slot]));
       pos = locate(key);  // deletion may have moved entries
-      head_ = head_ + 1 == Capacity ? 0 : head_ + 1;
+      head_ = head_ + 1 == limit_ ? 0 : head_ + 1;
     } else {
       ring_slot = head_ + size_;
-      if (ring_slot >= Capacity) ring_slot -= Capacity;
+      if (ring_slot >= limit_) ring_slot -= limit_;
       ++size_;
     }
     keys_[ring_slot] = key;
@@ -105,7 +116,7 @@ class DedupeWindow {
   void for_each(F&& f) const {
     for (std::size_t k = 0; k < size_; ++k) {
       std::size_t slot = head_ + k;
-      if (slot >= Capacity) slot -= Capacity;
+      if (slot >= limit_) slot -= limit_;
       f(static_cast<std::uint16_t>(keys_[slot] >> 32), static_cast<std::uint32_t>(keys_[slot]),
         values_[slot]);
     }
@@ -164,11 +175,12 @@ class DedupeWindow {
     index_[hole] = kEmpty;
   }
 
-  std::uint64_t keys_[Capacity];  // ring of keys in insertion order, oldest at head_
+  std::uint64_t keys_[Capacity];  // ring (of limit_ slots) of keys in insertion order, oldest at head_
   V values_[Capacity];            // payload of keys_[i]
   Slot index_[kIndexSize];        // open-addressing index into keys_, or kEmpty
   std::size_t size_ = 0;          // keys held
   std::size_t head_ = 0;          // ring position of the oldest key
+  std::size_t limit_ = Capacity;  // keys held at most (set_limit)
 };
 
 } // namespace ev3proto

@@ -19,31 +19,12 @@
 
 #include "agent.hpp"
 #include "core.hpp"
+#include "json.hpp"
 #include "master.hpp"
 
 namespace ev3proto {
 
 namespace trace_detail {
-
-/// Appends @p s as a JSON string literal.
-inline void json_string(std::string& out, std::string_view s) {
-  static constexpr char kHex[] = "0123456789abcdef";
-  out += '"';
-  for (char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '"' || c == '\\') {
-      out += '\\';
-      out += ch;
-    } else if (c < 0x20 || c > 0x7E) {
-      out += "\\u00";
-      out += kHex[c >> 4];
-      out += kHex[c & 0xF];
-    } else {
-      out += ch;
-    }
-  }
-  out += '"';
-}
 
 /// Appends `"key":` (with a leading comma unless @p first).
 inline void json_key(std::string& out, std::string_view key, bool& first) {
@@ -52,6 +33,8 @@ inline void json_key(std::string& out, std::string_view key, bool& first) {
   json_string(out, key);
   out += ':';
 }
+
+}  // namespace trace_detail
 
 /// The window as the spec's win: [{"src":..,"msgid":..,"ans":{"type":"ACK","src":..,"ref":..}}].
 template <typename W>
@@ -73,14 +56,11 @@ std::string window_json(const W& win) {
   return s + "]";
 }
 
-}  // namespace trace_detail
-
 /// Formats an agent trace record as one NDJSON line (no newline). Only the variables that changed
 /// appear under "changed"; @p node names the agent ("agent", "agent3").
 template <typename A>
 std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_view node = "agent") {
   using trace_detail::json_key;
-  using trace_detail::json_string;
   std::string s = "{";
   bool first = true;
   json_key(s, "node", first);
@@ -137,7 +117,7 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
   if (a.clk != b.clk) num("clk", a.clk);
   if (a.win_rev != b.win_rev) {
     json_key(s, "win", c);
-    s += trace_detail::window_json(agent.window());
+    s += window_json(agent.window());
   }
   if (a.election) {  // Election.tla's variables of this agent
     auto life = [](const AgentVars& v) {
@@ -172,7 +152,6 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
 /// variables that changed: reg (master.reg), nextId, msgid.
 inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node = "master") {
   using trace_detail::json_key;
-  using trace_detail::json_string;
   std::string s = "{";
   bool first = true;
   json_key(s, "node", first);

@@ -115,10 +115,15 @@ TEST(Dedupe, SizesAndNoHeap) {
   SUCCEED();
 }
 
-// Reference model: a deque of (key, payload), linear search, FIFO eviction.
-template <std::size_t Cap>
-void against_model(std::uint32_t seed, int ops, std::uint32_t senders, std::uint32_t msgids) {
-  DedupeWindow<Cap, std::uint32_t> w;
+// Reference model: a deque of (key, payload), linear search, FIFO eviction at Size keys, or at
+// @p limit keys when it is set (set_limit: one compiled size serving a smaller window).
+template <std::size_t Size>
+void against_model(std::uint32_t seed, int ops, std::uint32_t senders, std::uint32_t msgids,
+                   std::size_t limit = 0) {
+  DedupeWindow<Size, std::uint32_t> w;
+  if (limit != 0) w.set_limit(limit);
+  const std::size_t cap = limit != 0 ? limit : Size;
+  ASSERT_EQ(w.limit(), cap);
   std::deque<std::pair<std::uint64_t, std::uint32_t>> model;
   std::mt19937 gen(seed);
   auto rng = [&gen] { return static_cast<std::uint32_t>(gen()); };
@@ -143,14 +148,14 @@ void against_model(std::uint32_t seed, int ops, std::uint32_t senders, std::uint
       if (it != model.end()) {
         it->second = value;
       } else {
-        if (model.size() == Cap) model.pop_front();
+        if (model.size() == cap) model.pop_front();
         model.emplace_back(key, value);
       }
     } else if (what == 1) {  // first_time
       const bool fresh = w.first_time(sender, msgid);
       ASSERT_EQ(fresh, it == model.end()) << "op " << op;
       if (fresh) {
-        if (model.size() == Cap) model.pop_front();
+        if (model.size() == cap) model.pop_front();
         model.emplace_back(key, 0u);
       }
     }
@@ -170,6 +175,25 @@ TEST(Dedupe, RandomizedAgainstReferenceModel) {
   against_model<7>(3, 100000, 3, 8);       // small window, dense collisions
   against_model<64>(4, 100000, 2, 200);    // capacity = half the index
   against_model<1>(5, 20000, 2, 3);
+  // One compiled window of 50 limited to the sizes the conformance runs use (ev3-agent --driver).
+  for (std::size_t limit : {1u, 2u, 3u, 4u, 8u, 16u, 49u})
+    against_model<50>(static_cast<std::uint32_t>(10 + limit), 30000, 3, 8 + 2 * static_cast<std::uint32_t>(limit), limit);
+}
+
+TEST(Dedupe, LimitEvictsAtTheLimit) {
+  DedupeWindow<50> w;
+  w.set_limit(3);
+  EXPECT_EQ(w.limit(), 3u);
+  EXPECT_EQ(w.capacity(), 50u);
+  for (std::uint32_t id = 0; id < 4; ++id) EXPECT_TRUE(w.first_time(1, id));
+  EXPECT_EQ(w.size(), 3u);
+  EXPECT_FALSE(w.contains(1, 0));  // the oldest went at the fourth key
+  EXPECT_TRUE(w.contains(1, 3));
+  w.set_limit(0);  // 0: the capacity
+  EXPECT_EQ(w.limit(), 50u);
+  EXPECT_EQ(w.size(), 0u);  // set_limit forgets every key
+  w.set_limit(51);
+  EXPECT_EQ(w.limit(), 50u);
 }
 
 } // namespace

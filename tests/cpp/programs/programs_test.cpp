@@ -1,11 +1,20 @@
 // Unit tests of the programs' non-I/O logic: ev3-agent / ev3-master options (both command-line
-// forms), the fault injection schedule, the wait behaviour runner, the console parser and view.
+// forms), the fault injection schedule, the wait behaviour runner, the console parser and view; and
+// of the shared program library's console scripts, trace file and text files.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
+#include <cstdio>
+#include <cstdlib>
+#include <map>
 #include <string>
 #include <vector>
 
-#include "console.hpp"
+#include "ev3io/state_file.hpp"
+#include "ev3prog/console.hpp"
+#include "ev3prog/script.hpp"
+#include "ev3prog/trace_file.hpp"
 #include "ev3io/cli.hpp"
 #include "ev3io/fault.hpp"
 #include "ev3io/udp.hpp"
@@ -211,30 +220,30 @@ TEST(Leds, Colours) {
 }
 
 TEST(Console, Commands) {
-  ev3master::ConsoleCommand c;
-  EXPECT_EQ(ev3master::parse_console_line("behaviour 2 wait seconds=3", c), "");
-  EXPECT_EQ(c.kind, ev3master::ConsoleCommand::Kind::send);
+  ev3prog::ConsoleCommand c;
+  EXPECT_EQ(ev3prog::parse_console_line("behaviour 2 wait seconds=3", c), "");
+  EXPECT_EQ(c.kind, ev3prog::ConsoleCommand::Kind::send);
   EXPECT_EQ(c.agent, 2);
   EXPECT_EQ(c.command.type, ev3proto::MsgType::BEHAVIOUR);
   EXPECT_EQ(c.command.name, "wait");
   ASSERT_EQ(c.command.args.size(), 1u);
   EXPECT_EQ(c.command.args[0], "seconds=3");
-  EXPECT_EQ(ev3master::parse_console_line("  pause   all ", c), "");
+  EXPECT_EQ(ev3prog::parse_console_line("  pause   all ", c), "");
   EXPECT_EQ(c.agent, 0);
   EXPECT_EQ(c.command.type, ev3proto::MsgType::PAUSE);
-  EXPECT_EQ(ev3master::parse_console_line("wait 1.5", c), "");
+  EXPECT_EQ(ev3prog::parse_console_line("wait 1.5", c), "");
   EXPECT_DOUBLE_EQ(c.seconds, 1.5);
-  EXPECT_EQ(ev3master::parse_console_line("# comment", c), "");
-  EXPECT_EQ(c.kind, ev3master::ConsoleCommand::Kind::none);
-  EXPECT_NE(ev3master::parse_console_line("fly 2", c).find("unknown command 'fly'"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("start two", c).find("bad agent id 'two'"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("start", c).find("bad argument"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("behaviour 2 wait 3", c).find("'3'"), std::string::npos);
-  EXPECT_NE(ev3master::parse_console_line("list x", c), "");
+  EXPECT_EQ(ev3prog::parse_console_line("# comment", c), "");
+  EXPECT_EQ(c.kind, ev3prog::ConsoleCommand::Kind::none);
+  EXPECT_NE(ev3prog::parse_console_line("fly 2", c).find("unknown command 'fly'"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("start two", c).find("bad agent id 'two'"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("start", c).find("bad argument"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("behaviour 2 wait 3", c).find("'3'"), std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("list x", c), "");
 }
 
 TEST(Console, ViewAndStatusJson) {
-  ev3master::FleetView v;
+  ev3prog::FleetView v;
   ev3proto::OperatorEvent e{ev3proto::OperatorEvent::Kind::registered, 2, ev3proto::MsgType::MASTER, "50001"};
   EXPECT_NE(v.on_event(e, "127.0.0.1:4000", 10).find("agent 2 registered"), std::string::npos);
   e = {ev3proto::OperatorEvent::Kind::refused, 2, ev3proto::MsgType::START, "no behaviour"};
@@ -255,6 +264,102 @@ TEST(Console, ViewAndStatusJson) {
   EXPECT_EQ(v.lost().size(), 1u);
   const auto t = v.table({}, {}, 100);
   EXPECT_NE(t.back().find("lost: 2"), std::string::npos);
+}
+
+/// A file under the test's temporary directory (removed by the test).
+std::string temp_path(const char* name) {
+  const char* dir = std::getenv("TMPDIR");
+  return std::string(dir != nullptr ? dir : "/tmp") + "/ev3prog_" + std::to_string(getpid()) + "_" + name;
+}
+
+TEST(Script, LinesDueWithWaitsBetween) {
+  ev3prog::Script s;
+  s.set_lines({"start all", "wait 1.5", "# note", "pause 2", "wait 0.5", "list"});
+  std::string line;
+  EXPECT_FALSE(s.next(0, line));  // not started
+  EXPECT_EQ(s.deadline(), ~Millis{0});
+  s.start(1000);
+  EXPECT_EQ(s.deadline(), 1000u);
+  ASSERT_TRUE(s.next(1000, line));
+  EXPECT_EQ(line, "start all");
+  EXPECT_FALSE(s.next(1000, line));  // the wait is taken: the next line at 2500
+  EXPECT_EQ(s.deadline(), 2500u);
+  EXPECT_FALSE(s.next(2499, line));
+  ASSERT_TRUE(s.next(2500, line));
+  EXPECT_EQ(line, "# note");  // comments are the program's to skip (parse_console_line: none)
+  ASSERT_TRUE(s.next(2500, line));
+  EXPECT_EQ(line, "pause 2");
+  EXPECT_FALSE(s.next(2500, line));  // the program asks again at once: the wait starts now
+  EXPECT_FALSE(s.next(2999, line));
+  ASSERT_TRUE(s.next(3000, line));
+  EXPECT_EQ(line, "list");
+  EXPECT_FALSE(s.next(99999, line));
+  EXPECT_EQ(s.deadline(), ~Millis{0});
+  s.start(5);  // again from the top (an agent elected a second time)
+  ASSERT_TRUE(s.next(5, line));
+  EXPECT_EQ(line, "start all");
+}
+
+TEST(Script, LoadsAFileAndNamesAMissingOne) {
+  const std::string path = temp_path("script.txt");
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  std::fputs("start all\nwait 1\nstop all", f);  // no newline after the last line
+  std::fclose(f);
+  ev3prog::Script s;
+  EXPECT_EQ(s.load(path), "");
+  EXPECT_FALSE(s.empty());
+  s.start(0);
+  std::string line;
+  ASSERT_TRUE(s.next(0, line));
+  EXPECT_EQ(line, "start all");
+  EXPECT_FALSE(s.next(0, line));
+  ASSERT_TRUE(s.next(1000, line));
+  EXPECT_EQ(line, "stop all");
+  std::remove(path.c_str());
+  EXPECT_EQ(s.load(path), "cannot open '" + path + "': no such file");
+}
+
+TEST(Files, ReadLinesKeepsEveryLine) {
+  const std::string path = temp_path("lines.txt");
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  std::fputs("a=1\n\n# c\nlast", f);
+  std::fclose(f);
+  std::vector<std::string> lines;
+  std::string err;
+  ASSERT_TRUE(ev3io::read_lines(path, lines, err)) << err;
+  EXPECT_EQ(lines, (std::vector<std::string>{"a=1", "", "# c", "last"}));
+  std::map<std::string, std::string> kv;
+  ASSERT_TRUE(ev3io::read_state_file(path, kv, err)) << err;
+  EXPECT_EQ(kv, (std::map<std::string, std::string>{{"a", "1"}}));
+  std::remove(path.c_str());
+  lines.clear();
+  EXPECT_FALSE(ev3io::read_lines(path, lines, err));
+  EXPECT_EQ(err, "");  // a missing file: no error text (a first start)
+}
+
+TEST(TraceFile, LinesFlushedEvery200ms) {
+  const std::string path = temp_path("trace.ndjson");
+  ev3prog::TraceFile t;
+  EXPECT_FALSE(t.is_open());
+  EXPECT_EQ(t.tick(0), ~Millis{0});
+  EXPECT_NE(t.open("/nonexistent-dir/t.ndjson").find("cannot open '/nonexistent-dir/t.ndjson'"), std::string::npos);
+  ASSERT_EQ(t.open(path), "");
+  t.output()("{\"a\":1}");
+  EXPECT_EQ(t.tick(1000), 1200u);  // flushed now, next at +200
+  EXPECT_EQ(t.tick(1100), 1200u);
+  std::vector<std::string> lines;
+  std::string err;
+  ASSERT_TRUE(ev3io::read_lines(path, lines, err));
+  EXPECT_EQ(lines, (std::vector<std::string>{"{\"a\":1}"}));
+  t.write("{\"b\":2}");
+  t.close();
+  EXPECT_FALSE(t.is_open());
+  lines.clear();
+  ASSERT_TRUE(ev3io::read_lines(path, lines, err));
+  EXPECT_EQ(lines.size(), 2u);
+  std::remove(path.c_str());
 }
 
 }  // namespace

@@ -1,6 +1,6 @@
 // Relay and election over the simulated network (Election.tla in the real cores): a PC master
 // (may crash and come back as a candidate) and N robot nodes (node.hpp: the agent core and the
-// Master core it runs once it wins an epoch, as the firmware runs them). Links can be cut. Every copy is lost / delayed / duplicated as in fleet_sim.hpp. The agents' trace hook checks
+// Master core it runs once it wins an epoch, as the firmware runs them). Links can be cut. The network and the event loop are sim_net.hpp's. The agents' trace hook checks
 // fencing on every command acted on (Election StaleMasterFencedInv).
 #pragma once
 
@@ -17,7 +17,7 @@
 
 #include "ev3proto/master.hpp"
 #include "ev3proto/node.hpp"
-#include "fleet_sim.hpp"
+#include "sim_net.hpp"
 
 namespace ev3sim {
 
@@ -38,31 +38,25 @@ using SimAgent = SimNode::AgentCore;
 class ElectionFleet {
  public:
   static constexpr Peer kPcPeer = 1000;
-  static Peer agent_peer(std::size_t i) { return static_cast<Peer>(i + 1); }
+  static Peer agent_peer(std::size_t i) { return ev3sim::agent_peer(i); }
 
   ElectionFleet(std::size_t n, std::uint64_t seed, NetConfig net, Timers timers = Timers{})
-      : rng_(seed), net_(net), timers_(timers) {
-    std::set<std::uint16_t> temps;
-    std::uniform_int_distribution<std::uint32_t> tid(kFirstTempId, 65535);
+      : net_(seed, net), timers_(timers) {
+    std::vector<AgentConfig> configs = net_.agents(n, timers_);
     for (std::size_t i = 0; i < n; ++i) {
-      std::uint16_t t;
-      do t = static_cast<std::uint16_t>(tid(rng_)); while (!temps.insert(t).second);
-      AgentConfig c;
-      c.caps = Capabilities{"A", kBehaviours, 1, 1u};
-      c.timers = timers_;
-      c.temp_id = t;
+      AgentConfig& c = configs[i];
       c.election.enabled = true;
       c.election.score = static_cast<std::uint32_t>(10 + (i * 7) % n);  // distinct, arbitrary order
       auto node = std::make_unique<Robot>();
       node->trace.fleet = this;
       node->trace.index = i;
-      node->node = std::make_unique<SimNode>(SimNode::Config{c, {}}, now_, &node->trace);
+      node->node = std::make_unique<SimNode>(SimNode::Config{c, {}}, net_.now(), &node->trace);
       nodes_.push_back(std::move(node));
     }
     MasterConfig c;
     c.timers = timers_;
     c.election = true;
-    pc_ = std::make_unique<Master<>>(c, now_);
+    pc_ = std::make_unique<Master<>>(c, net_.now());
     elected_[1] = kMasterId;
   }
 
@@ -79,47 +73,25 @@ class ElectionFleet {
     pc_.reset();
   }
   /// The PC comes back as a candidate (Election Restart(PC)).
-  void restart_pc() { pc_ = std::make_unique<Master<>>(pc_store_, now_); }
+  void restart_pc() { pc_ = std::make_unique<Master<>>(pc_store_, net_.now()); }
 
   void cut(Peer a, Peer b) { down_.insert({std::min(a, b), std::max(a, b)}); }
   void heal(Peer a, Peer b) { down_.erase({std::min(a, b), std::max(a, b)}); }
 
-  void run_until(Millis until, const std::function<void(ElectionFleet&)>& check) {
-    for (;;) {
-      Millis next = until;
-      if (pc_) next = std::min(next, pc_->next_deadline());
-      for (auto& nd : nodes_) next = std::min(next, nd->node->next_deadline());
-      if (!inflight_.empty()) next = std::min(next, std::get<0>(inflight_.begin()->first));
-      if (next < now_) next = now_;
-      now_ = next;
-      while (!inflight_.empty() && std::get<0>(inflight_.begin()->first) <= now_) {
-        const auto it = inflight_.begin();
-        const Packet p = it->second;
-        inflight_.erase(it);
-        deliver(p);
-        flush();
-        if (check) check(*this);
-      }
-      if (pc_) pc_->advance(now_);
-      for (auto& nd : nodes_) nd->node->advance(now_);
-      flush();
-      if (check) check(*this);
-      if (now_ >= until) break;
-    }
-  }
+  void run_until(Millis until, const std::function<void(ElectionFleet&)>& check) { net_.run_until(until, *this, check); }
 
   /// An operator command at the PC (when it is up).
   void pc_command(std::uint16_t agent, const Command& c) {
-    if (pc_) pc_->command(agent, c, now_);
+    if (pc_) pc_->command(agent, c, net_.now());
     flush();
   }
   /// An operator command at agent @p i's Master core (when it runs one).
   void agent_master_command(std::size_t i, std::uint16_t agent, const Command& c) {
-    nodes_[i]->node->command(agent, c, now_);
+    nodes_[i]->node->command(agent, c, net_.now());
     flush();
   }
 
-  Millis now() const { return now_; }
+  Millis now() const { return net_.now(); }
   std::size_t size() const { return nodes_.size(); }
   const SimAgent& agent(std::size_t i) { return nodes_[i]->node->agent(); }
   const Master<>* agent_master(std::size_t i) { return nodes_[i]->node->master(); }
@@ -140,7 +112,7 @@ class ElectionFleet {
       elected_[epoch] = who;
     } else if (it->second != who && failure.empty()) {
       failure = "two masters in epoch " + std::to_string(epoch) + ": " + std::to_string(it->second) +
-                " and " + std::to_string(who) + " at " + std::to_string(now_);
+                " and " + std::to_string(who) + " at " + std::to_string(net_.now());
     }
   }
 
@@ -156,40 +128,39 @@ class ElectionFleet {
     if (failure.empty() && (e != seen || it == elected_.end() || it->second != m.sender))
       failure = "agent " + std::to_string(i) + " acted on " + std::string(msg) + " (epoch " +
                 std::to_string(e) + ") having seen epoch " + std::to_string(seen) + " at " +
-                std::to_string(now_);
+                std::to_string(net_.now());
   }
 
  private:
-  static constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}};
   struct Robot {
     FenceCheck trace;
     std::unique_ptr<SimNode> node;
   };
-  struct Packet {
-    Peer from = 0, to = 0;
-    std::string bytes;
-  };
+  friend class SimNet;  // the event loop: next_deadline, deliver, advance, flush
+
+  Millis next_deadline() const {
+    Millis next = ~Millis{0};
+    if (pc_) next = std::min(next, pc_->next_deadline());
+    for (auto& nd : nodes_) next = std::min(next, nd->node->next_deadline());
+    return next;
+  }
+  void advance(Millis now) {
+    if (pc_) pc_->advance(now);
+    for (auto& nd : nodes_) nd->node->advance(now);
+  }
 
   bool linked(Peer a, Peer b) const { return down_.count({std::min(a, b), std::max(a, b)}) == 0; }
 
   void deliver(const Packet& p) {
     if (!linked(p.from, p.to)) return;
     if (p.to == kPcPeer) {
-      if (pc_) pc_->handle_datagram(p.bytes, p.from, now_);
+      if (pc_) pc_->handle_datagram(p.bytes, p.from, net_.now());
       return;
     }
-    nodes_[p.to - 1]->node->handle_datagram(p.bytes, p.from, now_);
+    nodes_[p.to - 1]->node->handle_datagram(p.bytes, p.from, net_.now());
   }
 
-  void transmit(Peer from, Peer to, const std::string& bytes) {
-    std::uniform_real_distribution<double> u(0.0, 1.0);
-    std::uniform_int_distribution<Millis> delay(net_.min_delay, net_.max_delay);
-    for (int c = 0; c < net_.copies; ++c) {
-      if (u(rng_) < net_.loss) continue;
-      const int n = u(rng_) < net_.dup ? 2 : 1;
-      for (int k = 0; k < n; ++k) inflight_.emplace(std::make_tuple(now_ + delay(rng_), seq_++), Packet{from, to, bytes});
-    }
-  }
+  void transmit(Peer from, Peer to, const std::string& bytes) { net_.transmit(from, to, bytes); }
   void broadcast(Peer from, const std::string& b) {
     if (from != kPcPeer) transmit(from, kPcPeer, b);
     for (std::size_t j = 0; j < nodes_.size(); ++j)
@@ -228,12 +199,8 @@ class ElectionFleet {
     while (m.poll_event(oe)) ops.push_back(oe);
   }
 
-  std::mt19937_64 rng_;
-  NetConfig net_;
+  SimNet net_;
   Timers timers_;
-  Millis now_ = 0;
-  std::uint64_t seq_ = 0;
-  std::map<std::tuple<Millis, std::uint64_t>, Packet> inflight_;
   std::vector<std::unique_ptr<Robot>> nodes_;
   std::unique_ptr<Master<>> pc_;
   MasterConfig pc_store_;

@@ -3,17 +3,20 @@
 // integers, booleans, null. Shared by ev3-agent --driver and ev3-master --driver.
 #pragma once
 
-#include <ev3proto/trace.hpp>
+#include <ev3proto/json.hpp>
+#include <unistd.h>
+
+#include <cerrno>
 #include <cstdint>
 #include <cstdio>
-#include <iostream>
+#include <cstring>
 #include <map>
 #include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
-namespace ev3driver {
+namespace ev3prog {
 
 /// A parsed JSON value.
 struct Json {
@@ -187,26 +190,41 @@ inline bool parse_json(std::string_view text, Json& out, std::string& err) {
 }
 
 /// The loop both drivers run (docs/driver.md): one NDJSON input line from stdin (blank lines
-/// skipped), one output line from @p handle to stdout, flushed after each, and the trace file flushed
-/// with it. @p seq counts the inputs (the "in" field of the outputs). Returns 0 at the end of input.
+/// skipped; a last line without a newline counts), one output line from @p handle to stdout, flushed
+/// after each, and the trace file flushed with it. @p seq counts the inputs (the "in" field of the
+/// outputs). Reads with read(2) (no iostreams: the EV3 binary carries none). Returns 0 at the end of
+/// input, 1 when stdin cannot be read.
 template <typename Handle>
 int run_driver_lines(std::FILE* trace, unsigned long long& seq, Handle&& handle) {
-  std::string line;
-  while (std::getline(std::cin, line)) {
-    if (line.empty()) continue;
-    ++seq;
-    const std::string out = handle(line);
-    std::fwrite(out.data(), 1, out.size(), stdout);
-    std::fputc('\n', stdout);
-    std::fflush(stdout);
-    if (trace != nullptr) std::fflush(trace);
+  std::string buf;
+  char chunk[4096];
+  for (bool eof = false; !eof;) {
+    const ssize_t n = ::read(0, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      std::fprintf(stderr, "driver: cannot read stdin: %s\n", std::strerror(errno));
+      return 1;
+    }
+    if (n == 0) {
+      eof = true;
+      if (!buf.empty()) buf += '\n';
+    } else {
+      buf.append(chunk, static_cast<std::size_t>(n));
+    }
+    std::size_t start = 0;
+    for (std::size_t nl; (nl = buf.find('\n', start)) != std::string::npos; start = nl + 1) {
+      if (nl == start) continue;
+      ++seq;
+      const std::string out = handle(buf.substr(start, nl - start));
+      std::fwrite(out.data(), 1, out.size(), stdout);
+      std::fputc('\n', stdout);
+      std::fflush(stdout);
+      if (trace != nullptr) std::fflush(trace);
+    }
+    buf.erase(0, start);
   }
   return 0;
 }
-
-/// Appends @p s as a JSON string (bytes >= 0x7F and control bytes as \u00XX), exactly as the core's
-/// NDJSON trace writes strings.
-inline void put_string(std::string& out, std::string_view s) { ev3proto::trace_detail::json_string(out, s); }
 
 /// Where an "advance" input moves the clock: `now + ms`, or `to`. False, with @p err, if the input has
 /// neither.
@@ -225,8 +243,26 @@ inline bool advance_target(const Json& in, std::uint64_t now, std::uint64_t& to,
 inline std::string driver_error(const char* program, unsigned long long seq, const std::string& msg) {
   std::fprintf(stderr, "%s: input %llu: %s\n", program, seq, msg.c_str());
   std::string s = "{\"in\":" + std::to_string(seq) + ",\"error\":";
-  put_string(s, msg);
+  ev3proto::json_string(s, msg);
   return s + "}";
+}
+
+/// The start of output line @p seq: `{"in":SEQ,"ok":TAKEN` (docs/driver.md "Outputs").
+inline std::string output_start(unsigned long long seq, bool taken) {
+  return "{\"in\":" + std::to_string(seq) + ",\"ok\":" + (taken ? "true" : "false");
+}
+
+/// The same with the core's clock @p now and the spec @p actions recorded for this input (JSON
+/// objects; cleared here): `{"in":SEQ,"ok":TAKEN,"now":NOW,"actions":[...]`.
+inline std::string output_start(unsigned long long seq, bool taken, std::uint64_t now,
+                                std::vector<std::string>& actions) {
+  std::string s = output_start(seq, taken) + ",\"now\":" + std::to_string(now) + ",\"actions\":[";
+  for (std::size_t i = 0; i < actions.size(); ++i) {
+    if (i) s += ',';
+    s += actions[i];
+  }
+  actions.clear();
+  return s + "]";
 }
 
 /// Lower-case hex of @p s.
@@ -350,4 +386,4 @@ inline int driver_options(int argc, char** argv, const char* program, const char
   return -1;
 }
 
-}  // namespace ev3driver
+}  // namespace ev3prog

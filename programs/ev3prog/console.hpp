@@ -1,7 +1,7 @@
 /// @file console.hpp
-/// @brief The operator console of ev3-master, without I/O: parsing a command line, the fleet view
-///        (what the operator sees per agent: table rows, answers to commands as text) and the status
-///        JSON. main.cpp does the terminal and file I/O.
+/// @brief The operator console, without I/O: parsing a command line, the fleet view (what the
+///        operator sees per agent: table rows, answers to commands as text) and the status JSON. Used
+///        by ev3-master and by the Master core an elected ev3-agent runs; the programs do the I/O.
 #pragma once
 
 #include <cstdint>
@@ -12,7 +12,7 @@
 
 #include <ev3proto/master.hpp>
 
-namespace ev3master {
+namespace ev3prog {
 
 using ev3proto::Millis;
 
@@ -75,7 +75,4 @@ class FleetView {
 /// (SYNCED before the first one).
 std::string state_text(const ev3proto::RegistryEntry& e);
 
-/// JSON string literal of @p s.
-std::string json_str(std::string_view s);
-
-}  // namespace ev3master
+}  // namespace ev3prog

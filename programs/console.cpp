@@ -1,10 +1,12 @@
-#include "console.hpp"
+#include "ev3prog/console.hpp"
 
 #include <cstdio>
 
+#include <ev3proto/json.hpp>
+
 #include "ev3io/cli.hpp"
 
-namespace ev3master {
+namespace ev3prog {
 
 using ev3proto::MsgType;
 using Kind = ev3proto::OperatorEvent::Kind;
@@ -45,24 +47,6 @@ std::string pad(std::string s, std::size_t n) {
   return s;
 }
 }  // namespace
-
-std::string json_str(std::string_view s) {
-  std::string o = "\"";
-  for (char ch : s) {
-    const auto c = static_cast<unsigned char>(ch);
-    if (c == '"' || c == '\\') {
-      o += '\\';
-      o += ch;
-    } else if (c < 0x20 || c > 0x7E) {
-      char b[8];
-      std::snprintf(b, sizeof b, "\\u%04x", c);
-      o += b;
-    } else {
-      o += ch;
-    }
-  }
-  return o + "\"";
-}
 
 std::string console_help() {
   return "commands: list | behaviour ID|all NAME [key=value ...] | start|stop|pause|resume|standby|"
@@ -203,7 +187,7 @@ std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto
 std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg,
                                    const Counters& drops, const std::string& listening, std::uint16_t next_id,
                                    Millis now, Millis start) const {
-  std::string s = "{\"uptime_ms\":" + std::to_string(now - start) + ",\"listening\":" + json_str(listening) +
+  std::string s = "{\"uptime_ms\":" + std::to_string(now - start) + ",\"listening\":" + ev3proto::json_quote(listening) +
                   ",\"next_id\":" + std::to_string(next_id) + ",\"agents\":[";
   bool first = true;
   for (const auto& kv : reg) {
@@ -214,20 +198,20 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
     if (!first) s += ',';
     first = false;
     s += "{\"id\":" + std::to_string(kv.first) + ",\"announced\":" + std::to_string(e.ann) +
-         ",\"address\":" + json_str(i.address) + ",\"synced\":" + (e.synced ? "true" : "false") +
-         ",\"state\":" + json_str(state_text(e)) +
+         ",\"address\":" + ev3proto::json_quote(i.address) + ",\"synced\":" + (e.synced ? "true" : "false") +
+         ",\"state\":" + ev3proto::json_quote(state_text(e)) +
          ",\"last_heard_ms_ago\":" + std::to_string(now > e.heard ? now - e.heard : 0) +
-         ",\"behaviour\":" + (e.behaviour.empty() ? std::string("null") : json_str(e.behaviour)) +
-         ",\"action\":" + json_str(i.action.empty() ? "-" : i.action) +
-         ",\"battery\":" + (i.battery == "-" ? std::string("null") : json_str(i.battery)) +
-         ",\"pending\":" + json_str(e.job()) + ",\"queued\":" + std::to_string(e.queue.size()) + "}";
+         ",\"behaviour\":" + (e.behaviour.empty() ? std::string("null") : ev3proto::json_quote(e.behaviour)) +
+         ",\"action\":" + ev3proto::json_quote(i.action.empty() ? "-" : i.action) +
+         ",\"battery\":" + (i.battery == "-" ? std::string("null") : ev3proto::json_quote(i.battery)) +
+         ",\"pending\":" + ev3proto::json_quote(e.job()) + ",\"queued\":" + std::to_string(e.queue.size()) + "}";
   }
   s += "],\"lost\":[";
   first = true;
   for (const LostAgent& a : lost_) {
     if (!first) s += ',';
     first = false;
-    s += "{\"id\":" + std::to_string(a.id) + ",\"address\":" + json_str(a.address) +
+    s += "{\"id\":" + std::to_string(a.id) + ",\"address\":" + ev3proto::json_quote(a.address) +
          ",\"lost_ms_ago\":" + std::to_string(now - a.at) + "}";
   }
   s += "],\"drops\":{";
@@ -235,9 +219,9 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
   for (const auto& kv : drops) {
     if (!first) s += ',';
     first = false;
-    s += json_str(kv.first) + ":" + std::to_string(kv.second);
+    s += ev3proto::json_quote(kv.first) + ":" + std::to_string(kv.second);
   }
   return s + "}}";
 }
 
-}  // namespace ev3master
+}  // namespace ev3prog
