@@ -1,6 +1,6 @@
 """The tree's dependency rule (docs/programs.md, "Layout"): programs -> programs/ (the shared program
 library, ev3prog) -> io/ -> libev3proto. agent/ and master/ include and link nothing of each other;
-the shared layers include nothing of a program. And one JSON string escaper (ev3proto/json.hpp).
+the shared layers include nothing of a program, and sim/ and tools/ nothing of agent/ or master/. And one JSON string escaper (ev3proto/json.hpp).
 
 Read from the sources as text: a quoted #include is resolved the way the build resolves it (next to
 the including file, then the include directories of the layers it may use), and each CMakeLists.txt
@@ -24,6 +24,8 @@ LAYERS = {
     "master": (["master", "programs", "io", "libev3proto/include"], ["agent"]),
     "programs": (["programs", "io", "libev3proto/include"], ["agent", "master", "sim", "tools"]),
     "io": (["io", "libev3proto/include"], ["agent", "master", "programs", "sim", "tools"]),
+    "sim": (["sim", "programs", "io", "libev3proto/include"], ["agent", "master"]),
+    "tools": (["tools", "programs", "io", "libev3proto/include"], ["agent", "master"]),
 }
 # Targets a layer's CMakeLists.txt must not link.
 TARGETS = {
@@ -31,6 +33,8 @@ TARGETS = {
     "master": ["ev3agent_lib", "ev3-agent"],
     "programs": ["ev3agent_lib", "ev3master_lib"],
     "io": ["ev3agent_lib", "ev3master_lib", "ev3prog"],
+    "sim": ["ev3agent_lib", "ev3master_lib"],
+    "tools": ["ev3agent_lib", "ev3master_lib"],
 }
 
 
@@ -62,14 +66,14 @@ def violations(layer: str) -> list[str]:
             rel = where.relative_to(REPO)
             if rel.parts[0] in forbidden:
                 bad.append(f"{src.relative_to(REPO)}: #include \"{name}\" reaches {rel}")
-    cmake = REPO / layer / "CMakeLists.txt"
-    text = re.sub(r"#.*", "", cmake.read_text(encoding="utf-8"))
-    for t in TARGETS[layer]:
-        if re.search(rf"(?<![\w-]){re.escape(t)}(?![\w-])", text):
-            bad.append(f"{cmake.relative_to(REPO)}: links {t}")
-    for f in forbidden:
-        if re.search(rf"\.\./{f}\b|/{f}/", text):
-            bad.append(f"{cmake.relative_to(REPO)}: names {f}/")
+    for cmake in sorted((REPO / layer).rglob("CMakeLists.txt")):
+        text = re.sub(r"#.*", "", cmake.read_text(encoding="utf-8"))
+        for t in TARGETS[layer]:
+            if re.search(rf"(?<![\w-]){re.escape(t)}(?![\w-])", text):
+                bad.append(f"{cmake.relative_to(REPO)}: links {t}")
+        for f in forbidden:
+            if re.search(rf"\.\./{f}\b|/{f}/", text):
+                bad.append(f"{cmake.relative_to(REPO)}: names {f}/")
     return bad
 
 
@@ -78,7 +82,7 @@ def test_dependencies_point_one_way(layer: str) -> None:
     assert violations(layer) == []
 
 
-def test_the_check_sees_a_sideways_include(tmp_path: Path) -> None:
+def test_the_check_sees_a_sideways_include() -> None:
     """The check itself: an agent source that includes master's options header is found."""
     probe = REPO / "agent" / "_layout_probe.cpp"
     probe.write_text('#include "master_options.hpp"\n#include "../master/master_options.hpp"\n')
@@ -88,6 +92,19 @@ def test_the_check_sees_a_sideways_include(tmp_path: Path) -> None:
         probe.unlink()
     assert any("_layout_probe.cpp" in v and "master/" in v for v in found), found
     assert len([v for v in found if "_layout_probe.cpp" in v]) == 2, found
+
+
+def test_the_check_sees_a_sideways_link() -> None:
+    """The check itself: an agent CMakeLists.txt that links the master's library is found."""
+    probe = REPO / "agent" / "_layout_probe"
+    probe.mkdir()
+    try:
+        (probe / "CMakeLists.txt").write_text("target_link_libraries(x PRIVATE ev3master_lib)\n")
+        found = violations("agent")
+    finally:
+        (probe / "CMakeLists.txt").unlink()
+        probe.rmdir()
+    assert found == ["agent/_layout_probe/CMakeLists.txt: links ev3master_lib"], found
 
 
 def test_one_json_string_escaper() -> None:
