@@ -184,6 +184,22 @@ def cover(g: Graph, ok=None) -> PathSet:
     return PathSet(tree, order, depth, paths, max_len, unreachable)
 
 
+@dataclass
+class WalkFigures:
+    """What a spec-graph replay counts (the agent's and the master's add their own outcomes)."""
+    states: int = 0
+    edges: int = 0
+    paths: int = 0
+    max_path: int = 0
+    steps: int = 0
+    inputs: int = 0
+    tlc_seconds: float = 0.0
+    seconds: float = 0.0
+
+    def head(self, name: str) -> str:
+        return f"{name}: states {self.states}  edges {self.edges}  paths {self.paths} (longest {self.max_path})"
+
+
 def walk(g: Graph, ps: PathSet, ok=None):
     """The replay of every path of @p ps as driver operations, depth-first over the prefix tree:
     ("save", d) snapshots the node reached at depth d in slot d, ("restore", d) goes back to it,

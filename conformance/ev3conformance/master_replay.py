@@ -109,24 +109,16 @@ def _show_action(la: dict) -> str:
 
 
 @dataclass
-class MasterFigures:
-    states: int = 0
-    edges: int = 0
-    paths: int = 0
-    max_path: int = 0
+class MasterFigures(gr.WalkFigures):
     matched: int = 0
     mismatched: int = 0
     downstream: int = 0
     tolerated: int = 0
-    steps: int = 0
-    inputs: int = 0
-    tlc_seconds: float = 0.0
-    seconds: float = 0.0
     classes: dict = field(default_factory=dict)   # (action, fields) -> [count, example report]
 
     def summary(self) -> str:
         pct = 100.0 * (self.matched + self.mismatched + self.downstream) / self.edges if self.edges else 0
-        lines = [f"master: states {self.states}  edges {self.edges}  paths {self.paths} (longest {self.max_path})",
+        lines = [self.head("master"),
                  f"  edges replayed {self.matched + self.mismatched + self.downstream} of {self.edges} ({pct:.1f}%)",
                  f"  matched {self.matched}  mismatched {self.mismatched}  below a mismatch {self.downstream}"
                  + (f"  (of the matched, {self.tolerated} with a tolerated known difference)" if self.tolerated else ""),

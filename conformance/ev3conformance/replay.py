@@ -28,25 +28,17 @@ class Mismatch(Exception):
 
 
 @dataclass
-class Figures:
-    states: int = 0
-    edges: int = 0
-    paths: int = 0
-    max_path: int = 0
+class Figures(gr.WalkFigures):
     replayed: int = 0
     excluded_urgent: int = 0
     unreachable: int = 0
-    steps: int = 0
-    inputs: int = 0
-    tlc_seconds: float = 0.0
-    seconds: float = 0.0
     extra: dict = field(default_factory=dict)
 
     def summary(self, name: str) -> str:
         covered = self.replayed + self.excluded_urgent
         pct = 100.0 * covered / self.edges if self.edges else 0.0
         lines = [
-            f"{name}: states {self.states}  edges {self.edges}  paths {self.paths} (longest {self.max_path})",
+            self.head(name),
             f"  edges replayed and matched      {self.replayed}",
             f"  edges checked as urgent-timeout {self.excluded_urgent}  (spec acts while a timeout is due;"
             f" the core fires it first: its timeout edge was matched instead)",
