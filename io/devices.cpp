@@ -108,7 +108,8 @@ void Ev3Devices::scan(std::vector<DeviceChange>& changes) {
 void Ev3Devices::scan_class(DeviceClass cls, std::vector<DeviceChange>& changes) {
   const std::string dir = root_ + "/class/" + std::string(robot::to_string(cls));
   std::vector<std::string> names;
-  io_.list(dir, names);  // no class directory (no ev3dev here, nothing plugged yet): no devices
+  // No class directory (no ev3dev here): no devices.
+  if (io_.list(dir, names) == 0) classes_found_ = true;
   const std::size_t first = cls == DeviceClass::tacho_motor ? 0 : 4;
   // Known devices: still listed, and still answering with the same address?
   for (std::size_t p = first; p < first + 4; ++p) {

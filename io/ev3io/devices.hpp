@@ -71,6 +71,9 @@ class Ev3Devices {
 
   /// max_brightness of the LED @p led, 0 when it was not found.
   int led_max(ev3proto::robot::Dev led) const noexcept;
+  /// True once a scan found ev3dev's device classes (class/tacho-motor or class/lego-sensor): a
+  /// brick or ev3-sim, not a PC without ev3dev.
+  bool ev3dev_tree() const noexcept { return classes_found_; }
   /// True when the battery was found.
   bool has_battery() const noexcept { return slots_[ev3proto::robot::index(ev3proto::robot::Dev::battery)].dev != nullptr; }
   /// True when a device is in use on @p d.
@@ -110,6 +113,7 @@ class Ev3Devices {
   std::vector<std::string> ignored_list_;
   const char* led_generation_ = "";
   bool leds_looked_ = false;
+  bool classes_found_ = false;
   std::size_t closed_calls_ = 0;
 };
 
