@@ -258,8 +258,8 @@ void op_write(fuse_req_t req, fuse_ino_t ino, const char* data, size_t size, off
   if (app.log.enabled(kDebug)) {
     std::string v(data, size);
     while (!v.empty() && v.back() == '\n') v.pop_back();
-    app.log.log(kDebug, "%s: write %s <- '%s': %s%s", m.robot->name().c_str(),
-                m.robot->tree().path_of(ino).c_str(), v.c_str(), r.err ? std::strerror(r.err) : "ok",
+    app.log.log(kDebug, "%s: t=%.4f s: write %s <- '%s': %s%s", m.robot->name().c_str(),
+                static_cast<double>(app.sim->now()) / 1e6, m.robot->tree().path_of(ino).c_str(), v.c_str(), r.err ? std::strerror(r.err) : "ok",
                 r.done_at > app.sim->now() ? " (answered later)" : "");
   }
   if (r.done_at > app.sim->now()) {

@@ -225,7 +225,9 @@ std::string Sim::status_json() const {
     s += "  {\"name\": " + ev3proto::json_quote(r.name()) + ", \"x\": " + fixed(r.pose().p.x, 2) +
          ", \"y\": " + fixed(r.pose().p.y, 2) + ", \"heading\": " + fixed(heading, 2) +
          ", \"heading_total\": " + fixed(r.heading_total(), 2) + ", \"speed\": " + fixed(r.speed(), 2) +
-         ", \"bumper\": " + (r.bumper() ? "true" : "false") + ", \"travelled\": " + fixed(r.distance_travelled(), 2) +
+         ", \"bumper\": " + (r.bumper() ? "true" : "false") + ", \"bumper_pressed_at\": " +
+         (r.bumper_pressed_at() < 0 ? std::string("null") : fixed(static_cast<double>(r.bumper_pressed_at()) / 1e6, 4)) +
+         ", \"travelled\": " + fixed(r.distance_travelled(), 2) +
          ", \"battery\": {\"volts\": " + fixed(r.volts(), 4) + ", \"amps\": " + fixed(r.amps(), 4) + "}";
     s += ", \"ports\": {";
     bool first = true;

@@ -108,7 +108,12 @@ class Robot {
   double heading_total() const { return heading_total_; }
   double speed() const { return v_; }
   bool bumper() const { return bumper_; }
-  void set_bumper(bool pressed) { bumper_ = pressed; }
+  void set_bumper(bool pressed) {
+    if (pressed && !bumper_) pressed_at_ = now_;
+    bumper_ = pressed;
+  }
+  /// When the bumper was last pressed (its edge), -1 before the first press.
+  SimTime bumper_pressed_at() const { return pressed_at_; }
   const std::vector<Vec2>& path() const { return path_; }
   double distance_travelled() const { return travelled_; }
   /// The footprint at pose @p p.
@@ -157,6 +162,7 @@ class Robot {
   RobotConfig cfg_;
   Tree tree_;
   SimTime now_ = 0;
+  SimTime pressed_at_ = -1;
   std::map<std::string, Device> devices_;
   std::map<std::string, std::string> last_driver_;  // per port, for replug
   int next_motor_ = 0;
