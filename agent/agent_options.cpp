@@ -9,7 +9,9 @@ std::vector<ev3io::OptionSpec> specs() {
   std::vector<ev3io::OptionSpec> s = ev3io::common_specs();
   s.insert(s.begin() + 3, {
       {"model", "NAME", "robot model announced in AGENT (default A)", false},
-      {"sysfs-root", "DIR", "where ev3dev's class/leds (and devices) are (default /sys)", false},
+      {"sysfs-root", "DIR", "ev3dev's sysfs: the devices, LEDs and battery under DIR/class (default /sys; ev3-sim's mount)", false},
+      {"ports", "SPEC", "model A's ports, role=port,... (default left=outB,right=outC,touch=in1,colour=in3,ultrasonic=in4)", false},
+      {"tick-ms", "N", "control tick while the motors may move, 5..100 ms (default 20)", false},
       {"heartbeat-ms", "N", "period of AGENT / PING / PANIC (default 1000)", false},
       {"master-timeout-ms", "N", "master silent this long: ACTIVE -> PANIC, WORKING -> PAUSED (default 3000)", false},
       {"paused-timeout-ms", "N", "master silent this long in PAUSED -> PANIC (default 2 x master timeout)", false},
@@ -33,7 +35,9 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
         "usage: ev3-agent [--port N] [--model NAME] [--broadcast HOST:PORT ...] [options]\n"
         "       ev3-agent port=12233 model=A loglevel=2      (the thesis' form)\n\n"
         "One EV3 robot of the fleet: syncs with a master over UDP, answers its commands and runs\n"
-        "the built-in behaviour 'wait seconds=N'. SIGINT/SIGTERM stop it cleanly.\n"
+        "model A's devices under --sysfs-root (a brick's /sys, or ev3-sim) with the built-in behaviours\n"
+        "'drive speed=N [stop=coast|brake|hold]' and 'wait seconds=N'; the LEDs show the lifecycle,\n"
+        "robot events go to the master. SIGINT/SIGTERM stop it cleanly; so does a low battery.\n"
         "With --election it relays for peers that lost the master and, when the master is gone,\n"
         "takes part in electing a new one (possibly itself: it then runs a master for the fleet).",
         sp);
@@ -55,6 +59,19 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
       message = "bad value for --sysfs-root: empty path";
       return ParseOutcome::error;
     }
+  }
+  if (a.has("ports")) {
+    ev3proto::robot::Reason why;
+    if (!ev3proto::robot::parse_ports(a.get("ports"), out.ports, why)) {
+      message = "bad value for --ports: " + std::string(why.view());
+      return ParseOutcome::error;
+    }
+  }
+  {
+    std::uint64_t v = out.tick_ms;
+    message = ev3io::read_uint(a, "tick-ms", 5, 100, v);
+    if (!message.empty()) return ParseOutcome::error;
+    out.tick_ms = v;
   }
   struct {
     const char* flag;

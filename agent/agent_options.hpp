@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <string>
 
+#include <ev3proto/robot/model.hpp>
 #include <ev3proto/timers.hpp>
 
 #include "ev3io/cli.hpp"
@@ -15,7 +16,9 @@ namespace ev3agent {
 struct AgentOptions {
   ev3io::CommonOptions common;
   std::string model = "A";
-  std::string sysfs_root = "/sys";
+  std::string sysfs_root = "/sys";  ///< --sysfs-root DIR: ev3dev's tree (a brick's /sys, or ev3-sim's mount)
+  ev3proto::robot::PortMap ports;    ///< --ports role=port,...: model A's ports
+  ev3proto::Millis tick_ms = 20;     ///< --tick-ms N: the control tick while the motors may move
   ev3proto::Timers timers;  ///< sync, heartbeat, loss (--master-timeout-ms), paused
   bool election = false;    ///< --election: relay and election on (AgentConfig::election)
   std::uint32_t score = 0xFFFFFFFFu;  ///< --score N (default: computed from the capabilities)

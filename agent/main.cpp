@@ -1,10 +1,11 @@
-// ev3-agent: one robot of the fleet. The I/O around the agent core (libev3proto agent.hpp): a UDP
-// socket, one event loop (ppoll) that sleeps until the next datagram or the next deadline (core,
-// behaviour runner, copy sends, log flush), the LEDs, the `wait` behaviour runner, logging and the
-// NDJSON trace. The node (libev3proto node.hpp) composes the agent core with the Master core it runs
-// while elected; this program turns its inputs and outputs into I/O, logs and counts what it
-// reports, and with --election keeps the election state on disk (--state-dir). docs/programs.md
-// describes the command line.
+// ev3-agent: one robot of the fleet. The I/O around the robot node (libev3proto node.hpp: the agent
+// core, and the Master core it runs while elected) and the robot runtime (robot/runtime.hpp: model
+// A's devices, actions, events, LEDs), linked by robot_link.hpp: a UDP socket, ev3dev's sysfs
+// through the device layer (io/ev3io/devices.hpp, robot_io.hpp), one event loop (ppoll) that sleeps
+// until the next datagram or the earliest deadline (node, runtime tick, device scan, copy sends,
+// log flush), logging and the NDJSON trace. Every decision is the library's; this program turns
+// inputs and outputs into I/O, logs what they report, and with --election keeps the election state
+// on disk (--state-dir). docs/programs.md describes the command line, docs/devices.md the loop.
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -17,6 +18,8 @@
 #include <vector>
 
 #include <ev3proto/node.hpp>
+#include <ev3proto/robot/behaviours.hpp>
+#include <ev3proto/robot_link.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
@@ -24,15 +27,15 @@
 #include "ev3prog/program.hpp"
 #include "ev3prog/script.hpp"
 #include "ev3prog/trace_file.hpp"
+#include "ev3io/devices.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
 #include "ev3io/state_file.hpp"
+#include "ev3io/robot_io.hpp"
 #include "ev3io/udp.hpp"
-#include "leds.hpp"
 #include "agent_options.hpp"
 #include "agent_sink.hpp"
 #include "driver.hpp"
-#include "wait_runner.hpp"
 
 namespace {
 
@@ -42,11 +45,14 @@ using ev3io::kInfo;
 using ev3io::kVerbose;
 using ev3proto::Millis;
 
-// Device bits of model A (the thesis' test robot): two large motors, ultrasonic, touch, colour.
-constexpr std::uint32_t kMotorLeft = 1u << 0, kMotorRight = 1u << 1, kUltrasonic = 1u << 2,
-                        kTouch = 1u << 3, kColour = 1u << 4;
-// Behaviours of model A: `wait` needs no device.
-constexpr ev3proto::BehaviourSpec kModelABehaviours[] = {{"wait", 0}};
+namespace robot = ev3proto::robot;
+
+// The agent core's table of model A's built-in behaviours (robot/behaviours.hpp).
+constexpr ev3proto::BehaviourSpec kModelABehaviours[] = {
+    {robot::kModelABehaviours[0].name, robot::kModelABehaviours[0].devices},
+    {robot::kModelABehaviours[1].name, robot::kModelABehaviours[1].devices},
+};
+static_assert(std::size(robot::kModelABehaviours) == std::size(kModelABehaviours));
 
 std::uint64_t random_u64() {
   std::uint64_t v = 0;
@@ -93,6 +99,16 @@ std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
 }
 
 using ev3agent::RobotNode;
+using Link = robot::RobotLink<RobotNode>;
+
+/// Device bits as role names ("left,right").
+std::string roles(std::uint32_t bits) {
+  std::string s;
+  for (std::size_t i = 0; i < robot::kRoleCount; ++i)
+    if ((bits & robot::role_bit(static_cast<robot::Role>(i))) != 0)
+      s += (s.empty() ? "" : ",") + std::string(robot::to_string(static_cast<robot::Role>(i)));
+  return s.empty() ? "none" : s;
+}
 
 std::string role_name(ev3proto::Role r) {
   switch (r) {
@@ -105,7 +121,8 @@ std::string role_name(ev3proto::Role r) {
 
 class Program {
  public:
-  explicit Program(const ev3agent::AgentOptions& o) : opt_(o), net_(o.common.faults) {}
+  explicit Program(const ev3agent::AgentOptions& o)
+      : opt_(o), net_(o.common.faults), devices_(o.sysfs_root), rio_(devices_) {}
 
   int run() {
     if (!ev3prog::open_outputs("ev3-agent", "agent", opt_.common, log_, trace_file_)) return 2;
@@ -117,8 +134,17 @@ class Program {
       std::fprintf(stderr, "ev3-agent: %s\n", err.c_str());
       return 1;
     }
+    // The robot: the runtime of model A and the device layer's first scan (what is found decides
+    // what the agent announces: robot_link.hpp announced_devices).
+    const Millis start = ev3io::monotonic_ms();
+    robot::RuntimeConfig rc;
+    rc.ports = opt_.ports;
+    rc.tick_ms = opt_.tick_ms;
+    rt_.emplace(rc, start);
+    rio_.scan(*rt_, start);
+    link_.emplace(robot::announced_devices(devices_.ev3dev_tree()));
     ev3proto::AgentConfig cfg;
-    cfg.caps = {opt_.model, kModelABehaviours, 1, kMotorLeft | kMotorRight | kUltrasonic | kTouch | kColour};
+    cfg.caps = {opt_.model, kModelABehaviours, std::size(kModelABehaviours), link_->announced()};
     cfg.timers = opt_.timers;
     const std::uint64_t r = random_u64();
     cfg.temp_id = static_cast<std::uint16_t>(ev3proto::kFirstTempId + r % 15536u);
@@ -128,7 +154,7 @@ class Program {
     if (!load_state(cfg.election)) return 2;
     if (!ev3prog::load_script("ev3-agent", "--master-script", opt_.master_script, script_)) return 2;
     if (opt_.model != "A")
-      log_.log(kInfo, "model %s: using model A's capability table (wait)", opt_.model.c_str());
+      log_.log(kInfo, "model %s: using model A's capability table (wait, drive)", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
     RobotNode::Config nc;
     nc.agent = cfg;
@@ -142,8 +168,9 @@ class Program {
       };
     }
     node_.emplace(nc, now, trace_file_.is_open() ? &trace_ : nullptr);
-    leds_.emplace(opt_.sysfs_root, log_);
-    leds_->set(node_->agent().led());
+    log_devices();
+    rt_->led(node_->agent().led());
+    pump(now);
     std::string bc;
     for (const auto& e : opt_.common.broadcast) bc += " " + e.str();
     log_.log(kInfo, "listening on %s (model %s, temporary id %u, broadcast to%s)", net_.local().str().c_str(),
@@ -159,18 +186,91 @@ class Program {
     return 0;
   }
 
+  /// What the device layer found at start (and the LEDs / battery), for the log.
+  void log_devices() {
+    if (!devices_.ev3dev_tree()) {
+      log_.log(kInfo, "no ev3dev devices under %s (no class/tacho-motor, class/lego-sensor): no robot body, "
+               "announcing no devices (only 'wait' can run)", opt_.sysfs_root.c_str());
+      return;
+    }
+    std::string found;
+    for (std::size_t i = 0; i < robot::kRoleCount; ++i) {
+      const auto r = static_cast<robot::Role>(i);
+      const robot::Dev d = opt_.ports.of(r);
+      found += " " + std::string(robot::to_string(r)) + "=" + std::string(robot::to_string(d)) +
+               (devices_.present(d) ? "" : "(missing)");
+    }
+    log_.log(kInfo, "devices under %s:%s; LEDs: %s; battery: %s; control tick %llu ms", opt_.sysfs_root.c_str(),
+             found.c_str(), *devices_.led_names() != '\0' ? devices_.led_names() : "none",
+             devices_.has_battery() ? "yes" : "no", static_cast<unsigned long long>(opt_.tick_ms));
+  }
+
+  /// What the link handed between node and runtime, for the log.
+  void on_note(const robot::LinkNote& n) {
+    using K = robot::LinkNote::Kind;
+    switch (n.kind) {
+      case K::result: {
+        const char* what = n.result.outcome == robot::Outcome::finished      ? "finished: ACTION_OK"
+                           : n.result.outcome == robot::Outcome::interrupted ? "interrupted: ACTION_INTERR"
+                                                                             : "failed: ACTION_ERR";
+        log_.log(n.result.outcome == robot::Outcome::failed ? kError : kInfo, "action %s%s%s%s%s", what,
+                 n.result.outcome == robot::Outcome::interrupted ? " " : "",
+                 n.result.outcome == robot::Outcome::interrupted
+                     ? std::string(ev3proto::to_string(n.result.warning)).c_str() : "",
+                 n.result.detail.empty() ? "" : " - ", std::string(n.result.detail.view()).c_str());
+        if (!n.taken) log_.log(kVerbose, "action result not taken by the core (not running)");
+        break;
+      }
+      case K::event: {
+        std::string_view p[3];
+        const std::size_t c = n.event.params(p);
+        std::string text;
+        for (std::size_t i = 0; i < c; ++i) text += (i ? " " : "") + std::string(p[i]);
+        log_.log(n.event.severity() == robot::Severity::critical ? kInfo : kVerbose, "event %s%s", text.c_str(),
+                 n.taken ? " (core: EVENT to the master)" : "");
+        break;
+      }
+      case K::report:
+        log_.log(kVerbose, "sensor report %s %s%s", std::string(robot::to_string(n.report.port)).c_str(),
+                 std::string(n.report.mode.view()).c_str(), n.taken ? "" : " (not taken: not running)");
+        break;
+      case K::missing:
+        log_.log(kInfo, "model A devices missing: %s (core: EVENT DEVICE_DISCONNECTED to the master; "
+                 "BEHAVIOUR refused until all are plugged)", roles(n.bits).c_str());
+        break;
+      case K::control:
+        log_.log(kDebug, "runtime: %s %s", std::string(ev3proto::to_string(n.control)).c_str(),
+                 std::string(n.name).c_str());
+        break;
+    }
+  }
+
  private:
   void loop() {
     Millis next_summary = ev3io::monotonic_ms() + 5000;
     while (signals_.stop_signal() == 0) {
-      // At most Receiver::kBatch datagrams, then the behaviour, the node's deadlines and the copies due.
+      // At most Receiver::kBatch datagrams, then the device scan, the robot's tick, the node's
+      // deadlines and the copies due.
       const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
         on_datagram(d, from, now);
       });
-      const Millis now = ev3io::monotonic_ms();
-      run_behaviour(now);
+      Millis now = ev3io::monotonic_ms();
+      if (now >= rio_.next_scan()) {
+        rio_.scan(*rt_, now);
+        pump(now);
+      }
+      if (now >= rt_->next_deadline()) {
+        rio_.tick(*rt_, now);
+        pump(now);
+      }
+      now = ev3io::monotonic_ms();
       node_->advance(now);
       pump(now);
+      if (Link::shut_down(*node_, *rt_)) {
+        log_.log(kInfo, "battery low: EVENT BATTERY_LOW sent, motors stopped; exiting");
+        battery_exit_ = true;
+        break;
+      }
       run_script(now);
       net_.flush(now);
       if (now >= next_summary) {
@@ -180,7 +280,8 @@ class Program {
       }
       Millis deadline = node_->next_deadline();
       if (node_->master() != nullptr) deadline = std::min(deadline, script_.deadline());
-      deadline = std::min(deadline, runner_.deadline());
+      deadline = std::min(deadline, rt_->next_deadline());
+      deadline = std::min(deadline, rio_.next_scan());
       deadline = std::min(deadline, net_.next_send());
       deadline = std::min(deadline, log_.tick(now));
       deadline = std::min(deadline, next_summary);
@@ -217,28 +318,14 @@ class Program {
     pump(now);
   }
 
-  void run_behaviour(Millis now) {
-    switch (runner_.poll(now)) {
-      case ev3agent::WaitRunner::Outcome::ok:
-        log_.log(kInfo, "behaviour wait: %llu ms are up, ACTION_OK",
-                 static_cast<unsigned long long>(runner_.total()));
-        node_->action_ok(now);
-        pump(now);
-        break;
-      case ev3agent::WaitRunner::Outcome::failed:
-        log_.log(kError, "behaviour cannot run: %s; ACTION_ERR", runner_.error().c_str());
-        node_->action_failed(now);
-        pump(now);
-        break;
-      case ev3agent::WaitRunner::Outcome::none: break;
-    }
-  }
-
-  /// Drains the node's outputs after every call into it: events first (a durable change is on disk
-  /// before anything the call queued is sent: a VOTE must not outlive its votedFor).
+  /// Drains the node's and the runtime's outputs after every call into either: node events first
+  /// (a durable change is on disk before anything the call queued is sent: a VOTE must not outlive
+  /// its votedFor), the LED pattern and behaviour controls to the runtime, its device writes made,
+  /// its results / events / reports to the node (robot_link.hpp settle), then the datagrams.
   void pump(Millis now) {
-    ev3proto::NodeEvent e;
-    while (node_->poll_event(e)) on_event(e, now);
+    link_->settle(
+        *node_, *rt_, now, [this, now](const ev3proto::NodeEvent& e) { on_event(e, now); },
+        [this, now] { rio_.flush(*rt_, now); }, [this](const robot::LinkNote& n) { on_note(n); });
     ev3proto::NodeTransmit t;
     while (node_->poll_transmit(t)) {
       log_.log(kDebug, "%ssend %s to %s", t.from_master_core ? "master core: " : "", printable(t.bytes).c_str(),
@@ -271,19 +358,8 @@ class Program {
     if (!opt_.election && (e.kind == K::role || e.kind == K::leader || e.kind == K::relays)) return;
     switch (e.kind) {
       case K::state: log_.log(kInfo, "state %s (id %u)", std::string(to_string(e.state)).c_str(), a.id()); break;
-      case K::led: leds_->set(e.led); break;
-      case K::control: {
-        const ev3proto::BehaviourView b = a.behaviour();
-        std::vector<std::string_view> args;
-        for (std::size_t i = 0; i < b.arg_count; ++i) args.push_back(b.arg(i));
-        const Millis left_before = runner_.left(now);
-        runner_.control(e.control, b.name, args, now);
-        log_.log(kInfo, "behaviour %s: %s (%llu ms left)", std::string(b.name).c_str(),
-                 std::string(to_string(e.control)).c_str(),
-                 static_cast<unsigned long long>(e.control == ev3proto::ControlKind::stop ? left_before
-                                                                                     : runner_.left(now)));
-        break;
-      }
+      case K::led:
+      case K::control: break;  // the runtime's (robot_link.hpp)
       case K::durable:
         save_state(e.durable);
         if (e.durable.epoch != e.previous.epoch)
@@ -326,10 +402,9 @@ class Program {
 
   void shutdown() {
     const Millis now = ev3io::monotonic_ms();
-    log_.log(kInfo, "stopping (signal %d)", signals_.stop_signal());
-    if (runner_.phase() == ev3agent::WaitRunner::Phase::running ||
-        runner_.phase() == ev3agent::WaitRunner::Phase::paused) {
-      runner_.control(ev3proto::ControlKind::stop, "", {}, now);
+    if (!battery_exit_) log_.log(kInfo, "stopping (signal %d)", signals_.stop_signal());
+    if (rt_->busy()) {
+      rt_->control(ev3proto::ControlKind::stop, "", nullptr, 0, now);
       log_.log(kInfo, "behaviour stopped, motors stopped");
     }
     if (ev3proto::is_synced(node_->agent().state())) {
@@ -347,7 +422,11 @@ class Program {
     }
     net_.flush_all();
     log_.log(kInfo, "drops: %s", counters_line(drops_).c_str());
-    leds_->set(ev3proto::Led::DARK);
+    rt_->led(ev3proto::Led::DARK);
+    rio_.flush(*rt_, now);
+    const ev3io::RobotIo::Stats& st = rio_.stats();
+    log_.log(kInfo, "devices: %zu reads, %zu writes, %zu failed reads, %zu failed writes, %zu unplugs seen",
+             st.reads, st.writes, st.failed_reads, st.failed_writes, st.unplugged);
     log_.flush();
     trace_file_.close();
   }
@@ -418,8 +497,11 @@ class Program {
   ev3agent::AgentSink trace_;  // the agent core's records (--trace)
   ev3prog::TraceFile trace_file_;
   std::optional<RobotNode> node_;
-  std::optional<ev3agent::Leds> leds_;
-  ev3agent::WaitRunner runner_;
+  ev3io::Ev3Devices devices_;
+  ev3io::RobotIo rio_;
+  std::optional<robot::Runtime> rt_;
+  std::optional<Link> link_;
+  bool battery_exit_ = false;
   std::map<std::string, std::uint64_t> drops_;
   bool drops_changed_ = false;
   ev3proto::Peer master_peer_ = 0;  // the master's handle, as the core last sent to it

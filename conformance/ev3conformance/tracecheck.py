@@ -42,7 +42,7 @@ REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTI
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
 # them passed (validate --timers).
 DEFAULTS = {"TSync": 10000, "TPing": 1000, "TLoss": 3000, "TPaused": 6000, "Window": 50,
-            "Behaviours": ["wait"], "ModelName": "A", "Steps": 1000000000}
+            "Behaviours": ["wait", "drive"], "ModelName": "A", "Steps": 1000000000}
 
 
 @dataclass

@@ -41,6 +41,15 @@ TEST(AgentOptions, Defaults) {
   EXPECT_EQ(o.common.port, 12345);
   EXPECT_EQ(o.model, "A");
   EXPECT_EQ(o.sysfs_root, "/sys");
+  EXPECT_EQ(o.ports.of(ev3proto::robot::Role::left), ev3proto::robot::Dev::outB);
+  EXPECT_EQ(o.ports.of(ev3proto::robot::Role::ultrasonic), ev3proto::robot::Dev::in4);
+  EXPECT_EQ(o.tick_ms, 20u);
+  ASSERT_EQ(agent_args({"--ports", "left=outA,right=outD,touch=in2", "--tick-ms", "10"}, o, m),
+            ev3agent::ParseOutcome::run) << m;
+  EXPECT_EQ(o.ports.of(ev3proto::robot::Role::left), ev3proto::robot::Dev::outA);
+  EXPECT_EQ(o.ports.of(ev3proto::robot::Role::right), ev3proto::robot::Dev::outD);
+  EXPECT_EQ(o.ports.of(ev3proto::robot::Role::touch), ev3proto::robot::Dev::in2);
+  EXPECT_EQ(o.tick_ms, 10u);
   EXPECT_EQ(o.timers[Timer::sync], 10000u);
   ASSERT_EQ(o.common.broadcast.size(), 1u);
   EXPECT_EQ(o.common.broadcast[0].str(), "255.255.255.255:12345");
@@ -88,6 +97,11 @@ TEST(AgentOptions, ErrorsNameTheFlag) {
       {{"--fault-loss", "101"}, "--fault-loss"},
       {{"--master-timeout-ms", "500", "--paused-timeout-ms", "400"}, "--paused-timeout-ms"},
       {{"--model", "a:b"}, "--model"},
+      {{"--ports", "left=in1"}, "--ports: left needs an output port"},
+      {{"--ports", "touch=in3"}, "--ports: in3 given to both touch and colour"},
+      {{"--ports", "wheel=outA"}, "--ports: unknown role 'wheel'"},
+      {{"--tick-ms", "4"}, "--tick-ms"},
+      {{"--tick-ms", "101"}, "--tick-ms"},
       {{"stray"}, "stray"},
   };
   for (const auto& b : bad) {

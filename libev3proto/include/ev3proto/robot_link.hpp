@@ -1,0 +1,177 @@
+/// @file robot_link.hpp
+/// @brief Between a robot node (node.hpp: the agent core, and the Master core while elected) and
+///        the robot runtime (robot/runtime.hpp): what each output of one is as an input of the
+///        other. Sans-I/O like both; the agent program (agent/main.cpp) only moves bytes around it.
+///
+///  node -> runtime   LED pattern -> led(); behaviour control (start, pause, resume, stop,
+///                    restart) -> control() with the loaded behaviour's name and arguments. The
+///                    core pauses when it loses the master (WORKING -> PAUSED) and stops when it
+///                    panics, so while the master is lost the motors are stopped, whatever the
+///                    action was doing, within the call that delivers the core's event.
+///  runtime -> node   action results -> action_ok / action_interrupted(warning) / action_failed;
+///                    events: DEVICE_DISCONNECTED -> device_unplugged(bits), DEVICE_CONNECTED ->
+///                    device_plugged(bits), BATTERY_LOW -> battery_low (each of these the core
+///                    sends to the master as EVENT, name first; see docs/devices.md "Events" for
+///                    the events it has no spec action for); sensor reports -> sensor_report.
+///  capabilities      the devices the agent announces (announced_devices()); after the device
+///                    layer's first scan, the ones missing are unplugged for the core, so the
+///                    master is refused what needs them ("missing device").
+///
+/// settle() runs both directions until neither has anything left: a call into the node can give
+/// a control for the runtime (action_interrupted pauses it), a call into the runtime a result for
+/// the node (a start with a bad argument fails at once).
+#pragma once
+
+#include <cstddef>
+#include <cstdint>
+#include <string_view>
+
+#include "node.hpp"
+#include "robot/runtime.hpp"
+
+namespace ev3proto::robot {
+
+/// The model devices an agent announces (Capabilities::devices): model A's on an ev3dev tree (the
+/// device layer found ev3dev's device classes: a brick, or ev3-sim), none elsewhere (a PC without
+/// ev3dev: only behaviours that need no device, `wait`, can run).
+constexpr std::uint32_t announced_devices(bool ev3dev_tree) noexcept { return ev3dev_tree ? kModelADevices : 0; }
+
+/// What the link handed on, for the program's log.
+struct LinkNote {
+  enum class Kind : std::uint8_t {
+    result,   ///< an action result (result), taken by the core or not (taken)
+    event,    ///< a robot event (event); taken: the core took it as a spec action (it tells the master)
+    report,   ///< a sensor report (report)
+    missing,  ///< after the first scan: model devices not found (bits)
+    control,  ///< a behaviour control given to the runtime (control, name)
+  } kind = Kind::result;
+  bool taken = false;
+  ActionResult result;
+  Event event;
+  Report report;
+  std::uint32_t bits = 0;
+  ControlKind control = ControlKind::stop;
+  std::string_view name;  ///< control: the behaviour (valid during the note)
+};
+
+/// The link of one node and one runtime (see the file comment). @tparam NodeT a Node<...>.
+template <typename NodeT>
+class RobotLink {
+ public:
+  /// @p announced: the devices the agent core was configured with (AgentConfig::caps.devices).
+  explicit RobotLink(std::uint32_t announced) noexcept : announced_(announced) {}
+
+  /// After the device layer's first scan: the announced devices the runtime has not got are
+  /// unplugged for the core (spec DeviceUnplugged: no EVENT yet, the agent is not synced).
+  template <typename Note>
+  void first_scan(NodeT& node, const Runtime& rt, Millis now, Note&& note) {
+    const std::uint32_t missing = announced_ & ~rt.plugged();
+    if (missing == 0) return;
+    LinkNote n;
+    n.kind = LinkNote::Kind::missing;
+    n.bits = missing;
+    n.taken = node.device_unplugged(missing, now);
+    note(n);
+  }
+
+  /// A node event for the robot: the LED pattern and behaviour controls go to the runtime; other
+  /// kinds are the program's. Returns true when it was the runtime's.
+  template <typename Note>
+  bool on_node_event(const NodeEvent& e, const NodeT& node, Runtime& rt, Millis now, Note&& note) {
+    if (e.kind == NodeEvent::Kind::led) {
+      rt.led(e.led);
+      return true;
+    }
+    if (e.kind != NodeEvent::Kind::control) return false;
+    const auto b = node.agent().behaviour();
+    std::string_view args[kMaxParams];
+    std::size_t n = 0;
+    for (; n < b.arg_count && n < kMaxParams; ++n) args[n] = b.arg(n);
+    LinkNote ln;
+    ln.kind = LinkNote::Kind::control;
+    ln.control = e.control;
+    ln.name = b.name;
+    note(ln);
+    rt.control(e.control, b.name, args, n, now);
+    return true;
+  }
+
+  /// Hands the runtime's results, events and reports to the node, in that order.
+  template <typename Note>
+  void drain(Runtime& rt, NodeT& node, Millis now, Note&& note) {
+    LinkNote n;
+    n.kind = LinkNote::Kind::result;
+    while (rt.poll_result(n.result)) {
+      switch (n.result.outcome) {
+        case Outcome::finished: n.taken = node.action_ok(now); break;
+        case Outcome::interrupted: n.taken = node.action_interrupted(n.result.warning, now); break;
+        default: n.taken = node.action_failed(now); break;
+      }
+      note(n);
+    }
+    n.kind = LinkNote::Kind::event;
+    while (rt.poll_event(n.event)) {
+      const Event& e = n.event;
+      n.taken = false;
+      switch (e.kind) {
+        case EventKind::DEVICE_DISCONNECTED:
+          if ((e.bits & announced_) != 0) n.taken = node.device_unplugged(e.bits & announced_, now);
+          break;
+        case EventKind::DEVICE_CONNECTED:
+          if ((e.bits & announced_) != 0) n.taken = node.device_plugged(e.bits & announced_, now);
+          break;
+        case EventKind::BATTERY_LOW: n.taken = node.battery_low(now); break;
+        default: break;
+      }
+      note(n);
+    }
+    n.kind = LinkNote::Kind::report;
+    while (rt.poll_report(n.report)) {
+      const Report& r = n.report;
+      Text<24> texts[kMaxValues];
+      std::string_view values[kMaxValues];
+      const std::size_t count = r.count < kMaxValues ? r.count : kMaxValues;
+      for (std::size_t i = 0; i < count; ++i) {
+        texts[i].append_fixed(r.values[i].raw, r.values[i].decimals);
+        values[i] = texts[i].view();
+      }
+      n.taken = node.sensor_report(to_string(r.port), r.mode.view(), values, count, now);
+      note(n);
+    }
+  }
+
+  /// The node's events (@p program gets those that are not the runtime's) and the runtime's
+  /// outputs (@p write makes the device writes: the program's I/O), until neither has any left.
+  template <typename Program, typename Write, typename Note>
+  void settle(NodeT& node, Runtime& rt, Millis now, Program&& program, Write&& write, Note&& note) {
+    for (int round = 0; round < 16; ++round) {
+      bool any = false;
+      NodeEvent e;
+      while (node.poll_event(e)) {
+        any = true;
+        if (!on_node_event(e, node, rt, now, note)) program(e);
+      }
+      write();
+      if (drained_something(rt, node, now, note)) any = true;
+      if (!any) return;
+    }
+  }
+
+  std::uint32_t announced() const noexcept { return announced_; }
+
+ private:
+  template <typename Note>
+  bool drained_something(Runtime& rt, NodeT& node, Millis now, Note&& note) {
+    bool any = false;
+    auto counting = [&](const LinkNote& n) {
+      any = true;
+      note(n);
+    };
+    drain(rt, node, now, counting);
+    return any;
+  }
+
+  std::uint32_t announced_;
+};
+
+}  // namespace ev3proto::robot
