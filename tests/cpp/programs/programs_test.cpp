@@ -1,6 +1,7 @@
 // Unit tests of the programs' non-I/O logic: ev3-agent / ev3-master options (both command-line
-// forms), the fault injection schedule, the wait behaviour runner, the console parser and view; and
-// of the shared program library's console scripts, trace file and text files.
+// forms), the fault injection schedule, the console parser and view; and of the shared program
+// library's console scripts, trace file and text files. (The behaviours `wait` and `drive` are the
+// robot runtime's: tests/cpp/robot.)
 #include <gtest/gtest.h>
 
 #include <unistd.h>
@@ -18,14 +19,11 @@
 #include "ev3io/cli.hpp"
 #include "ev3io/fault.hpp"
 #include "ev3io/udp.hpp"
-#include "leds.hpp"
 #include "agent_options.hpp"
 #include "master_options.hpp"
-#include "wait_runner.hpp"
 
 namespace {
 
-using ev3proto::ControlKind;
 using ev3proto::Millis;
 using ev3proto::Timer;
 
@@ -172,65 +170,6 @@ TEST(Endpoint, Parse) {
   EXPECT_TRUE(ev3io::parse_endpoint("localhost:1", e));
   for (const char* s : {"127.0.0.1", "127.0.0.1:0", "127.0.0.1:65536", "x:1", "127.0.0.1:01", ":5"})
     EXPECT_FALSE(ev3io::parse_endpoint(s, e)) << s;
-}
-
-TEST(WaitArgs, Parse) {
-  Millis ms = 0;
-  EXPECT_EQ(ev3agent::parse_wait_args({"seconds=2"}, ms), "");
-  EXPECT_EQ(ms, 2000u);
-  EXPECT_EQ(ev3agent::parse_wait_args({"seconds=0.25"}, ms), "");
-  EXPECT_EQ(ms, 250u);
-  EXPECT_EQ(ev3agent::parse_wait_args({"seconds=0.0001"}, ms), "");
-  EXPECT_EQ(ms, 1u);
-  for (std::vector<std::string_view> bad : std::vector<std::vector<std::string_view>>{
-           {}, {"seconds=0"}, {"seconds=-1"}, {"seconds=abc"}, {"seconds="}, {"secs=1"}, {"seconds=nan"},
-           {"seconds=1e9"}, {"seconds"}})
-    EXPECT_NE(ev3agent::parse_wait_args(bad, ms), "") << (bad.empty() ? "" : bad[0]);
-}
-
-TEST(WaitRunner, RunsToTheEndAndReportsOnce) {
-  ev3agent::WaitRunner r;
-  r.control(ControlKind::start, "wait", {"seconds=1"}, 100);
-  EXPECT_EQ(r.deadline(), 1100u);
-  EXPECT_EQ(r.poll(1099), ev3agent::WaitRunner::Outcome::none);
-  EXPECT_EQ(r.poll(1100), ev3agent::WaitRunner::Outcome::ok);
-  EXPECT_EQ(r.poll(1200), ev3agent::WaitRunner::Outcome::none);
-  EXPECT_EQ(r.deadline(), ev3agent::WaitRunner::kNever);
-}
-
-TEST(WaitRunner, PauseKeepsTimeLeftResumeContinuesRestartStartsOverStopDiscards) {
-  ev3agent::WaitRunner r;
-  r.control(ControlKind::start, "wait", {"seconds=1"}, 0);
-  r.control(ControlKind::pause, "wait", {"seconds=1"}, 400);
-  EXPECT_EQ(r.left(5000), 600u);
-  EXPECT_EQ(r.deadline(), ev3agent::WaitRunner::kNever);
-  EXPECT_EQ(r.poll(5000), ev3agent::WaitRunner::Outcome::none);
-  r.control(ControlKind::resume, "wait", {"seconds=1"}, 5000);
-  EXPECT_EQ(r.deadline(), 5600u);
-  r.control(ControlKind::restart, "wait", {"seconds=1"}, 5100);
-  EXPECT_EQ(r.deadline(), 6100u);
-  r.control(ControlKind::start, "wait", {"seconds=1"}, 5200);
-  EXPECT_EQ(r.deadline(), 6200u);
-  r.control(ControlKind::stop, "wait", {"seconds=1"}, 5300);
-  EXPECT_EQ(r.deadline(), ev3agent::WaitRunner::kNever);
-  r.control(ControlKind::resume, "wait", {"seconds=1"}, 5400);  // nothing to resume
-  EXPECT_EQ(r.poll(99999), ev3agent::WaitRunner::Outcome::none);
-}
-
-TEST(WaitRunner, BadArgumentsFailOnce) {
-  ev3agent::WaitRunner r;
-  r.control(ControlKind::start, "wait", {"seconds=x"}, 0);
-  EXPECT_EQ(r.deadline(), 0u);
-  EXPECT_EQ(r.poll(1), ev3agent::WaitRunner::Outcome::failed);
-  EXPECT_EQ(r.poll(2), ev3agent::WaitRunner::Outcome::none);
-  EXPECT_NE(r.error().find("seconds"), std::string::npos);
-}
-
-TEST(Leds, Colours) {
-  EXPECT_TRUE(ev3agent::colour_of(ev3proto::Led::RED_BLINK).blink);
-  EXPECT_FALSE(ev3agent::colour_of(ev3proto::Led::GREEN).blink);
-  EXPECT_DOUBLE_EQ(ev3agent::colour_of(ev3proto::Led::ORANGE).green, 0.5);
-  EXPECT_DOUBLE_EQ(ev3agent::colour_of(ev3proto::Led::DARK).red, 0);
 }
 
 TEST(Console, Commands) {
