@@ -38,6 +38,7 @@ using namespace ev3sim;
 using ev3io::kDebug;
 using ev3io::kError;
 using ev3io::kInfo;
+using ev3io::kVerbose;
 
 std::int64_t monotonic_us() {
   timespec ts{};
@@ -241,6 +242,12 @@ void op_read(fuse_req_t req, fuse_ino_t ino, size_t size, off_t off, fuse_file_i
     }
     h->data = std::move(r.data);
     h->filled = true;
+    if (m.app->log.enabled(kVerbose)) {
+      std::string v = h->data;
+      while (!v.empty() && v.back() == '\n') v.pop_back();
+      m.app->log.log(kVerbose, "%s: t=%.4f s: read %s -> '%s'", m.robot->name().c_str(),
+                     static_cast<double>(m.app->sim->now()) / 1e6, m.robot->tree().path_of(ino).c_str(), v.c_str());
+    }
   }
   const auto o = static_cast<std::size_t>(off);
   if (o >= h->data.size()) {
