@@ -117,3 +117,41 @@ class Sim:
                 subprocess.run(["fusermount3", "-u", "-z", str(root)], check=False)
         if not self._log.closed:
             self._log.close()
+
+
+def cannot_run() -> str | None:
+    """Why ev3-sim cannot run here (the program missing, no usable /dev/fuse), or None. Tests
+    fail with it, never skip."""
+    exe = ev3_sim_path()
+    if not (exe.is_file() and os.access(exe, os.X_OK)):
+        return f"{exe} is missing: build it with `make build` (or set EV3_BIN)"
+    if not os.path.exists("/dev/fuse") or not os.access("/dev/fuse", os.R_OK | os.W_OK):
+        return ("/dev/fuse is missing or not usable: ev3-sim serves the ev3dev tree through FUSE, "
+                "so its tests cannot run (load the fuse module, or give the container --device /dev/fuse)")
+    return None
+
+
+class Sims:
+    """The ev3-sim processes of one test, each on a fresh directory under tmp."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.tmp = tmp
+        self.started: list[Sim] = []
+
+    def start(self, world: str, robots=None, args=None) -> Sim:
+        d = self.tmp / f"sim{len(self.started) + 1}"
+        d.mkdir()
+        sim = Sim(d, world, robots or [("robot1", None)], args)
+        self.started.append(sim)
+        return sim
+
+    def stop_all(self) -> dict:
+        """SIGTERM to each (must exit 0, nothing left mounted); returns {dir: (code, log)} of the bad ones."""
+        codes = {}
+        try:
+            for s in self.started:
+                codes[str(s.tmp)] = (s.stop(), s)
+        finally:
+            for s in self.started:
+                s.cleanup()
+        return {k: (code, s.log_text()) for k, (code, s) in codes.items() if code != 0}
