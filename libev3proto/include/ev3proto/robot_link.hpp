@@ -14,8 +14,8 @@
 ///                    sends to the master as EVENT, name first; see docs/devices.md "Events" for
 ///                    the events it has no spec action for); sensor reports -> sensor_report.
 ///  capabilities      the devices the agent announces (announced_devices()); after the device
-///                    layer's first scan, the ones missing are unplugged for the core, so the
-///                    master is refused what needs them ("missing device").
+///                    layer's first scan, the ones missing are unplugged for the core, which
+///                    then refuses BEHAVIOUR ("missing device", the spec's devOk) until all are back.
 ///
 /// settle() runs both directions until neither has anything left: a call into the node can give
 /// a control for the runtime (action_interrupted pauses it), a call into the runtime a result for

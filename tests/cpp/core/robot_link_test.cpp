@@ -1,0 +1,136 @@
+// The link between a robot node and the robot runtime (robot_link.hpp), without a device layer:
+// what the agent announces, the devices missing at start, a behaviour control reaching the runtime
+// and its result reaching the master, a bad argument failing, BATTERY_LOW reaching the master and
+// switching both off.
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+#include "ev3proto/robot/behaviours.hpp"
+#include "ev3proto/robot_link.hpp"
+#include "symbolic.hpp"
+
+namespace {
+using namespace ev3proto;
+namespace robot = ev3proto::robot;
+
+constexpr BehaviourSpec kBehs[] = {{"wait", 0}, {"drive", robot::kMotors | robot::kTouch}};
+
+struct Rig {
+  Node<>::Config cfg;
+  Node<> node;
+  robot::Runtime rt;
+  robot::RobotLink<Node<>> link;
+  std::vector<std::string> notes, writes;
+
+  static Node<>::Config make_config(bool ev3dev_tree) {
+    Node<>::Config c;
+    c.agent.caps = Capabilities{"A", kBehs, 2, robot::announced_devices(ev3dev_tree)};
+    c.agent.temp_id = 50001;
+    return c;
+  }
+  explicit Rig(bool ev3dev_tree)
+      : cfg(make_config(ev3dev_tree)), node(cfg, 0), rt(robot::RuntimeConfig{}, 0), link(cfg.agent.caps.devices) {}
+
+  void note(const robot::LinkNote& n) {
+    using K = robot::LinkNote::Kind;
+    std::string s;
+    switch (n.kind) {
+      case K::result: s = "result " + std::to_string(static_cast<int>(n.result.outcome)); break;
+      case K::event: s = "event " + std::string(robot::to_string(n.event.kind)); break;
+      case K::report: s = "report"; break;
+      case K::missing: s = "missing " + std::to_string(n.bits); break;
+      case K::control: s = "control " + std::string(to_string(n.control)) + " " + std::string(n.name); break;
+    }
+    notes.push_back(s + (n.taken ? " taken" : ""));
+  }
+  void settle(Millis now) {
+    link.settle(
+        node, rt, now, [](const NodeEvent&) {},
+        [this] {
+          robot::Write w;
+          while (rt.poll_write(w))
+            writes.push_back(std::string(robot::to_string(w.dev)) + "/" + std::string(robot::to_string(w.attr)) +
+                             "=" + std::string(w.value.view()));
+        },
+        [this](const robot::LinkNote& n) { note(n); });
+  }
+  void datagram(const std::string& d, Millis now) {
+    node.handle_datagram(d, 1, now);
+    settle(now);
+  }
+  std::vector<std::string> sent() {
+    std::vector<std::string> out;
+    NodeTransmit t;
+    while (node.poll_transmit(t)) out.push_back(ev3test::symbolic(t.bytes));
+    return out;
+  }
+};
+
+bool has(const std::vector<std::string>& v, const std::string& part) {
+  for (const std::string& s : v)
+    if (s.find(part) != std::string::npos) return true;
+  return false;
+}
+
+TEST(RobotLink, AnnouncesModelADevicesOnlyOnAnEv3devTree) {
+  EXPECT_EQ(robot::announced_devices(true), robot::kModelADevices);
+  EXPECT_EQ(robot::announced_devices(false), 0u);
+}
+
+TEST(RobotLink, DevicesMissingAtStartAreUnpluggedForTheCore) {
+  Rig r(true);  // an ev3dev tree with nothing plugged
+  r.link.first_scan(r.node, r.rt, 0, [&](const robot::LinkNote& n) { r.note(n); });
+  ASSERT_EQ(r.notes.size(), 1u);
+  EXPECT_EQ(r.notes[0], "missing " + std::to_string(robot::kModelADevices) + " taken");
+  r.datagram("1:7:1:2:50001", 10);  // MASTER: id 7
+  EXPECT_TRUE(has(r.sent(), "ACK"));
+  r.datagram("1:7:2:7:wait:seconds=1", 20);  // spec: no behaviour while a device is missing (devOk)
+  EXPECT_TRUE(has(r.sent(), "NOT #"));
+}
+
+TEST(RobotLink, WithoutDevicesWaitRunsToActionOkAndDriveIsRefused) {
+  Rig r(false);  // a PC: no devices announced, none missing
+  r.link.first_scan(r.node, r.rt, 0, [&](const robot::LinkNote& n) { r.note(n); });
+  EXPECT_TRUE(r.notes.empty());
+  r.datagram("1:7:1:2:50001", 10);
+  r.sent();
+  r.datagram("1:7:2:7:drive:speed=100", 20);
+  EXPECT_TRUE(has(r.sent(), "NOT #"));
+  r.datagram("1:7:3:7:wait:seconds=0.5", 30);
+  r.datagram("1:7:4:8", 40);  // START
+  EXPECT_TRUE(has(r.notes, "control start wait"));
+  r.sent();
+  for (Millis t = 40; t <= 600; t += 10) {
+    if (t >= r.rt.next_deadline()) r.rt.tick(t);
+    r.node.advance(t);
+    r.settle(t);
+  }
+  EXPECT_TRUE(has(r.notes, "result 1 taken"));  // Outcome::finished -> action_ok
+  const auto out = r.sent();
+  EXPECT_TRUE(has(out, "ACTION_OK")) << ::testing::PrintToString(out) << ::testing::PrintToString(r.notes);
+}
+
+TEST(RobotLink, BadArgumentFailsAtStartAndBatteryLowSwitchesBothOff) {
+  Rig r(false);
+  r.rt.battery_present(true);
+  r.datagram("1:7:1:2:50001", 10);
+  r.datagram("1:7:2:7:wait:seconds=x", 20);
+  r.datagram("1:7:3:8", 30);  // START: the runtime cannot build the plan
+  EXPECT_TRUE(has(r.sent(), "ACTION_ERR"));
+  std::vector<std::string> out;
+  for (Millis t = 1000; t <= 5000; t += 1000) {
+    r.rt.reading(robot::Dev::battery, robot::Attr::voltage_now, "5900000\n", t);
+    r.rt.tick(t);
+    r.settle(t);
+    for (const std::string& s : r.sent()) out.push_back(s);
+  }
+  EXPECT_TRUE(has(r.notes, "event BATTERY_LOW taken"));
+  EXPECT_TRUE(has(out, "EVENT #")) << (out.empty() ? "" : out.back());
+  EXPECT_TRUE(has(out, "BATTERY_LOW"));
+  EXPECT_TRUE(r.rt.off());
+  EXPECT_EQ(r.node.agent().state(), State::OFF);
+}
+
+}  // namespace
