@@ -1,12 +1,15 @@
 #!/usr/bin/env python3
-"""make demo: a master and three agents on this machine (loopback), narrated.
+"""make demo: a master and three agents on this machine (loopback), each agent running a robot of
+ev3-sim (three model A robots in one world, sim/worlds/arena.txt, one FUSE tree each), narrated.
 
 Phases (each a function):
-  1. sync       ev3-master and three ev3-agent start, all with --election; the fleet syncs (the
-                master's table). The --broadcast lists make a line: agent #1 and agent #3 do not
-                hear each other, agent #2 hears both (and everyone hears the PC)
+  1. sync       ev3-sim, ev3-master and three ev3-agent start, the agents with --election and
+                --sysfs-root on their robot's tree; the fleet syncs (the master's table). The
+                --broadcast lists make a line: agent #1 and agent #3 do not hear each other, agent
+                #2 hears both (and everyone hears the PC)
   2. behaviour  `wait seconds=N` is assigned, started, paused, resumed, stopped; another agent
-                runs one to the end (ACTION_OK); a third... is left ACTIVE
+                runs one to the end (ACTION_OK); then agents #2 and #3 `drive` across the arena
+                until their ultrasonic or bumper stops them (ACTION_INTERR at the master)
   3. master     the master is killed (SIGKILL); the agents fall back (WORKING -> PAUSED -> PANIC,
                 ACTIVE -> PANIC), read from their NDJSON traces
   4. election   the weakest agent (lowest --score: #1) stands first and wins epoch 2; #2 follows it
@@ -16,7 +19,8 @@ Phases (each a function):
                 all`; both followers (#3 through the relay) go WORKING and report ACTION_OK
   6. handover   the PC master comes back with its --state-file: it stands in epoch 3 (score 0),
                 the agent-master steps down and hands the fleet over (HANDOVER)
-Then a summary: the timeline with times, and the NDJSON traces validated by TLC against the spec: the
+Then a summary: the timeline with times, the picture of the robots' paths (ev3-sim's --snapshot,
+written when it stops: build/demo/paths.svg), and the NDJSON traces validated by TLC against the spec: the
 three agents' (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
 docs/spec.md "Election traces"), the master's two runs (`validate --master`: MasterLogic composed
 with Election.tla's rules of the PC, "Election master traces") and the Master core the elected agent
@@ -31,6 +35,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import signal
 import socket
 import subprocess
@@ -43,6 +48,11 @@ SCORES = (1, 20, 40)  # --score of agents #1..#3: the lowest stands first and wi
 # Whom each agent's broadcasts reach besides the PC (indices of agents): #1 and #3 do not hear
 # each other; #2 hears both. The PC's broadcasts reach everyone.
 HEARS = {0: [1], 1: [0, 2], 2: [1]}
+WORLD = Path(__file__).resolve().parents[1] / "sim" / "worlds" / "arena.txt"
+# Start poses (x cm, y cm, heading deg): robot 1 faces the middle box from the west, robot 2 the
+# south-east box, robot 3 the middle box from the north (the agents' ids decide which ones drive).
+POSES = ("60,150,0", "375,25,135", "200,275,-90")
+DRIVE_SPEED = 700  # deg/s of both wheels (model A's large motors: max 1050): about 34 cm/s
 MASTER_SCRIPT = "# run by the agent that wins an election (ev3-agent --master-script)\nwait 2\nbehaviour all wait seconds=2\nstart all\n"
 TYPES = {21: "RELAY_REQ", 22: "RELAY_OFFER", 23: "RELAY_ACCEPT", 24: "RELAY_ROUTE", 25: "RELAY", 26: "RELAY_DROP",
          27: "ELECT", 28: "VOTE", 29: "LEADER", 30: "EPOCH_STALE", 31: "EPOCH_CMD", 32: "HANDOVER"}
@@ -72,6 +82,7 @@ class Demo:
         self.t0 = time.monotonic()
         self.timeline: list[tuple[float, str]] = []
         self.master: subprocess.Popen | None = None
+        self.sim: subprocess.Popen | None = None
         self.agents: list[subprocess.Popen] = []
         self.master_out_pos = 0
         self.last_table = None
@@ -155,13 +166,14 @@ class Demo:
         self.dir.mkdir(parents=True, exist_ok=True)
         for f in self.dir.iterdir():
             if f.is_dir():
-                for g in f.iterdir():
-                    g.unlink()
-                f.rmdir()
+                if os.path.ismount(f):
+                    subprocess.run(["fusermount3", "-u", "-z", str(f)], check=False)
+                shutil.rmtree(f)
             else:
                 f.unlink()
         ports = free_ports(4)
         self.mport, self.aports = ports[0], ports[1:]
+        self.start_sim()
         self.start_master("master.out")
         self.event(f"started ev3-master --election --state-file on 127.0.0.1:{self.mport} (pid {self.master.pid})")
         (self.dir / "master-script.txt").write_text(MASTER_SCRIPT)
@@ -174,13 +186,33 @@ class Demo:
                  "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
                  "--election", "--score", str(SCORES[i]), "--state-dir", str(self.dir / f"state{i + 1}"),
                  "--master-script", str(self.dir / "master-script.txt"),
-                 "--sysfs-root", str(self.dir / "no-sysfs"),
+                 "--sysfs-root", str(self.dir / f"robot{i + 1}"),
                  "--trace", str(self.dir / f"agent{i + 1}.ndjson"), "--log-file", str(self.dir / f"agent{i + 1}.log")],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             self.agents.append(a)
             hears = ", ".join(f"#{j + 1}" for j in HEARS[i])
             self.event(f"started ev3-agent #{i + 1} on 127.0.0.1:{p} (pid {a.pid}), --election --score {SCORES[i]}, "
-                       f"its broadcasts reach the PC and {hears}")
+                       f"--sysfs-root on robot{i + 1}'s tree, its broadcasts reach the PC and {hears}")
+
+    def start_sim(self) -> None:
+        """ev3-sim: the arena with three robots at its start poses, one tree each."""
+        exe = self.bin / "ev3-sim"
+        if not os.path.exists("/dev/fuse"):
+            raise DemoFailed("/dev/fuse is missing: ev3-sim serves the robots' trees through FUSE")
+        cmd = [str(exe), "--world", str(WORLD), "--snapshot", str(self.dir / "paths.svg"),
+               "--status", str(self.dir / "sim-status.json"), "--log-file", str(self.dir / "ev3-sim.log")]
+        for i in range(3):
+            cmd += ["--sysfs-root", str(self.dir / f"robot{i + 1}"), "--name", f"robot{i + 1}", "--robot", POSES[i]]
+        self.sim = subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                                    stderr=open(self.dir / "ev3-sim.err", "wb"))
+        end = time.monotonic() + 10
+        while not all((self.dir / f"robot{i + 1}" / "class" / "tacho-motor").is_dir() for i in range(3)):
+            if self.sim.poll() is not None or time.monotonic() > end:
+                raise DemoFailed("ev3-sim did not mount the robots' trees: "
+                                 + (self.dir / "ev3-sim.err").read_text(errors="replace")[-2000:])
+            time.sleep(0.05)
+        self.event(f"started ev3-sim (pid {self.sim.pid}): {WORLD.name}, robots 1-3 at {', '.join(POSES)}, "
+                   f"trees on {self.dir}/robot1..3")
 
     def start_master(self, out: str) -> None:
         self.master_out, self.master_out_pos = out, 0
@@ -238,7 +270,11 @@ class Demo:
                 a.send_signal(signal.SIGTERM)
         if self.master and self.master.poll() is None:
             self.master.send_signal(signal.SIGTERM)
-        for p in [*self.agents, self.master]:
+        for p in [*self.agents, self.master, "sim", self.sim]:
+            if p == "sim":  # the agents are gone (their LEDs dark): the picture of the paths
+                if self.sim and self.sim.poll() is None:
+                    self.sim.send_signal(signal.SIGTERM)  # writes paths.svg, unmounts the trees
+                continue
             if p is None:
                 continue
             try:
@@ -288,6 +324,43 @@ class Demo:
         self.cmd(f"start {a}")
         self.wait_state(a, "WORKING")
         self.show_table(force=True)
+        _, b, c = self.ids
+        self.heading(f"   agents {b} and {c} drive their robots across the arena (ev3-sim) until something is in the way")
+        for x in (b, c):
+            self.cmd(f"behaviour {x} drive speed={DRIVE_SPEED}")
+            self.cmd(f"start {x}")
+        stopped = {}
+
+        def interrupted(lines):
+            for line in lines:
+                for x in (b, c):
+                    if f"agent {x}: ACTION_INTERR" in line and x not in stopped:
+                        stopped[x] = line.split("ACTION_INTERR", 1)[1].split()[-1]
+                        self.event(f"agent {x}'s robot stopped: {stopped[x]} (ACTION_INTERR; it waits for CONTINUE)")
+                    elif f"agent {x}: ACTION_ERR" in line and x not in stopped:  # e.g. a wheel stalled on a corner
+                        stopped[x] = "ACTION_ERR"
+                        self.event(f"agent {x}'s robot stopped: ACTION_ERR (its log says why; it waits for RESTART)")
+            return len(stopped) == 2
+        self.pump(25, interrupted, f"ACTION_INTERR (or ACTION_ERR) from agents {b} and {c}")
+        self.show_robots()
+
+    def show_robots(self) -> None:
+        """Where ev3-sim's robots are (its status JSON, written on SIGUSR1)."""
+        if not self.sim or self.sim.poll() is not None:
+            return
+        path = self.dir / "sim-status.json"
+        before = path.stat().st_mtime_ns if path.exists() else 0
+        self.sim.send_signal(signal.SIGUSR1)
+        end = time.monotonic() + 2
+        while time.monotonic() < end and (not path.exists() or path.stat().st_mtime_ns == before):
+            time.sleep(0.02)
+        try:
+            robots = json.loads(path.read_text())["robots"]
+        except (OSError, ValueError, KeyError):
+            return
+        for r in robots:
+            print(f"         ev3-sim | {r['name']}: at ({r['x']:.0f}, {r['y']:.0f}) cm heading {r['heading']:.0f} deg, "
+                  f"travelled {r['travelled']:.0f} cm, {r['speed']:.1f} cm/s", flush=True)
 
     def phase_master_lost(self) -> None:
         self.heading("3. the master is killed (SIGKILL): the agents fall back")
@@ -442,6 +515,8 @@ class Demo:
         for t, text in self.timeline:
             print(f"  {t:5.1f}s  {text}")
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
+        svg = self.dir / "paths.svg"
+        print(f"  the robots' paths (ev3-sim --snapshot): {svg}" if svg.exists() else "  no snapshot (ev3-sim did not stop cleanly)")
 
 
 def master_consts(state: dict[str, str]) -> dict:
@@ -508,7 +583,7 @@ def main() -> int:
     ap.add_argument("--bin", type=Path, default=Path(__file__).resolve().parents[1] / "build" / "bin")
     ap.add_argument("--dir", type=Path, default=Path(__file__).resolve().parents[1] / "build" / "demo")
     args = ap.parse_args()
-    for exe in ("ev3-agent", "ev3-master"):
+    for exe in ("ev3-agent", "ev3-master", "ev3-sim"):
         if not (args.bin / exe).is_file():
             print(f"demo: {args.bin / exe} is missing (run make build)", file=sys.stderr)
             return 1
