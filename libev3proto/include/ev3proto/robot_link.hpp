@@ -13,9 +13,11 @@
 ///                    device_plugged(bits), BATTERY_LOW -> battery_low (each of these the core
 ///                    sends to the master as EVENT, name first; see docs/devices.md "Events" for
 ///                    the events it has no spec action for); sensor reports -> sensor_report.
-///  capabilities      the devices the agent announces (announced_devices()); after the device
-///                    layer's first scan, the ones missing are unplugged for the core, which
-///                    then refuses BEHAVIOUR ("missing device", the spec's devOk) until all are back.
+///  capabilities      the devices the agent announces (announced_devices()). The core learns
+///                    which of them are missing when the agent first syncs (ACTIVE): then it
+///                    tells the master (EVENT DEVICE_DISCONNECTED) and refuses BEHAVIOUR ("missing
+///                    device", the spec's devOk) until all are back. Before that there is no master
+///                    to tell, and no BEHAVIOUR can come.
 ///
 /// settle() runs both directions until neither has anything left: a call into the node can give
 /// a control for the runtime (action_interrupted pauses it), a call into the runtime a result for
@@ -61,10 +63,13 @@ class RobotLink {
   /// @p announced: the devices the agent core was configured with (AgentConfig::caps.devices).
   explicit RobotLink(std::uint32_t announced) noexcept : announced_(announced) {}
 
-  /// After the device layer's first scan: the announced devices the runtime has not got are
-  /// unplugged for the core (spec DeviceUnplugged: no EVENT yet, the agent is not synced).
+  /// Once the agent is synced for the first time: the announced devices the runtime has not got
+  /// are unplugged for the core (spec DeviceUnplugged: EVENT DEVICE_DISCONNECTED to the master).
+  /// settle() calls it; until then plug and unplug events are not the core's.
   template <typename Note>
-  void first_scan(NodeT& node, const Runtime& rt, Millis now, Note&& note) {
+  void report_missing(NodeT& node, const Runtime& rt, Millis now, Note&& note) {
+    if (reported_ || !is_synced(node.agent().state())) return;
+    reported_ = true;
     const std::uint32_t missing = announced_ & ~rt.plugged();
     if (missing == 0) return;
     LinkNote n;
@@ -114,11 +119,11 @@ class RobotLink {
       const Event& e = n.event;
       n.taken = false;
       switch (e.kind) {
-        case EventKind::DEVICE_DISCONNECTED:
-          if ((e.bits & announced_) != 0) n.taken = node.device_unplugged(e.bits & announced_, now);
+        case EventKind::DEVICE_DISCONNECTED:  // before the first sync report_missing() says it
+          if (reported_ && (e.bits & announced_) != 0) n.taken = node.device_unplugged(e.bits & announced_, now);
           break;
         case EventKind::DEVICE_CONNECTED:
-          if ((e.bits & announced_) != 0) n.taken = node.device_plugged(e.bits & announced_, now);
+          if (reported_ && (e.bits & announced_) != 0) n.taken = node.device_plugged(e.bits & announced_, now);
           break;
         case EventKind::BATTERY_LOW: n.taken = node.battery_low(now); break;
         default: break;
@@ -153,6 +158,10 @@ class RobotLink {
       }
       write();
       if (drained_something(rt, node, now, note)) any = true;
+      if (!reported_ && is_synced(node.agent().state())) {
+        report_missing(node, rt, now, note);
+        any = true;
+      }
       if (!any) return;
     }
   }
@@ -172,6 +181,7 @@ class RobotLink {
   }
 
   std::uint32_t announced_;
+  bool reported_ = false;  ///< report_missing() done (the agent synced once)
 };
 
 }  // namespace ev3proto::robot

@@ -79,22 +79,25 @@ TEST(RobotLink, AnnouncesModelADevicesOnlyOnAnEv3devTree) {
   EXPECT_EQ(robot::announced_devices(false), 0u);
 }
 
-TEST(RobotLink, DevicesMissingAtStartAreUnpluggedForTheCore) {
+TEST(RobotLink, DevicesMissingAtStartAreToldTheMasterOnceSynced) {
   Rig r(true);  // an ev3dev tree with nothing plugged
-  r.link.first_scan(r.node, r.rt, 0, [&](const robot::LinkNote& n) { r.note(n); });
+  r.settle(0);
+  EXPECT_TRUE(r.notes.empty());  // no master to tell yet
+  r.datagram("1:7:1:2:50001", 10);  // MASTER: id 7
   ASSERT_EQ(r.notes.size(), 1u);
   EXPECT_EQ(r.notes[0], "missing " + std::to_string(robot::kModelADevices) + " taken");
-  r.datagram("1:7:1:2:50001", 10);  // MASTER: id 7
-  EXPECT_TRUE(has(r.sent(), "ACK"));
+  const auto out = r.sent();
+  EXPECT_TRUE(has(out, "ACK"));
+  EXPECT_TRUE(has(out, "EVENT #")) << ::testing::PrintToString(out);
+  EXPECT_TRUE(has(out, "DEVICE_DISCONNECTED"));
   r.datagram("1:7:2:7:wait:seconds=1", 20);  // spec: no behaviour while a device is missing (devOk)
   EXPECT_TRUE(has(r.sent(), "NOT #"));
 }
 
 TEST(RobotLink, WithoutDevicesWaitRunsToActionOkAndDriveIsRefused) {
   Rig r(false);  // a PC: no devices announced, none missing
-  r.link.first_scan(r.node, r.rt, 0, [&](const robot::LinkNote& n) { r.note(n); });
-  EXPECT_TRUE(r.notes.empty());
   r.datagram("1:7:1:2:50001", 10);
+  EXPECT_TRUE(r.notes.empty());
   r.sent();
   r.datagram("1:7:2:7:drive:speed=100", 20);
   EXPECT_TRUE(has(r.sent(), "NOT #"));

@@ -219,24 +219,29 @@ def press_tick(sim: Sim, press: float):
 
 
 def test_unplugged_motor_and_low_battery_reach_the_master(sim_factory, fleet, agent_exe):
-    """A motor unplugged while driving: the drive stops, EVENT DEVICE_DISCONNECTED at the master,
+    """The colour sensor missing at start: EVENT DEVICE_DISCONNECTED once synced, DEVICE_CONNECTED when
+    plugged. A motor unplugged while driving: the drive stops, EVENT DEVICE_DISCONNECTED at the master,
     BEHAVIOUR drive refused (missing device); plugged back: EVENT DEVICE_CONNECTED. Then the battery
     drops below 6.2 V: EVENT BATTERY_LOW at the master, motors stopped, the agent exits 0."""
     sim = sim_factory(OPEN)
+    sim.ctl("unplug in3")  # the colour sensor is missing at start: the master hears it once synced
     fleet.start_master()
     a = fleet.start_agent(agent_exe, sim.root())
     wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED")
+    sim.ctl("replug in3")
+    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED", 4)
     fleet.say("behaviour 2 drive speed=300")
     fleet.say("start 2")
     wait_until(lambda: driving(sim), 3, "driving")
     sim.ctl("unplug outC")
-    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED")
+    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED(.|\n)*EVENT DEVICE_DISCONNECTED")
     wait_until(lambda: stopped(sim), 1, "the other motor stopped")
     wait_until(lambda: fleet.agent_state("ACTIVE"), 3, "back to ACTIVE (behaviour unloaded)")
     fleet.say("behaviour 2 drive speed=300")
     fleet.heard(r"BEHAVIOUR refused \(NOT\): missing")
     sim.ctl("replug outC")
-    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED", 4)
+    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED(.|\n)*EVENT DEVICE_CONNECTED", 4)
     sim.ctl("battery 5.9")
     fleet.heard(r"agent 2: EVENT BATTERY_LOW", 8)
     wait_until(lambda: a.proc.poll() is not None, 3, "the agent to exit after BATTERY_LOW")
