@@ -167,6 +167,11 @@ class RobotLink {
   }
 
   std::uint32_t announced() const noexcept { return announced_; }
+  /// True once BATTERY_LOW went through both: the runtime stopped the motors and starts nothing,
+  /// the core sent EVENT BATTERY_LOW and is OFF. The program exits cleanly then.
+  static bool shut_down(const NodeT& node, const Runtime& rt) noexcept {
+    return rt.off() && node.agent().state() == State::OFF;
+  }
 
  private:
   template <typename Note>

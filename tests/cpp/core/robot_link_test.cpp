@@ -119,6 +119,7 @@ TEST(RobotLink, BadArgumentFailsAtStartAndBatteryLowSwitchesBothOff) {
   Rig r(false);
   r.rt.battery_present(true);
   r.datagram("1:7:1:2:50001", 10);
+  EXPECT_FALSE(robot::RobotLink<Node<>>::shut_down(r.node, r.rt));
   r.datagram("1:7:2:7:wait:seconds=x", 20);
   r.datagram("1:7:3:8", 30);  // START: the runtime cannot build the plan
   EXPECT_TRUE(has(r.sent(), "ACTION_ERR"));
@@ -134,6 +135,7 @@ TEST(RobotLink, BadArgumentFailsAtStartAndBatteryLowSwitchesBothOff) {
   EXPECT_TRUE(has(out, "BATTERY_LOW"));
   EXPECT_TRUE(r.rt.off());
   EXPECT_EQ(r.node.agent().state(), State::OFF);
+  EXPECT_TRUE(robot::RobotLink<Node<>>::shut_down(r.node, r.rt));
 }
 
 }  // namespace
