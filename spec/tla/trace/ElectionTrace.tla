@@ -81,7 +81,8 @@ FwdMsg(m, s) == IF m.tgt = s.leader THEN [m EXCEPT !.x = m.src] ELSE [m EXCEPT !
 \* The agent's Election step for record r from s (its id me, its score sv): the set of new local
 \* states, empty when the action is not enabled on the agent's own state.  A receive handler not
 \* enabled there must be a stutter (the core answering a copy again: a VOTE re-sent, a LEADER of
-\* the master it follows).
+\* the master it follows), except AcceptRelay and HandlePreVote, which the core takes only where
+\* Election enables them (an older offer, a PREVOTE_OK already counted: Ignore).
 IfOk(ok, s2) == IF ok THEN {s2} ELSE {}
 ElSteps(r, s, me, sv) ==
     LET m == r.em IN
@@ -92,9 +93,9 @@ ElSteps(r, s, me, sv) ==
       [] r.a = "Forward" -> IfOk(E!ForwardOk(me, s, FwdMsg(m, s)), s)
       [] r.a = "OfferRelay" -> {IF E!OfferRelayOk(me, s, m) THEN E!OfferRelayNext(s, m) ELSE s}
       [] r.a = "HandleAccept" -> {IF E!HandleAcceptOk(me, s, m) THEN E!HandleAcceptNext(s, m) ELSE s}
-      [] r.a = "AcceptRelay" -> {IF E!AcceptRelayOk(me, s, m) THEN E!AcceptRelayNext(s, m) ELSE s}
+      [] r.a = "AcceptRelay" -> IfOk(E!AcceptRelayOk(me, s, m), E!AcceptRelayNext(s, m))
       [] r.a = "RelayDropped" -> {IF E!RelayDroppedOk(me, s, m) THEN E!RelayDroppedNext(s) ELSE s}
-      [] r.a = "HandlePreVote" -> {IF E!HandlePreVoteOk(me, s, m) THEN E!HandlePreVoteNext(s, m) ELSE s}
+      [] r.a = "HandlePreVote" -> IfOk(E!HandlePreVoteOk(me, s, m), E!HandlePreVoteNext(s, m))
       [] r.a = "HandleElect" ->
            {IF E!HandleElectOk(me, s, m, m.sc, sv) THEN E!HandleElectNext(me, s, m, m.sc, sv) ELSE s}
       [] r.a = "HandleVote" -> {IF E!HandleVoteOk(me, s, m) THEN E!HandleVoteNext(s, m) ELSE s}
