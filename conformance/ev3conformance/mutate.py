@@ -398,10 +398,12 @@ def election_scripts() -> dict[str, list[dict]]:
             rx("9->0 RELAY_REQ #5 1 30"), rx("9->7 RELAY_ACCEPT #6 1 1"),
             rx("1->7 BEHAVIOUR #22 wait"), rx("1->7 START #23"), rx("8->0 LEADER #5 1 8 7 8 9"), adv(100),
         ],
-        # A candidate among five: a VOTE copy and a stranger's VOTE do not count, a relay offer is
+        # A candidate among five: a second PREVOTE_OK of a peer (another msgid, so no copy window can
+        # hide it) is not counted, a VOTE copy and a stranger's VOTE do not count, a relay offer is
         # not for a candidate; the third vote wins.
         "candidate": [cfg, adv(100), rx("1->7 MASTER #20 50001"), rx("1->0 LEADER #21 1 1 7 8 9 10 11"),
-                      adv(300), rx("8->7 PREVOTE_OK #2 1"), rx("9->7 PREVOTE_OK #2 1"), adv(400),
+                      adv(300), rx("8->7 PREVOTE_OK #2 1"), rx("8->7 PREVOTE_OK #4 1"),
+                      rx("9->7 PREVOTE_OK #2 1"), adv(400),
                       rx("8->7 VOTE #3 2 7"), rx("8->7 VOTE #3 2 7"), rx("12->7 VOTE #1 2 7"),
                       rx("10->7 RELAY_OFFER #3 2 9"), rx("9->7 VOTE #3 2 7"), adv(100)],
     }
