@@ -12,12 +12,7 @@
 #include "ev3proto/behaviour/parser.hpp"
 #include "ev3proto/behaviour/print.hpp"
 
-#if defined(__cpp_exceptions) || defined(__EXCEPTIONS)
-#error "this file must be compiled with -fno-exceptions"
-#endif
-#if defined(__cpp_rtti) || defined(__GXX_RTTI)
-#error "this file must be compiled with -fno-rtti"
-#endif
+#include "../firmware_check.hpp"
 
 namespace {
 [[noreturn]] void heap_used() {
@@ -34,14 +29,6 @@ void operator delete(void*) noexcept {}
 void operator delete[](void*) noexcept {}
 void operator delete(void*, std::size_t) noexcept {}
 void operator delete[](void*, std::size_t) noexcept {}
-
-#define CHECK(cond)                                                                 \
-  do {                                                                              \
-    if (!(cond)) {                                                                  \
-      std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-      return 1;                                                                     \
-    }                                                                               \
-  } while (0)
 
 using namespace ev3proto::behaviour;
 

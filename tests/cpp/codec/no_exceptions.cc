@@ -11,12 +11,7 @@
 #include "ev3proto/messages.hpp"
 #include "ev3proto/wire.hpp"
 
-#if defined(__cpp_exceptions) || defined(__EXCEPTIONS)
-#error "this file must be compiled with -fno-exceptions"
-#endif
-#if defined(__cpp_rtti) || defined(__GXX_RTTI)
-#error "this file must be compiled with -fno-rtti"
-#endif
+#include "../firmware_check.hpp"
 
 namespace {
 long g_news = 0;  // single-threaded: a plain counter
@@ -32,14 +27,6 @@ __attribute__((noinline)) void* operator new(std::size_t n) {
 }
 __attribute__((noinline)) void operator delete(void* p) noexcept { std::free(p); }
 __attribute__((noinline)) void operator delete(void* p, std::size_t) noexcept { std::free(p); }
-
-#define CHECK(cond)                                                    \
-  do {                                                                 \
-    if (!(cond)) {                                                     \
-      std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-      return 1;                                                        \
-    }                                                                  \
-  } while (0)
 
 int main() {
   using namespace ev3proto;

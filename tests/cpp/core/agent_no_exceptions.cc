@@ -7,20 +7,7 @@
 
 #include "ev3proto/agent.hpp"
 
-#if defined(__cpp_exceptions) || defined(__EXCEPTIONS)
-#error "this file must be compiled with -fno-exceptions"
-#endif
-#if defined(__cpp_rtti) || defined(__GXX_RTTI)
-#error "this file must be compiled with -fno-rtti"
-#endif
-
-#define CHECK(cond)                                                                  \
-  do {                                                                               \
-    if (!(cond)) {                                                                   \
-      std::fprintf(stderr, "%s:%d: check failed: %s\n", __FILE__, __LINE__, #cond); \
-      return 1;                                                                      \
-    }                                                                                \
-  } while (0)
+#include "../firmware_check.hpp"
 
 namespace {
 using namespace ev3proto;
