@@ -30,10 +30,7 @@
 
 namespace {
 
-using ev3io::kDebug;
-using ev3io::kError;
-using ev3io::kInfo;
-using ev3io::kVerbose;
+using namespace ev3io::levels;
 using ev3proto::Millis;
 
 using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;

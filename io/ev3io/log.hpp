@@ -12,8 +12,11 @@ namespace ev3io {
 
 using ev3proto::Millis;
 
-/// Log levels (`--log-level`): a message is written when its level <= the configured one.
+/// Log levels (`--log-level`): a message is written when its level <= the configured one. A program
+/// takes them all with `using namespace ev3io::levels;`.
+inline namespace levels {
 enum Level : int { kNone = 0, kError = 1, kInfo = 2, kDebug = 3, kVerbose = 4 };
+}  // namespace levels
 
 /// A buffered line logger. Lines: `[   12.345] I agent: text` (seconds since start).
 class Logger {

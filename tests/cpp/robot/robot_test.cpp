@@ -17,21 +17,7 @@
 #include "ev3proto/robot/runtime.hpp"
 #include "fixtures.hpp"
 
-// Replacing the global allocation functions with malloc/free is exactly what this test wants.
-#pragma GCC diagnostic ignored "-Wmismatched-new-delete"
-
-namespace {
-std::atomic<long> g_news{0};
-}  // namespace
-
-// Counts every allocation of the test binary (the runtime must make none).
-void* operator new(std::size_t n) {
-  g_news.fetch_add(1, std::memory_order_relaxed);
-  if (void* p = std::malloc(n ? n : 1)) return p;
-  throw std::bad_alloc();
-}
-void operator delete(void* p) noexcept { std::free(p); }
-void operator delete(void* p, std::size_t) noexcept { std::free(p); }
+#include "../count_new.hpp"  // g_news: every allocation of this test binary
 
 namespace {
 using namespace ev3proto::robot;
