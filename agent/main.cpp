@@ -342,10 +342,17 @@ class Program {
       }
     }
     ev3proto::OperatorEvent oe;
+    std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (node_->poll_operator_event(oe)) {
       const std::string addr = ev3prog::agent_address(node_->master()->registry(), oe.agent, net_);
       log_.log(kInfo, "master: %s", view_.on_event(oe, addr, now).c_str());
+      if (auto r = view_.follow_rules(oe, node_->master()->registry())) ruled.push_back(std::move(*r));
     }
+    for (const ev3prog::FleetView::RuleCommand& r : ruled) {
+      log_.log(kInfo, "master: %s", r.say.c_str());
+      node_->command(r.agent, r.command, now);
+    }
+    if (!ruled.empty()) pump(now);
   }
 
   void on_event(const ev3proto::NodeEvent& e, Millis now) {
@@ -471,7 +478,7 @@ class Program {
     while (node_->master() != nullptr && node_->master()->role() == ev3proto::MasterRole::master &&
            script_.next(now, line)) {
       ev3prog::ConsoleCommand c;
-      const std::string err = ev3prog::parse_console_line(line, c);
+      const std::string err = ev3prog::console_command(line, c);
       using K = ev3prog::ConsoleCommand::Kind;
       if (!err.empty()) {
         log_.log(kError, "master script: %s", err.c_str());
@@ -479,6 +486,8 @@ class Program {
         log_.log(kInfo, "master script> %s", line.c_str());
         node_->command(c.agent, c.command, now);
         pump(now);
+      } else if (c.kind == K::rule) {
+        log_.log(kInfo, "master script: %s", view_.set_rule(c).c_str());
       } else if (c.kind == K::list) {
         for (const std::string& l : view_.table(node_->master()->registry(), drops_, now))
           log_.log(kInfo, "master: %s", l.c_str());

@@ -160,10 +160,17 @@ class Program {
       net_.send(*ep, t.bytes, now);
     }
     ev3proto::OperatorEvent e;
+    std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (master_->poll_event(e)) {
       say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, net_), now));
+      if (auto r = view_.follow_rules(e, master_->registry())) ruled.push_back(std::move(*r));
       dirty_ = true;
     }
+    for (const ev3prog::FleetView::RuleCommand& r : ruled) {
+      say(r.say);
+      master_->command(r.agent, r.command, now);
+    }
+    if (!ruled.empty()) pump(now);
     if (dirty_ && tty_) {
       redraw(now);
       dirty_ = false;
@@ -195,7 +202,7 @@ class Program {
 
   void handle_line(const std::string& line, bool script, Millis now) {
     ev3prog::ConsoleCommand c;
-    const std::string err = ev3prog::parse_console_line(line, c);
+    const std::string err = ev3prog::console_command(line, c);
     if (!err.empty()) {
       say("error: " + err);
       return;
@@ -208,6 +215,7 @@ class Program {
         for (const std::string& l : view_.table(master_->registry(), drops_, now)) say(l);
         return;
       case K::quit: say("quit"); quit_ = true; return;
+      case K::rule: say(view_.set_rule(c)); return;
       case K::wait:
         if (!script) say("error: wait is for scripts (--script)");
         return;

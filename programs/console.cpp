@@ -2,7 +2,9 @@
 
 #include <cstdio>
 
+#include <ev3proto/behaviour/request.hpp>
 #include <ev3proto/json.hpp>
+#include <ev3proto/rules.hpp>
 
 #include "ev3io/cli.hpp"
 
@@ -49,8 +51,10 @@ std::string pad(std::string s, std::size_t n) {
 }  // namespace
 
 std::string console_help() {
-  return "commands: list | behaviour ID|all NAME [key=value ...] | start|stop|pause|resume|standby|"
-         "continue|restart ID|all | wait SECONDS (scripts) | help | quit";
+  return "commands: list | behaviour ID|all NAME [key=value ...] | behaviour ID|all custom @FILE.bhv "
+         "[key=value ...] | start|stop|pause|resume|standby|continue|restart ID|all | "
+         "rule explore-exploit COLOUR [key=value ...] | rule explore-exploit off | wait SECONDS (scripts) | "
+         "help | quit";
 }
 
 std::string parse_console_line(std::string_view line, ConsoleCommand& out) {
@@ -89,8 +93,15 @@ std::string parse_console_line(std::string_view line, ConsoleCommand& out) {
     if (!parse_id(w[1], out.agent))
       return "bad agent id '" + std::string(w[1]) + "' (expected a number or all)";
     if (w[2].size() > 32) return "bad argument: behaviour name longer than 32 bytes";
+    std::size_t first = 3;
+    if (w[2] == ev3proto::behaviour::kCustom) {
+      if (w.size() < 4 || w[3].size() < 2 || w[3][0] != '@')
+        return "bad argument: custom takes @FILE.bhv (the definition's file) [key=value ...]";
+      out.file = std::string(w[3].substr(1));
+      first = 4;
+    }
     std::vector<std::string> args;
-    for (std::size_t i = 3; i < w.size(); ++i) {
+    for (std::size_t i = first; i < w.size(); ++i) {
       const std::size_t eq = w[i].find('=');
       if (eq == std::string_view::npos || eq == 0)
         return "bad argument '" + std::string(w[i]) + "' (expected key=value)";
@@ -101,7 +112,30 @@ std::string parse_console_line(std::string_view line, ConsoleCommand& out) {
     out.command = ev3proto::Command::assign(std::string(w[2]), std::move(args));
     return {};
   }
+  if (cmd == "rule") {
+    if (w.size() < 3 || w[1] != "explore-exploit")
+      return "bad argument: rule takes explore-exploit COLOUR [key=value ...] or explore-exploit off";
+    out.kind = ConsoleCommand::Kind::rule;
+    if (w[2] == "off") {
+      if (w.size() != 3) return "bad argument: rule explore-exploit off takes nothing more";
+      return {};
+    }
+    ev3proto::ExploreExploit probe;
+    if (std::string e = probe.switch_on(w[2]); !e.empty()) return "bad argument: " + e;
+    out.colour = std::string(w[2]);
+    for (std::size_t i = 3; i < w.size(); ++i) {
+      if (w[i].find('=') == std::string_view::npos || w[i][0] == '=')
+        return "bad argument '" + std::string(w[i]) + "' (expected key=value)";
+      out.rule_args.emplace_back(w[i]);
+    }
+    return {};
+  }
   return "unknown command '" + std::string(cmd) + "' (" + console_help() + ")";
+}
+
+std::string console_command(std::string_view line, ConsoleCommand& out) {
+  std::string err = parse_console_line(line, out);
+  return err.empty() ? prepare_behaviour(out) : err;
 }
 
 std::string state_text(const ev3proto::RegistryEntry& e) {
@@ -124,12 +158,15 @@ std::string FleetView::on_event(const ev3proto::OperatorEvent& e, const std::str
       return who + " registered (announced " + e.text + ") at " + address;
     case Kind::acked:
       info->action = cmd + " acked";
+      info->answer = info->action;
       return who + ": " + cmd + " acknowledged (ACK)";
     case Kind::refused:
       info->action = cmd + " refused";
+      info->answer = info->action;
       return who + ": " + cmd + " refused (NOT): " + e.text;
     case Kind::timed_out:
       info->action = cmd + " timed out";
+      info->answer = info->action;
       return who + ": " + cmd + " timed out (no answer)";
     case Kind::unknown_agent: return "error: unknown agent id " + std::to_string(e.agent);
     case Kind::dropped:
@@ -150,6 +187,10 @@ std::string FleetView::on_event(const ev3proto::OperatorEvent& e, const std::str
         return who + " is leaving (EVENT LEAVING)";
       }
       info->action = cmd + (t.empty() ? "" : " " + t);
+      info->report = info->action;
+      info->report_at = now;
+      if (e.command == MsgType::ACTION_OK || e.command == MsgType::ACTION_INTERR || e.command == MsgType::ACTION_ERR)
+        info->step = e.text.substr(0, e.text.find(':'));
       return who + ": " + cmd + (t.empty() ? "" : " " + t);
     }
   }
@@ -160,7 +201,7 @@ std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto
                                           const Counters& drops, Millis now) const {
   std::vector<std::string> t;
   t.push_back(pad("ID", 6) + pad("ADDRESS", 22) + pad("STATE", 9) + pad("HEARD", 10) + pad("BEHAVIOUR", 11) +
-              pad("ACTION", 22) + "BATTERY");
+              pad("STEP", 12) + pad("LAST REPORT", 46) + pad("COMMAND", 20) + "BATTERY");
   for (const auto& kv : reg) {
     const ev3proto::RegistryEntry& e = kv.second;
     auto it = info_.find(kv.first);
@@ -168,8 +209,9 @@ std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto
     const AgentInfo& i = it == info_.end() ? empty : it->second;
     t.push_back(pad(std::to_string(kv.first), 6) + pad(i.address, 22) + pad(state_text(e), 9) +
                 pad(fmt_age(now > e.heard ? now - e.heard : 0), 10) +
-                pad(e.behaviour.empty() ? "-" : e.behaviour, 11) + pad(i.action.empty() ? "-" : i.action, 22) +
-                i.battery);
+                pad(e.behaviour.empty() ? "-" : e.behaviour, 11) + pad(i.step, 12) +
+                pad(i.report == "-" ? "-" : i.report + " (" + fmt_age(now - i.report_at) + ")", 46) +
+                pad(i.answer, 20) + i.battery);
   }
   if (reg.empty()) t.push_back("(no agents yet)");
   std::string d = "drops:";
@@ -203,6 +245,8 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
          ",\"last_heard_ms_ago\":" + std::to_string(now > e.heard ? now - e.heard : 0) +
          ",\"behaviour\":" + (e.behaviour.empty() ? std::string("null") : ev3proto::json_quote(e.behaviour)) +
          ",\"action\":" + ev3proto::json_quote(i.action.empty() ? "-" : i.action) +
+         ",\"step\":" + (i.step == "-" ? std::string("null") : ev3proto::json_quote(i.step)) +
+         ",\"last_report\":" + (i.report == "-" ? std::string("null") : ev3proto::json_quote(i.report)) +
          ",\"battery\":" + (i.battery == "-" ? std::string("null") : ev3proto::json_quote(i.battery)) +
          ",\"pending\":" + ev3proto::json_quote(e.job()) + ",\"queued\":" + std::to_string(e.queue.size()) + "}";
   }
@@ -222,6 +266,36 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
     s += ev3proto::json_quote(kv.first) + ":" + std::to_string(kv.second);
   }
   return s + "}}";
+}
+
+std::string FleetView::set_rule(const ConsoleCommand& c) {
+  if (c.colour.empty()) {
+    explore_exploit_.switch_off();
+    switched_.clear();
+    return "rule explore-exploit off";
+  }
+  const std::string err = explore_exploit_.switch_on(c.colour, c.rule_args);
+  if (!err.empty()) return "error: " + err;
+  std::string args;
+  for (const std::string& a : c.rule_args) args += " " + a;
+  return "rule explore-exploit on: an exploring robot whose colour sensor reports " + c.colour +
+         " gets behaviour exploit colour=" + c.colour + args;
+}
+
+std::optional<FleetView::RuleCommand> FleetView::follow_rules(
+    const ev3proto::OperatorEvent& e, const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg) {
+  const auto it = reg.find(e.agent);
+  if (it == reg.end()) return std::nullopt;
+  if (it->second.behaviour != "explore") switched_.erase(e.agent);  // a robot told to explore again
+  if (switched_.count(e.agent) != 0) return std::nullopt;           // sent, not acknowledged yet
+  std::optional<ev3proto::Command> c = explore_exploit_.on_report(e, it->second);
+  if (!c) return std::nullopt;
+  switched_.insert(e.agent);
+  std::string args;
+  for (const std::string& a : c->args) args += " " + a;
+  return RuleCommand{e.agent, std::move(*c),
+                     "rule explore-exploit: agent " + std::to_string(e.agent) + " is on " +
+                         explore_exploit_.colour() + ": behaviour " + std::to_string(e.agent) + " exploit" + args};
 }
 
 }  // namespace ev3prog

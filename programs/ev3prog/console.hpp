@@ -6,11 +6,14 @@
 
 #include <cstdint>
 #include <map>
+#include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
 
 #include <ev3proto/master.hpp>
+#include <ev3proto/rules.hpp>
 
 namespace ev3prog {
 
@@ -18,16 +21,30 @@ using ev3proto::Millis;
 
 /// One parsed console line.
 struct ConsoleCommand {
-  enum class Kind { none, help, list, send, wait, quit } kind = Kind::none;
+  enum class Kind { none, help, list, send, wait, quit, rule } kind = Kind::none;
   std::uint16_t agent = 0;  ///< send: the agent id, 0 = all
   ev3proto::Command command;
+  std::string file;         ///< send of `behaviour ID custom @FILE`: the definition's file (not read yet)
   double seconds = 0;       ///< wait
+  std::string colour;       ///< rule: explore-exploit's colour ("" = switch it off)
+  std::vector<std::string> rule_args;  ///< rule: key=value for BEHAVIOUR exploit
 };
 
-/// Parses one console line ("behaviour 2 wait seconds=3", "pause all", "wait 1.5", "quit").
+/// Parses one console line ("behaviour 2 wait seconds=3", "behaviour 2 custom @spiral.bhv",
+/// "pause all", "rule explore-exploit red", "wait 1.5", "quit"), without reading any file.
 /// Empty lines and lines starting with '#' are Kind::none. Returns "" or the error (unknown
 /// command, bad agent id, bad argument).
 std::string parse_console_line(std::string_view line, ConsoleCommand& out);
+
+/// A BEHAVIOUR command made ready to send: a `custom @FILE` definition read from its file and put in
+/// its compact form (the first param), and every behaviour, built-in or custom, checked as a robot of
+/// model A with all its devices checks it on receipt (ev3proto/behaviour/request.hpp). Other commands
+/// are left alone. Returns "" or the error, with the file and the place
+/// ("spiral.bhv: line 4 col 12: unknown action 'trun' (...)").
+std::string prepare_behaviour(ConsoleCommand& c);
+
+/// parse_console_line() then prepare_behaviour(): what the programs run on an operator's line.
+std::string console_command(std::string_view line, ConsoleCommand& out);
 
 /// The console's help text.
 std::string console_help();
@@ -35,7 +52,12 @@ std::string console_help();
 /// What the operator sees of one agent besides the core's registry entry.
 struct AgentInfo {
   std::string address;   ///< "127.0.0.1:40001"
-  std::string action;    ///< Last command answer or report ("START acked", "ACTION_OK 0").
+  std::string action;    ///< Last command answer or report ("START acked", "ACTION_OK forward").
+  std::string step = "-";  ///< The action id of the last ACTION_OK / ACTION_INTERR / ACTION_ERR: where
+                           ///< the behaviour is ("forward"; "-" before the first).
+  std::string answer = "-";  ///< The last command answer ("START acked", "BEHAVIOUR refused")
+  std::string report = "-";  ///< The last report ("SENSOR_VALUE in3 COL-COLOR 5")
+  Millis report_at = 0;      ///< when it came
   std::string battery = "-";  ///< From EVENT BATTERY* (else "-").
 };
 
@@ -66,9 +88,24 @@ class FleetView {
   std::map<std::uint16_t, AgentInfo>& info() { return info_; }
   const std::vector<LostAgent>& lost() const { return lost_; }
 
+  /// `rule explore-exploit ...` (Kind::rule): switches the rule on or off; the line for the operator.
+  std::string set_rule(const ConsoleCommand& c);
+
+  /// What the rules want sent after operator event @p e (ExploreExploit: an exploring robot saw the
+  /// colour): the agent, the command and a line for the operator; nothing when no rule fires.
+  struct RuleCommand {
+    std::uint16_t agent = 0;
+    ev3proto::Command command;
+    std::string say;
+  };
+  std::optional<RuleCommand> follow_rules(const ev3proto::OperatorEvent& e,
+                                          const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg);
+
  private:
   std::map<std::uint16_t, AgentInfo> info_;
   std::vector<LostAgent> lost_;
+  ev3proto::ExploreExploit explore_exploit_;
+  std::set<std::uint16_t> switched_;  ///< agents the rule sent exploit to, until they explore no more
 };
 
 /// The state column of an entry: SYNCING until it ACKs MASTER, then the state of its last PING

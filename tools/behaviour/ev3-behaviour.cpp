@@ -16,6 +16,7 @@
 #include "ev3proto/behaviour/dot.hpp"
 #include "ev3proto/behaviour/parser.hpp"
 #include "ev3proto/behaviour/print.hpp"
+#include "ev3proto/behaviour/request.hpp"
 #include "ev3proto/wire.hpp"
 
 namespace {
@@ -65,12 +66,10 @@ std::string text_of(const Diagnostic& d) {
   return std::string(t.view());
 }
 
-// The size of a BEHAVIOUR custom datagram carrying @p text, with the longest header (msgid 2^32-1).
+// The size of a BEHAVIOUR custom datagram carrying @p text (0: too big).
 std::size_t datagram_size(std::string_view text) {
-  const std::string_view params[] = {"custom", text};
   static char buf[ev3proto::kMaxDatagram];
-  const ev3proto::EncodeResult r = ev3proto::encode_parts(1, 49999, 4294967295u, 7, params, 2, buf, sizeof buf);
-  return r.ok() ? r.size : 0;
+  return custom_datagram_size(text, buf);
 }
 
 bool device_named(std::string_view n, Device& d) {

@@ -225,6 +225,117 @@ std::string temp_path(const char* name) {
   return std::string(dir != nullptr ? dir : "/tmp") + "/ev3prog_" + std::to_string(getpid()) + "_" + name;
 }
 
+void write_file(const std::string& path, const char* text) {
+  std::FILE* f = std::fopen(path.c_str(), "w");
+  ASSERT_NE(f, nullptr);
+  std::fputs(text, f);
+  std::fclose(f);
+}
+
+TEST(Console, CustomBehaviourFromAFileIsCheckedAndSentCompact) {
+  const std::string path = temp_path("spin.bhv");
+  write_file(path,
+             "# spin: turn on the spot, forever\n"
+             "behaviour spin\n"
+             "param angle = 90\n"
+             "state turning = turn $angle speed=200 -> turning   # again\n"
+             "on OBSTACLE_DETECTED, PROXIMITY_ALERT -> end\n");
+  ev3prog::ConsoleCommand c;
+  ASSERT_EQ(ev3prog::console_command("behaviour 3 custom @" + path + " angle=45", c), "");
+  EXPECT_EQ(c.kind, ev3prog::ConsoleCommand::Kind::send);
+  EXPECT_EQ(c.command.name, "custom");
+  ASSERT_EQ(c.command.args.size(), 2u);
+  EXPECT_EQ(c.command.args[1], "angle=45");
+  const std::string& sent = c.command.args[0];
+  EXPECT_EQ(sent.find('#'), std::string::npos) << sent;   // no comments on the wire
+  EXPECT_EQ(sent.find('\n'), std::string::npos) << sent;  // one line
+  EXPECT_NE(sent.find("behaviour spin"), std::string::npos) << sent;
+
+  // A definition that does not parse is refused at the console, with the file and the place.
+  write_file(path, "behaviour spin\nstate turning = trun 90 -> turning\n");
+  std::string err = ev3prog::console_command("behaviour 3 custom @" + path, c);
+  EXPECT_EQ(err.rfind("refused before sending: " + path + ": line 2 col 17: unknown action 'trun'", 0), 0u) << err;
+  // One that parses but does not check: a moving state without a reaction to a bump.
+  write_file(path, "behaviour spin\nstate turning = turn 90 speed=200 -> turning\n");
+  err = ev3prog::console_command("behaviour 3 custom @" + path, c);
+  EXPECT_NE(err.find(path + ": line 2"), std::string::npos) << err;
+  EXPECT_NE(err.find("OBSTACLE_DETECTED"), std::string::npos) << err;
+  std::remove(path.c_str());
+  EXPECT_EQ(ev3prog::console_command("behaviour 3 custom @" + path, c), "cannot read " + path + ": no such file");
+  EXPECT_NE(ev3prog::parse_console_line("behaviour 3 custom spin.bhv", c).find("custom takes @FILE.bhv"),
+            std::string::npos);
+}
+
+TEST(Console, BuiltinBehavioursAreCheckedBeforeSending) {
+  ev3prog::ConsoleCommand c;
+  EXPECT_EQ(ev3prog::console_command("behaviour all explore speed=300 angle=90", c), "");
+  EXPECT_EQ(c.command.args.size(), 2u);  // a built-in travels by name
+  std::string err = ev3prog::console_command("behaviour 2 explore speed=5000", c);
+  EXPECT_EQ(err.rfind("refused before sending: behaviour explore: ", 0), 0u) << err;
+  EXPECT_NE(err.find("speed"), std::string::npos) << err;
+  err = ev3prog::console_command("behaviour 2 explore sped=300", c);
+  EXPECT_NE(err.find("unknown param 'sped'"), std::string::npos) << err;
+  err = ev3prog::console_command("behaviour 2 fly", c);
+  EXPECT_NE(err.find("unknown behaviour 'fly' (built-ins: "), std::string::npos) << err;
+}
+
+TEST(Console, ExploreExploitRule) {
+  ev3prog::ConsoleCommand c;
+  EXPECT_NE(ev3prog::parse_console_line("rule explore-exploit purple", c).find("unknown colour 'purple'"),
+            std::string::npos);
+  EXPECT_NE(ev3prog::parse_console_line("rule fly red", c).find("rule takes explore-exploit"), std::string::npos);
+  ASSERT_EQ(ev3prog::parse_console_line("rule explore-exploit red speed=200", c), "");
+  EXPECT_EQ(c.kind, ev3prog::ConsoleCommand::Kind::rule);
+  ev3prog::FleetView v;
+  std::map<std::uint16_t, ev3proto::RegistryEntry> reg;
+  reg[2].id = 2;
+  reg[2].behaviour = "explore";
+  reg[3].id = 3;
+  reg[3].behaviour = "drive";
+  using K = ev3proto::OperatorEvent::Kind;
+  using ev3proto::MsgType;
+  const ev3proto::OperatorEvent red{K::report, 2, MsgType::SENSOR_VALUE, "in3:COL-COLOR:5"};
+  EXPECT_FALSE(v.follow_rules(red, reg)) << "the rule is off until switched on";
+  EXPECT_NE(v.set_rule(c).find("on"), std::string::npos);
+  // Not the colour, not the colour mode, not exploring: nothing.
+  EXPECT_FALSE(v.follow_rules({K::report, 2, MsgType::SENSOR_VALUE, "in3:COL-COLOR:3"}, reg));
+  EXPECT_FALSE(v.follow_rules({K::report, 2, MsgType::SENSOR_VALUE, "in3:COL-REFLECT:5"}, reg));
+  EXPECT_FALSE(v.follow_rules({K::report, 3, MsgType::SENSOR_VALUE, "in3:COL-COLOR:5"}, reg));
+  const auto r = v.follow_rules(red, reg);
+  ASSERT_TRUE(r);
+  EXPECT_EQ(r->agent, 2);
+  EXPECT_EQ(r->command.name, "exploit");
+  EXPECT_EQ(r->command.args, (std::vector<std::string>{"colour=red", "speed=200"}));
+  EXPECT_FALSE(v.follow_rules(red, reg)) << "sent once, until the robot explores again";
+  reg[2].behaviour = "exploit";  // acknowledged
+  EXPECT_FALSE(v.follow_rules(red, reg));
+  reg[2].behaviour = "explore";  // the operator sent it exploring again
+  EXPECT_TRUE(v.follow_rules(red, reg));
+  ASSERT_EQ(ev3prog::parse_console_line("rule explore-exploit off", c), "");
+  v.set_rule(c);
+  reg[3].behaviour = "explore";
+  EXPECT_FALSE(v.follow_rules({K::report, 3, MsgType::SENSOR_VALUE, "in3:COL-COLOR:5"}, reg));
+}
+
+TEST(Console, ListShowsStepAndLastReport) {
+  ev3prog::FleetView v;
+  using K = ev3proto::OperatorEvent::Kind;
+  v.on_event({K::report, 2, ev3proto::MsgType::ACTION_OK, "forward"}, "", 1000);
+  v.on_event({K::report, 2, ev3proto::MsgType::SENSOR_VALUE, "in4:US-DIST-CM:42"}, "", 2000);
+  std::map<std::uint16_t, ev3proto::RegistryEntry> reg;
+  reg[2].id = 2;
+  reg[2].synced = true;
+  reg[2].behaviour = "explore";
+  const auto t = v.table(reg, {}, 3500);
+  ASSERT_GE(t.size(), 2u);
+  EXPECT_NE(t[0].find("STEP"), std::string::npos) << t[0];
+  EXPECT_NE(t[1].find("explore"), std::string::npos) << t[1];
+  EXPECT_NE(t[1].find("forward"), std::string::npos) << t[1];
+  EXPECT_NE(t[1].find("SENSOR_VALUE in4 US-DIST-CM 42 (1.5s ago)"), std::string::npos) << t[1];
+  const std::string j = v.status_json(reg, {}, "x", 3, 3500, 0);
+  EXPECT_NE(j.find("\"step\":\"forward\""), std::string::npos) << j;
+}
+
 TEST(Script, LinesDueWithWaitsBetween) {
   ev3prog::Script s;
   s.set_lines({"start all", "wait 1.5", "# note", "pause 2", "wait 0.5", "list"});

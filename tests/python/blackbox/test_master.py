@@ -162,17 +162,23 @@ def test_console_errors_name_what_is_wrong(start_master):
     assert m.proc.returncode == 0
 
 
-def test_script_runs_commands_with_waits(start_master, agents, tmp_path):
-    port = free_ports(1)[0]
-    a = FakeAgent(port, 50050)
+def scripted_master(start_master, agents, tmp_path, temp_id: int, script: str):
+    """A master running `script` (--script) and a fake agent registered with it (id 2)."""
+    a = FakeAgent(free_ports(1)[0], temp_id)
     agents.append(a)
-    script = tmp_path / "s.txt"
-    script.write_text("# demo\nwait 0.8\nbehaviour 2 wait seconds=2\nwait 0.5\nstart 2\n")
-    m = start_master("--script", str(script), stdin=subprocess.DEVNULL)
+    path = tmp_path / "s.txt"
+    path.write_text(script)
+    m = start_master("--script", str(path), stdin=subprocess.DEVNULL)
     # start_master picked its own port; point the agent at it.
     a.master_port = m.port
     a.register()
     a.pinging = True
+    return m, a
+
+
+def test_script_runs_commands_with_waits(start_master, agents, tmp_path):
+    m, a = scripted_master(start_master, agents, tmp_path, 50050,
+                           "# demo\nwait 0.8\nbehaviour 2 wait seconds=2\nwait 0.5\nstart 2\n")
     _, s = wait_until(lambda: next(((0, x) for x in a.commands if x.type == T["START"]), None), 4, "START")
     b = next(x for x in a.commands if x.type == T["BEHAVIOUR"])
     assert b.params == (b"wait", b"seconds=2")
@@ -239,3 +245,34 @@ def test_bad_flag_exits_2_naming_it(master_exe, args, named):
 def test_help(master_exe):
     r = subprocess.run([str(master_exe), "--help"], capture_output=True, text=True, timeout=5)
     assert r.returncode == 0 and "--status-json" in r.stdout and "--script" in r.stdout
+
+
+def test_custom_behaviour_from_a_file_checked_then_sent_compact(start_master, agents, tmp_path):
+    """`behaviour ID custom @FILE`: a definition that does not check is refused at the console with
+    the file and the place, and nothing is sent; a good one goes out compact in one param."""
+    bad = tmp_path / "bad.bhv"
+    bad.write_text("behaviour spin\nstate turning = trun 90 speed=200 -> turning\n")
+    good = tmp_path / "spin.bhv"
+    good.write_text("# spin on the spot\nbehaviour spin\nparam angle = 90\n"
+                    "state turning = turn $angle speed=200 -> turning\n"
+                    "on OBSTACLE_DETECTED, PROXIMITY_ALERT -> end\n")
+    m, a = scripted_master(start_master, agents, tmp_path, 50051,
+                           f"wait 0.8\nbehaviour 2 custom @{bad}\nbehaviour 2 custom @{good} angle=45\n")
+    b = wait_until(lambda: next((x for x in a.commands if x.type == T["BEHAVIOUR"]), None), 4, "BEHAVIOUR")
+    out = m.stdout()
+    assert f"error: refused before sending: {bad}: line 2 col 17: unknown action 'trun'" in out
+    assert b.params[0] == b"custom" and b.params[2] == b"angle=45"
+    assert b"behaviour spin" in b.params[1] and b"#" not in b.params[1] and b"\n" not in b.params[1]
+    assert sum(1 for x in a.commands if x.type == T["BEHAVIOUR"]) == 1, "the bad one was not sent"
+
+
+def test_rule_explore_exploit_switches_a_robot_that_sees_the_colour(start_master, agents, tmp_path):
+    m, a = scripted_master(start_master, agents, tmp_path, 50052,
+                           "wait 0.8\nrule explore-exploit red speed=200\nbehaviour 2 explore\nstart 2\n")
+    wait_until(lambda: "START acknowledged" in m.stdout(), 4, "START acknowledged")
+    a.send_master("SENSOR_VALUE", "in3", "COL-COLOR", "3")  # green: not the colour
+    a.send_master("SENSOR_VALUE", "in3", "COL-COLOR", "5")  # red
+    b = wait_until(lambda: next((x for x in a.commands if x.type == T["BEHAVIOUR"] and x.params[0] == b"exploit"),
+                                None), 3, "BEHAVIOUR exploit")
+    assert b.params == (b"exploit", b"colour=red", b"speed=200")
+    assert "rule explore-exploit: agent 2 is on red" in m.stdout()
