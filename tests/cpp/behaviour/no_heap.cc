@@ -6,6 +6,7 @@
 #include <cstring>
 #include <new>
 
+#include "ev3proto/behaviour/automaton.hpp"
 #include "ev3proto/behaviour/builtins.hpp"
 #include "ev3proto/behaviour/checker.hpp"
 #include "ev3proto/behaviour/dot.hpp"
@@ -63,6 +64,25 @@ int main() {
   CHECK(!check(def, kModelA, f) && f.items[0].code == Code::range);
   const std::string_view bad[] = {"speed"};
   CHECK(!apply_args(def, bad, 1, d));
+  // The automaton runs explore: forward, a bump, its reaction, a pause and resume, a report.
+  CHECK(parse(find_builtin("explore")->text, def, d));
+  static Automaton a;
+  const std::uint8_t ports[kSensorCount] = {8, 1, 4, 0};
+  a.load(def, ports);
+  a.start(0);
+  CHECK(a.event(Event::OBSTACLE_DETECTED));
+  a.finished();
+  a.pause();
+  a.resume(10);
+  const Reading none[kSensorCount] = {};
+  a.tick(1010, none);
+  Output o;
+  int reports = 0, starts = 0;
+  while (a.poll(o)) {
+    reports += o.kind == Output::Kind::report ? 1 : 0;
+    starts += o.kind == Output::Kind::start ? 1 : 0;
+  }
+  CHECK(reports == 1 && starts == 3 && a.state() == def.find_state("backoff"));
   std::puts("no_heap: ok");
   return 0;
 }
