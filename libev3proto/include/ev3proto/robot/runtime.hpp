@@ -15,6 +15,13 @@
 /// stops the motors in that same tick: the stop write is queued before tick() returns), then checks
 /// the action's end condition. Otherwise it ticks every `idle_tick_ms` (100 ms) to keep watching
 /// the sensors, and reads the battery every `battery_period_ms` (1 s).
+///
+/// Behaviours (issue 16): START / RESTART of a built-in (behaviours/*.bhv: explore, exploit, drive,
+/// wait) or of `custom` (the definition in the first argument) parses it, applies BEHAVIOUR's
+/// key=value arguments, checks it on model A and runs it through behaviour::Automaton: each state's
+/// plan on the ActionRunner, its results, the events that interrupt it and this tick's readings fed
+/// back (docs/behaviours.md "How a behaviour runs"). A definition that cannot run fails the START
+/// (ACTION_ERR) with the reason (`line 4 col 12: ...`).
 #pragma once
 
 #include <cerrno>
@@ -22,6 +29,10 @@
 #include <cstdint>
 #include <string_view>
 
+#include "../behaviour/automaton.hpp"
+#include "../behaviour/builtins.hpp"
+#include "../behaviour/checker.hpp"
+#include "../behaviour/parser.hpp"
 #include "../core.hpp"
 #include "actions.hpp"
 #include "behaviours.hpp"
@@ -174,7 +185,8 @@ class Runtime {
     if (off_) return;
     for (std::size_t w = 0; w < 2; ++w)
       if (body_.motor(w).present()) p.add(body_.motor(w).port(), Attr::position);
-    const Needs n = runner_.needs();
+    Needs n = runner_.needs();
+    n.sensor_ports = static_cast<std::uint8_t>(n.sensor_ports | behaviour_ports());
     for (std::size_t i = 0; i < 4; ++i) {
       const Sensor& s = body_.sensors[i];
       if (!s.present()) continue;
@@ -297,7 +309,13 @@ class Runtime {
     retry_modes(now);
     if (runner_.active() && !runner_.paused()) {
       Ctx c{body_, writes_, reports_, now};
-      result(runner_.tick(c));
+      outcome(runner_.tick(c), now);
+    }
+    if (behaviour_) {
+      behaviour::Reading r[behaviour::kSensorCount];
+      for (std::size_t i = 0; i < behaviour::kSensorCount; ++i) r[i] = reading_of(static_cast<behaviour::Sensor>(i));
+      auto_.tick(now, r);
+      follow(now);
     }
     next_tick_ = now + (runner_.moves_motors() && !runner_.paused() ? cfg_.tick_ms : cfg_.idle_tick_ms);
   }
@@ -313,40 +331,52 @@ class Runtime {
       case ControlKind::start:
       case ControlKind::restart: {
         runner_.halt(c, cfg_.tuning.pause_stop);
-        action::Plan plan;
+        leave_behaviour();
         Reason why;
         if (off_) {
           why.append("battery low: the robot is shutting down");
           failed(why);
-        } else if (!build_behaviour(name, args, n, plan, why)) {
+        } else if (!load_behaviour(name, args, n, why)) {
           failed(why);
         } else {
-          run(plan, now);
+          behaviour_ = true;
+          if (k == ControlKind::start)
+            auto_.start(now);
+          else
+            auto_.restart(now);
+          follow(now);
           return;
         }
         break;
       }
-      case ControlKind::pause: runner_.pause(c); break;
-      case ControlKind::resume: result(runner_.resume(c)); break;
-      case ControlKind::stop: runner_.halt(c, cfg_.tuning.pause_stop); break;
+      case ControlKind::pause:
+        if (behaviour_)
+          auto_.pause();
+        else
+          runner_.pause(c);
+        break;
+      case ControlKind::resume:
+        if (!behaviour_)
+          result(runner_.resume(c));
+        else if (auto_.phase() == behaviour::Phase::wait_continue)
+          auto_.go_on(now);  // CONTINUE after ACTION_INTERR (the core resumes the motors)
+        else
+          auto_.resume(now);
+        break;
+      case ControlKind::stop:
+        runner_.halt(c, cfg_.tuning.pause_stop);
+        leave_behaviour();
+        break;
     }
+    follow(now);
     next_tick_ = now;
   }
 
-  /// Runs @p plan now (what start does with a built-in behaviour; behaviours to come and tests
-  /// call it directly). The result comes through poll_result().
+  /// Runs @p plan now, outside any behaviour (tests and tools call it directly; a running behaviour is
+  /// left). The result comes through poll_result().
   void run(const action::Plan& plan, Millis now) noexcept {
-    Ctx c{body_, writes_, reports_, now};
-    // A plan whose first step commands the motors takes over from the running one (a Stop coast
-    // after a RunForever must coast, not brake first); a plan that starts with a Wait stops them.
-    const bool takes_over = plan.count > 0 && plan.steps[0].kind != action::Kind::wait;
-    if (takes_over)
-      runner_.drop();
-    else
-      runner_.halt(c, cfg_.tuning.pause_stop);
-    if (off_) return;
-    result(runner_.start(plan, c));
-    next_tick_ = now;
+    leave_behaviour();
+    outcome(start_plan(plan, now), now);
   }
 
   /// The agent core's LED pattern: written to every LED found.
@@ -374,6 +404,8 @@ class Runtime {
     Millis d = next_tick_;
     const Millis a = runner_.deadline();
     if (a < d) d = a;
+    const Millis b = behaviour_ ? auto_.deadline() : kNever;
+    if (b < d) d = b;
     return d;
   }
 
@@ -519,6 +551,7 @@ class Runtime {
             runner_.halt(c, cfg_.tuning.pause_stop);
           else
             stop_all(c);
+          leave_behaviour();
           off_ = true;
           break;
         case EventKind::DEVICE_DISCONNECTED:
@@ -526,7 +559,7 @@ class Runtime {
           break;
         default: {
           const Outcome o = runner_.event(e, c);
-          if (o == Outcome::interrupted) result(o);
+          if (o == Outcome::interrupted) outcome(o, now);
           break;
         }
       }
@@ -577,6 +610,186 @@ class Runtime {
 
   void push_result(const ActionResult& r) noexcept { results_.push_over(r); }  // drained after every call
 
+  // ------------------------------------------------------------------ behaviours (the automaton)
+
+  /// Parses, sets the arguments of and checks behaviour @p name (a built-in, or `custom` with the
+  /// definition in args[0]) into the automaton; false with the reason.
+  bool load_behaviour(std::string_view name, const std::string_view* args, std::size_t n, Reason& why) noexcept {
+    namespace bhv = behaviour;
+    std::string_view text;
+    if (const bhv::Builtin* b = bhv::find_builtin(name)) {
+      text = b->text;
+    } else if (name == "custom" && n > 0) {
+      text = args[0];
+      ++args;
+      --n;
+    } else {
+      why.append("behaviour ");
+      append_quoted(why, name);
+      why.append(name == "custom" ? " needs the definition as its first argument" : " has no runner");
+      return false;
+    }
+    bhv::Diagnostic d;
+    bhv::Findings f;
+    const bhv::Diagnostic* bad = nullptr;
+    if (!bhv::parse(text, scratch_, d) || !bhv::apply_args(scratch_, args, n, d))
+      bad = &d;
+    else if (!bhv::check(scratch_, bhv::kModelA, f))
+      bad = &f.items[0];
+    if (bad != nullptr) {
+      char buf[bhv::kMaxMessage + 32];
+      bhv::Text t(buf, sizeof buf);
+      bhv::write(t, *bad);
+      why.append(t.view());
+      return false;
+    }
+    std::uint8_t ports[bhv::kSensorCount] = {};
+    for (std::size_t i = 0; i < bhv::kSensorCount; ++i) {
+      Role r{};
+      const Dev d_ = role_of(static_cast<bhv::Sensor>(i), r) ? cfg_.ports.of(r) : Dev::outA;
+      if (is_in_port(d_)) ports[i] = static_cast<std::uint8_t>(1u << Body::in_index(d_));
+    }
+    auto_.load(scratch_, ports);
+    return true;
+  }
+
+  /// The role of the device a behaviour sensor is read from (false: model A has none, the gyro).
+  static bool role_of(behaviour::Sensor s, Role& r) noexcept {
+    switch (s) {
+      case behaviour::Sensor::distance: r = Role::ultrasonic; return true;
+      case behaviour::Sensor::touch: r = Role::touch; return true;
+      case behaviour::Sensor::colour: r = Role::colour; return true;
+      case behaviour::Sensor::gyro: return false;
+    }
+    return false;
+  }
+
+  /// The last good reading of sensor @p s in the language's base units (distance mm, touch 0/1,
+  /// colour code, gyro degrees).
+  behaviour::Reading reading_of(behaviour::Sensor s) const noexcept {
+    behaviour::Reading out;
+    Role r{};
+    if (!role_of(s, r)) return out;
+    const Dev d = cfg_.ports.of(r);
+    if (!is_in_port(d) || !attached_[index(d)]) return out;
+    const SensorReadings& rd = body_.readings[Body::in_index(d)];
+    if (!rd.valid || rd.info_stale || rd.count == 0) return out;
+    std::int64_t v = rd.values[0].raw;
+    if (s == behaviour::Sensor::distance) {  // cm with its decimals -> mm
+      if (!in_cm(body_.sensors[Body::in_index(d)])) return out;
+      v *= 10;
+      for (std::uint8_t k = 0; k < rd.values[0].decimals; ++k) v /= 10;
+    }
+    out.valid = true;
+    out.value = static_cast<std::int32_t>(v);
+    return out;
+  }
+
+  /// The input ports the running behaviour's conditions and reports read each tick.
+  std::uint8_t behaviour_ports() const noexcept {
+    if (!behaviour_) return 0;
+    const std::uint8_t m = auto_.sensors_read();
+    std::uint8_t ports = 0;
+    for (std::size_t i = 0; i < behaviour::kSensorCount; ++i) {
+      Role r{};
+      if ((m & (1u << i)) == 0 || !role_of(static_cast<behaviour::Sensor>(i), r)) continue;
+      const Dev d = cfg_.ports.of(r);
+      if (is_in_port(d) && attached_[index(d)]) ports = static_cast<std::uint8_t>(ports | (1u << Body::in_index(d)));
+    }
+    return ports;
+  }
+
+  /// The behaviour is over (stopped, replaced, or a plan run directly): its outputs are dropped.
+  void leave_behaviour() noexcept {
+    if (!behaviour_) return;
+    behaviour_ = false;
+    auto_.stop();
+    for (behaviour::Output o; auto_.poll(o);) {
+    }
+  }
+
+  /// Starts @p plan on the runner (a plan whose first step commands the motors takes over from the
+  /// running one: a Stop coast after a RunForever must coast, not brake first; a plan that starts
+  /// with a Wait stops them).
+  Outcome start_plan(const action::Plan& plan, Millis now) noexcept {
+    Ctx c{body_, writes_, reports_, now};
+    const bool takes_over = plan.count > 0 && plan.steps[0].kind != action::Kind::wait;
+    if (takes_over)
+      runner_.drop();
+    else
+      runner_.halt(c, cfg_.tuning.pause_stop);
+    next_tick_ = now;
+    if (off_) return Outcome::running;
+    return runner_.start(plan, c);
+  }
+
+  /// An outcome of the runner: to the automaton when a behaviour runs, else a result as it is.
+  void outcome(Outcome o, Millis now) noexcept {
+    if (!behaviour_) return result(o);
+    switch (o) {
+      case Outcome::running: return;
+      case Outcome::finished: auto_.finished(); break;
+      case Outcome::failed: auto_.failed(); break;
+      case Outcome::interrupted:
+        if (!auto_.event(static_cast<behaviour::Event>(runner_.cause()))) auto_.failed();
+        break;
+    }
+    follow(now);
+  }
+
+  /// Carries out the automaton's outputs, in order (a plan that ends at once feeds it again).
+  void follow(Millis now) noexcept {
+    if (!behaviour_) return;
+    Ctx c{body_, writes_, reports_, now};
+    for (behaviour::Output o; auto_.poll(o);) {
+      switch (o.kind) {
+        case behaviour::Output::Kind::start: {
+          const Outcome r = start_plan(auto_.plan(), now);
+          if (r == Outcome::finished) auto_.finished();
+          else if (r == Outcome::failed) auto_.failed();
+          break;
+        }
+        case behaviour::Output::Kind::pause: runner_.pause(c); break;
+        case behaviour::Output::Kind::resume: {
+          const Outcome r = runner_.resume(c);
+          if (r == Outcome::failed) auto_.failed();
+          break;
+        }
+        case behaviour::Output::Kind::halt:
+        case behaviour::Output::Kind::done: runner_.halt(c, o.stop); break;
+        case behaviour::Output::Kind::ok: result(Outcome::finished); break;
+        case behaviour::Output::Kind::interrupted: {
+          ActionResult r;
+          r.outcome = Outcome::interrupted;
+          r.detail = runner_.detail();
+          r.warning = o.event == behaviour::Event::PROXIMITY_ALERT ? Warning::PROXIMITY_ALERT : Warning::OBSTACLE_DETECTED;
+          push_result(r);
+          break;
+        }
+        case behaviour::Output::Kind::error: result(Outcome::failed); break;
+        case behaviour::Output::Kind::report: report(o.sensor); break;
+      }
+    }
+    next_tick_ = now < next_tick_ ? now : next_tick_;
+  }
+
+  /// SENSOR_VALUE of behaviour sensor @p s: its last good reading, all its values.
+  void report(behaviour::Sensor s) noexcept {
+    Role r{};
+    if (!role_of(s, r)) return;
+    const Dev d = cfg_.ports.of(r);
+    if (!is_in_port(d) || !attached_[index(d)]) return;
+    const std::size_t i = Body::in_index(d);
+    const SensorReadings& rd = body_.readings[i];
+    if (!rd.valid || rd.info_stale) return;
+    Report rep;
+    rep.port = d;
+    rep.mode = ModeName(body_.sensors[i].info().mode_name());
+    rep.count = rd.count;
+    for (std::size_t k = 0; k < rd.count; ++k) rep.values[k] = rd.values[k];
+    reports_.push(rep);
+  }
+
   struct Pending {
     Text<24> mode, decimals, num_values, units;
     unsigned got = 0;
@@ -602,6 +815,9 @@ class Runtime {
   std::uint32_t plugged_ = 0;
   Millis next_tick_ = 0, next_battery_ = 0;
   Ring<ActionResult, 4> results_;
+  behaviour::Definition scratch_;  ///< where a behaviour is parsed and checked before it is loaded
+  behaviour::Automaton auto_;
+  bool behaviour_ = false;         ///< the automaton drives the runner (a behaviour was started)
 };
 
 }  // namespace ev3proto::robot
