@@ -373,3 +373,86 @@ TEST(SimActions, DriveDistanceAndTurnEndWithinTolerance) {
 }
 
 }  // namespace
+
+namespace {
+
+/// The robot's position in the simulator (cm).
+struct Pose {
+  double x = 0, y = 0;
+};
+Pose pose_of(const Sim& sim) { return Pose{status_of(sim, "x"), status_of(sim, "y")}; }
+
+// The built-in explore (behaviours/explore.bhv, run by the automaton) in the pen world for 20 s of real
+// time, started with its bumper against the end of the wall (the ultrasonic's ray passes it): the bump
+// is reacted to (bumped, backoff, recoil, turning: back to the normal course), the robot never gets
+// through a wall or out of the pen, and it keeps going (finished actions, no failure).
+TEST(SimBehaviour, ExploreReactsToTheBumpAndNeverPassesAWall) {
+  Sim sim;
+  ASSERT_SIM_UP(sim);
+  sim.control("place 160 124 0");
+  sleep_ms(50);
+  Ev3Devices devices(sim.root());
+  ev3io::RobotIo rio(devices);
+  const ev3proto::Millis t0 = mono_ms();
+  Runtime rt(RuntimeConfig{}, 0);
+  rio.scan(rt, 0);
+  rio.flush(rt, 0);
+  const std::string_view args[] = {"seed=3"};
+  rt.control(ev3proto::ControlKind::start, "explore", args, 1, 0);
+  const auto& def = rt.automaton().definition();
+  std::vector<std::string> states{std::string(def.states[rt.automaton().state()].name.view())};
+  std::vector<std::string> results;
+  int bumps = 0, reports = 0;
+  std::vector<Pose> poses;
+  ev3proto::Millis next_pose = 0;
+  for (ev3proto::Millis now = 0; now < 20000; now = mono_ms() - t0) {
+    if (now >= rio.next_scan()) rio.scan(rt, now);
+    if (now >= rt.next_deadline()) rio.tick(rt, now);
+    rio.flush(rt, now);
+    for (ActionResult r; rt.poll_result(r);)
+      results.push_back(std::string(to_string(r.outcome)) + ": " + std::string(r.detail.view()));
+    for (Event e; rt.poll_event(e);) bumps += e.kind == EventKind::OBSTACLE_DETECTED ? 1 : 0;
+    for (Report r; rt.poll_report(r);) ++reports;
+    const std::string state(def.states[rt.automaton().state()].name.view());
+    if (state != states.back()) states.push_back(state);
+    if (now >= next_pose) {
+      poses.push_back(pose_of(sim));
+      next_pose = now + 250;
+    }
+    sleep_ms(1);
+  }
+  rt.control(ev3proto::ControlKind::stop, "", nullptr, 0, mono_ms() - t0);
+  rio.flush(rt, mono_ms() - t0);
+  std::string path;
+  for (const auto& s : states) path += s + " ";
+  RecordProperty("states", path);
+  ASSERT_GE(states.size(), 5u) << path;
+  EXPECT_EQ(states[0], "forward");
+  EXPECT_GE(bumps, 1);
+  // The bump: bumped, then back off, settle, turn, and on to the normal course.
+  EXPECT_EQ(std::vector<std::string>(states.begin(), states.begin() + 5),
+            (std::vector<std::string>{"forward", "bumped", "backoff", "recoil", "turning"}))
+      << path;
+  EXPECT_EQ(rt.automaton().phase(), ev3proto::behaviour::Phase::idle);  // stopped by us, never failed
+  for (const auto& r : results) EXPECT_NE(r.rfind("failed", 0), 0u) << r << " (" << path << ")";
+  EXPECT_GE(results.size(), 4u) << path;
+  EXPECT_GE(reports, 1);  // `report distance every 1s`, and after each pause
+  // Never through a wall: inside the pen, never in the box (120..150, 150..180), and the path never
+  // crosses the wall x = 200, y 0..120 (it may go round its end).
+  ASSERT_GE(poses.size(), 2u);
+  for (std::size_t i = 0; i < poses.size(); ++i) {
+    const Pose& p = poses[i];
+    EXPECT_GT(p.x, 5.0);
+    EXPECT_LT(p.x, 295.0);
+    EXPECT_GT(p.y, 5.0);
+    EXPECT_LT(p.y, 195.0);
+    EXPECT_FALSE(p.x > 120.0 && p.x < 150.0 && p.y > 150.0 && p.y < 180.0) << p.x << "," << p.y;
+    if (i == 0) continue;
+    const Pose& q = poses[i - 1];
+    if ((q.x < 200.0) == (p.x < 200.0)) continue;
+    const double y = q.y + (p.y - q.y) * (200.0 - q.x) / (p.x - q.x);
+    EXPECT_GT(y, 120.0) << "crossed the wall from " << q.x << "," << q.y << " to " << p.x << "," << p.y << " (" << path << ")";
+  }
+}
+
+}  // namespace

@@ -419,6 +419,8 @@ class Runtime {
   bool busy() const noexcept { return runner_.active(); }
   const Body& body() const noexcept { return body_; }
   const ActionRunner& runner() const noexcept { return runner_; }
+  /// The automaton of the behaviour started last (its phase is idle when none runs).
+  const behaviour::Automaton& automaton() const noexcept { return auto_; }
   /// Writes / events dropped because a queue was full (0 unless something is badly wrong).
   std::size_t dropped() const noexcept { return writes_.overflowed() + events_.dropped() + out_events_.dropped(); }
 
