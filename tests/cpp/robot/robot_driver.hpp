@@ -24,7 +24,9 @@
 //                                 position_sp= speed_sp= stop_action=, run-timed time_sp= speed_sp=
 //                                 stop_action=, stop stop_action=, reset, position=N; a sensor: mode NAME
 //   raw PORT ATTR VALUE           a write straight to the device double (what a naive client does)
-//   control KIND [NAME ARGS...]   a control of the agent core (start drive speed=300, pause, ...)
+//   control KIND [NAME ARGS...]   a control of the agent core (start drive speed=300, pause, ...);
+//                                 start custom DEFINITION [-- ARGS...]: the definition (one line, ';'
+//                                 between statements) is one argument
 //   led PATTERN                   the agent core's LED pattern (GREEN_BLINK ...)
 //   advance MS                    run the loop MS milliseconds
 //   until result|event|write [max=MS]   run until the runtime gives one (default max 20000)
@@ -213,6 +215,15 @@ class RobotDriver {
       if (k == ev3proto::ControlKind::start || k == ev3proto::ControlKind::restart) {
         behaviour_ = w.size() > 2 ? w[2] : "";
         args_.assign(w.size() > 3 ? w.begin() + 3 : w.end(), w.end());
+        if (behaviour_ == "custom" && w.size() > 3) {  // the definition is one argument: up to " -- "
+          const std::string rest = line.substr(line.find("custom") + 7);
+          const std::size_t sep = rest.find(" -- ");
+          args_.assign(1, rest.substr(0, sep));
+          if (sep != std::string::npos) {
+            const auto more = words(rest.substr(sep + 4));
+            args_.insert(args_.end(), more.begin(), more.end());
+          }
+        }
         mark();
       }
       std::vector<std::string_view> a(args_.begin(), args_.end());
