@@ -138,4 +138,52 @@ TEST(RobotLink, BadArgumentFailsAtStartAndBatteryLowSwitchesBothOff) {
   EXPECT_TRUE(robot::RobotLink<Node<>>::shut_down(r.node, r.rt));
 }
 
+// A behaviour in the language through the core and the runtime (a capability table of this test's
+// own: the agent's lists wait and drive only): each finished action is an ACTION_OK with the next id;
+// a custom definition that does not check fails at START (ACTION_ERR), RESTART tries again.
+TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
+  static constexpr BehaviourSpec kCustom[] = {{"custom", 0}};
+  Node<>::Config cfg = Rig::make_config(false);
+  cfg.agent.caps = Capabilities{"A", kCustom, 1, 0};
+  Node<> node(cfg, 0);
+  robot::Runtime rt(robot::RuntimeConfig{}, 0);
+  robot::RobotLink<Node<>> link(cfg.agent.caps.devices);
+  std::vector<std::string> out;
+  auto settle = [&](Millis now) {
+    link.settle(
+        node, rt, now, [](const NodeEvent&) {}, [&] { for (robot::Write w; rt.poll_write(w);) {} },
+        [](const robot::LinkNote&) {});
+    NodeTransmit t;
+    while (node.poll_transmit(t)) out.push_back(ev3test::symbolic(t.bytes));
+  };
+  auto run = [&](Millis from, Millis to) {
+    for (Millis t = from; t <= to; t += 10) {
+      if (t >= rt.next_deadline()) rt.tick(t);
+      node.advance(t);
+      settle(t);
+    }
+  };
+  node.handle_datagram("1:7:1:2:50001", 1, 10);
+  settle(10);
+  node.handle_datagram("1:7:2:7:custom:behaviour two;state a = wait 100ms -> b;state b = wait 200ms -> end", 1, 20);
+  node.handle_datagram("1:7:3:8", 1, 30);  // START
+  settle(30);
+  out.clear();
+  run(40, 600);
+  std::vector<std::string> oks;
+  for (const std::string& s : out)
+    if (s.find("ACTION_") != std::string::npos) oks.push_back(s);
+  ASSERT_EQ(oks.size(), 2u) << ::testing::PrintToString(out);
+  EXPECT_NE(oks[0].find("ACTION_OK"), std::string::npos);
+  EXPECT_EQ(oks[0].substr(oks[0].rfind(' ') + 1), "0") << oks[0];  // "7->1 ACTION_OK #4 0"
+  EXPECT_NE(oks[1].find("ACTION_OK"), std::string::npos);
+  EXPECT_EQ(oks[1].substr(oks[1].rfind(' ') + 1), "1") << oks[1];
+  // A definition that does not check: ACTION_ERR at START.
+  node.handle_datagram("1:7:4:7:custom:behaviour bad;state a = trun 90 -> end", 1, 700);
+  node.handle_datagram("1:7:5:8", 1, 710);
+  out.clear();
+  settle(710);
+  EXPECT_TRUE(has(out, "ACTION_ERR")) << ::testing::PrintToString(out);
+}
+
 }  // namespace
