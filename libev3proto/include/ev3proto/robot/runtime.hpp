@@ -30,9 +30,7 @@
 #include <string_view>
 
 #include "../behaviour/automaton.hpp"
-#include "../behaviour/builtins.hpp"
-#include "../behaviour/checker.hpp"
-#include "../behaviour/parser.hpp"
+#include "../behaviour/request.hpp"
 #include "../core.hpp"
 #include "actions.hpp"
 #include "behaviours.hpp"
@@ -618,30 +616,9 @@ class Runtime {
   /// definition in args[0]) into the automaton; false with the reason.
   bool load_behaviour(std::string_view name, const std::string_view* args, std::size_t n, Reason& why) noexcept {
     namespace bhv = behaviour;
-    std::string_view text;
-    if (const bhv::Builtin* b = bhv::find_builtin(name)) {
-      text = b->text;
-    } else if (name == "custom" && n > 0) {
-      text = args[0];
-      ++args;
-      --n;
-    } else {
-      why.append("behaviour ");
-      append_quoted(why, name);
-      why.append(name == "custom" ? " needs the definition as its first argument" : " has no runner");
-      return false;
-    }
-    bhv::Diagnostic d;
-    bhv::Findings f;
-    const bhv::Diagnostic* bad = nullptr;
-    if (!bhv::parse(text, scratch_, d) || !bhv::apply_args(scratch_, args, n, d))
-      bad = &d;
-    else if (!bhv::check(scratch_, bhv::kModelA, f))
-      bad = &f.items[0];
-    if (bad != nullptr) {
-      char buf[bhv::kMaxMessage + 32];
-      bhv::Text t(buf, sizeof buf);
-      bhv::write(t, *bad);
+    char buf[bhv::kMaxMessage + 64];
+    bhv::Text t(buf, sizeof buf);
+    if (!bhv::resolve_request(name, args, n, bhv::kModelA, bhv::kModelA.devices, scratch_, t)) {
       why.append(t.view());
       return false;
     }
