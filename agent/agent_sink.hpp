@@ -49,6 +49,12 @@ std::string driver_action(const ev3proto::AgentTraceRecord& r, const A& agent) {
     json_string(s, r.event);
     first = false;
   }
+  if (!r.port.empty()) {
+    if (!first) s += ',';
+    s += "\"p\":";
+    json_string(s, r.port);
+    first = false;
+  }
   if (r.action == ev3proto::Action::Tick) {
     if (!first) s += ',';
     s += "\"ticks\":" + std::to_string(r.ticks);

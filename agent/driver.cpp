@@ -174,9 +174,24 @@ class Driver {
       std::vector<std::string_view> views(vals.begin(), vals.end());
       return core_->sensor_report(in["port"].str("port"), in["mode"].str("mode"), views.data(), views.size(), now);
     }
-    if (name == "device_unplugged" || name == "device_plugged") {
+    if (name == "device_unplugged" || name == "device_plugged" || name == "robot_event") {
+      const std::string port = in["port"].str();
+      if (!ev3proto::is_port_name(port)) {
+        err = name + " needs a port (in1..in4, outA..outD), not '" + port + "'";
+        return false;
+      }
+      if (name == "robot_event") {
+        ev3proto::RobotEventKind k{};
+        const std::string e = in["name"].str();
+        if (!ev3proto::parse_robot_event(e, k)) {
+          err = "unknown robot event '" + e + "' (OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED, DEVICE_DISCONNECTED)";
+          return false;
+        }
+        return core_->robot_event(k, port, now);
+      }
       const auto bits = static_cast<std::uint32_t>(in["devices"].num(1));
-      return name == "device_unplugged" ? core_->device_unplugged(bits, now) : core_->device_plugged(bits, now);
+      return name == "device_unplugged" ? core_->device_unplugged(bits, port, now)
+                                        : core_->device_plugged(bits, port, now);
     }
     err = "unknown event '" + name + "'";
     return false;

@@ -84,12 +84,15 @@ def agent_input(la: dict) -> dict | None:
                 "text": drv.spec_to_wire(m).decode("latin-1")}
     ev = {"ActionOk": "action_ok", "ActionFailed": "action_failed", "BatteryLow": "battery_low",
           "DeviceUnplugged": "device_unplugged", "DevicePlugged": "device_plugged",
-          "SensorReport": "sensor_report", "ActionInterrupted": "action_interrupted"}[n]
+          "SensorReport": "sensor_report", "ActionInterrupted": "action_interrupted",
+          "RobotEvent": "robot_event"}[n]
     d = {"type": "event", "event": ev}
     if n == "ActionInterrupted":
         d["warning"] = args[0]
     if n in ("DeviceUnplugged", "DevicePlugged"):
-        d["devices"] = 1
+        d.update(devices=1, port=args[0])
+    if n == "RobotEvent":
+        d.update(name=args[0], port=args[1])
     if n == "SensorReport":
         d.update(port="port", mode="mode", values=["value"])
     return d
@@ -258,6 +261,10 @@ class AgentReplay:
                                                       f"{rec['action']}", sv, rec))
             if la["name"] == "ActionInterrupted" and rec["args"].get("e") != la["args"][0]:
                 raise Mismatch(self._report(cur_path, "ActionInterrupted warning differs", sv, rec))
+            if la["name"] == "RobotEvent" and [rec["args"].get("e"), rec["args"].get("p")] != list(la["args"]):
+                raise Mismatch(self._report(cur_path, "RobotEvent event or port differs", sv, rec))
+            if la["name"] in ("DeviceUnplugged", "DevicePlugged") and rec["args"].get("p") != la["args"][0]:
+                raise Mismatch(self._report(cur_path, f"{la['name']} port differs", sv, rec))
             self._check_vars(sv["ag"], rec["vars"], cur_path, la["name"], rec)
             want = [drv.spec_out(m) for m in sv["out"]]
             got = sent_as_spec(sent, c["Steps"])

@@ -175,11 +175,11 @@ def _record(recs: list[dict], k: int, convert) -> dict:
 
 
 def _agent_record(r: dict) -> dict:
-    """AgentTrace's record: [a, m, e, n, ch]."""
+    """AgentTrace's record: [a, m, e, p, n, ch]."""
     args = r.get("args", {})
     m = args.get("msg")
     return {"a": r["action"], "m": _msg(m) if m else dict(_NONE_MSG), "e": str(args.get("e", "")),
-            "n": int(args.get("ticks", 1)), "ch": _agent_changed(r.get("changed", {}))}
+            "p": str(args.get("p", "")), "n": int(args.get("ticks", 1)), "ch": _agent_changed(r.get("changed", {}))}
 
 
 def temp_id_of(recs: list[dict]) -> int:
@@ -518,7 +518,7 @@ def _el_changed(ch: dict) -> dict:
 
 
 def _election_records(recs: list[dict]) -> tuple[list[dict], set[int]]:
-    """ElectionTrace's records [a, m, em, im, cmd, e, n, ch, ech] and the fleet: the members the
+    """ElectionTrace's records [a, m, em, im, cmd, e, p, n, ch, ech] and the fleet: the members the
     LEADERs in the trace list."""
     fleet: set[int] = set()
 
@@ -536,7 +536,7 @@ def _election_records(recs: list[dict]) -> tuple[list[dict], set[int]]:
             else:
                 m = _msg(text)
         return {"a": r["action"], "m": m, "em": em, "im": im, "cmd": str(args.get("cmd", "Ignore")),
-                "e": str(args.get("e", "")), "n": int(args.get("ticks", 1)),
+                "e": str(args.get("e", "")), "p": str(args.get("p", "")), "n": int(args.get("ticks", 1)),
                 "ch": _agent_changed(r.get("changed", {})), "ech": _el_changed(r.get("changed", {}))}
     return [_record(recs, k, one) for k in range(len(recs))], fleet
 

@@ -16,12 +16,14 @@ CONSTANTS Behaviours, UnknownBehaviour, ModelName, TSync, TPing, TLoss,
           TempId,      \* the temporary id the agent draws at start
           AssignIds,   \* ids a master may assign it
           Stranger,    \* another agent's id (never this agent's)
-          MsgIds       \* msgids the environment uses (reused: the window is FIFO)
+          MsgIds,      \* msgids the environment uses (reused: the window is FIFO)
+          EventPorts   \* ports the device events name (a subset of AgentLogic's Ports)
 
 L == INSTANCE AgentLogic
 
 ASSUME TempId \in L!TempIds /\ AssignIds \subseteq L!AssignedIds
        /\ Stranger \notin AssignIds \cup {TempId, MasterId, Broadcast}
+       /\ EventPorts \subseteq L!Ports
 
 VARIABLES
     ag,          \* the agent's local state (AgentLogic.AgentType)
@@ -125,10 +127,16 @@ ActionInterrupted(e) == NoTimeoutDue /\ L!ActionInterruptedOk(ag, e)
 ActionFailed == NoTimeoutDue /\ L!ActionFailedOk(ag) /\ Do("ActionFailed", <<>>, L!ActionFailed(ag))
 \* The behaviour reports a sensor reading.
 SensorReport == NoTimeoutDue /\ L!SensorReportOk(ag) /\ Do("SensorReport", <<>>, L!SensorReport(ag))
-\* The device registry detects an unplugged device.
-DeviceUnplugged == NoTimeoutDue /\ L!DeviceUnpluggedOk(ag) /\ Do("DeviceUnplugged", <<>>, L!DeviceUnplugged(ag))
-\* The device is back.
-DevicePlugged == NoTimeoutDue /\ L!DevicePluggedOk(ag) /\ Do("DevicePlugged", <<>>, L!DevicePlugged(ag))
+\* The device registry detects an unplugged device of the model on port p.
+DeviceUnplugged(p) == NoTimeoutDue /\ L!DeviceUnpluggedOk(ag, p)
+                      /\ Do("DeviceUnplugged", <<p>>, L!DeviceUnplugged(ag, p))
+\* The last missing device is back, on port p.
+DevicePlugged(p) == NoTimeoutDue /\ L!DevicePluggedOk(ag, p)
+                    /\ Do("DevicePlugged", <<p>>, L!DevicePlugged(ag, p))
+\* A robot event that changes no protocol state (bumper, ultrasonic, a device
+\* change the two above do not take): EVENT(e, p) to the master when synced.
+RobotEvent(e, p) == NoTimeoutDue /\ L!RobotEventOk(ag, e, p)
+                    /\ Do("RobotEvent", <<e, p>>, L!RobotEvent(ag, e, p))
 \* The battery watcher reports low battery.
 BatteryLow == NoTimeoutDue /\ L!BatteryLowOk(ag) /\ Do("BatteryLow", <<>>, L!BatteryLow(ag))
 
@@ -137,7 +145,9 @@ Next ==
     \/ Tick \/ SyncTimeout \/ HeartbeatLost
     \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
     \/ ActionFailed \/ SensorReport
-    \/ DeviceUnplugged \/ DevicePlugged \/ BatteryLow
+    \/ \E p \in EventPorts : DeviceUnplugged(p) \/ DevicePlugged(p)
+    \/ BatteryLow
+    \/ \E e \in L!RobotEvents, p \in EventPorts : RobotEvent(e, p)
 
 Spec == Init /\ [][Next]_vars
 

@@ -53,13 +53,21 @@ RecvNames == {"RecvMaster", "RecvPong", "RecvBehaviour", "RecvStart", "RecvStop"
               "RecvRestart", "RecvDuplicate", "Ignore"}
 InternalNames == {"Tick", "SyncTimeout", "HeartbeatLost", "ActionOk",
                   "ActionInterrupted", "ActionFailed", "SensorReport",
-                  "DeviceUnplugged", "DevicePlugged", "BatteryLow"}
+                  "DeviceUnplugged", "DevicePlugged", "BatteryLow", "RobotEvent"}
 ActionNames == RecvNames \cup InternalNames
 
 Answers == [src : Nat, dst : {MasterId}, type : {"ACK"}, ref : Nat, args : {<<>>}]
            \cup [src : Nat, dst : {MasterId}, type : {"NOT"}, ref : Nat,
                   args : {<<r>> : r \in Reasons}]
-DeviceEvents == {"DEVICE_DISCONNECTED", "DEVICE_CONNECTED", "BATTERY_LOW"}
+\* The EV3's ports (docs/devices.md): the second param of EVENT for a device's event.
+Ports == {"in1", "in2", "in3", "in4", "outA", "outB", "outC", "outD"}
+\* Events a synced agent reports with RobotEvent (docs/devices.md "Events"): the thesis' normal
+\* events outside a running action (the warnings, a device connected) and a device unplugged that
+\* changes nothing the protocol sees (a device the model does not use, or one more while another
+\* is missing already: devOk is FALSE).
+RobotEvents == Warnings \cup {"DEVICE_CONNECTED", "DEVICE_DISCONNECTED"}
+\* EVENT's params: the name, then the port of the device it is about (not for BATTERY_LOW).
+EventArgs == {<<"BATTERY_LOW">>} \cup {<<e, p>> : e \in RobotEvents, p \in Ports}
 \* Everything an agent can emit.
 OutMsgs ==
          [src : Nat, dst : {Broadcast}, type : {"AGENT"}, ref : {0}, args : {<<ModelName>>}]
@@ -73,7 +81,7 @@ OutMsgs ==
     \cup [src : Nat, dst : {MasterId}, type : {"SENSOR_VALUE"}, ref : {0},
            args : {<<"port", "mode", "value">>}]
     \cup [src : Nat, dst : {MasterId}, type : {"EVENT"}, ref : {0},
-           args : {<<e>> : e \in DeviceEvents}]
+           args : EventArgs]
 WinEntry == [src : Nat, msgid : Nat, ans : Answers]
 
 \* Local state of one agent.
@@ -328,24 +336,26 @@ SensorReport(a) ==
     [ ag  |-> a,
       out |-> <<Out(a.id, MasterId, "SENSOR_VALUE", 0, <<"port", "mode", "value">>)>> ]
 
-\* A device is unplugged (critical): the behaviour stops and is unloaded,
-\* WORKING/PAUSED -> ACTIVE, BEHAVIOUR is refused ("missing device") until it
-\* is back; a synced agent tells the master EVENT(DEVICE_DISCONNECTED).
-DeviceUnpluggedOk(a) == a.state # "OFF" /\ a.devOk
-DeviceUnplugged(a) ==
+\* A device of the model is unplugged on port p (critical): the behaviour
+\* stops and is unloaded, WORKING/PAUSED -> ACTIVE, BEHAVIOUR is refused
+\* ("missing device") until it is back; a synced agent tells the master
+\* EVENT(DEVICE_DISCONNECTED, p).
+DeviceUnpluggedOk(a, p) == a.state # "OFF" /\ a.devOk /\ p \in Ports
+DeviceUnplugged(a, p) ==
     LET b0 == [Stopped(a) EXCEPT !.devOk = FALSE, !.beh = NoBehaviour, !.step = 0]
         b  == IF a.state \in {"WORKING", "PAUSED"} THEN Goto(b0, "ACTIVE") ELSE b0
     IN [ ag  |-> b,
          out |-> IF a.state \in Synced
-                 THEN <<Out(a.id, MasterId, "EVENT", 0, <<"DEVICE_DISCONNECTED">>)>>
+                 THEN <<Out(a.id, MasterId, "EVENT", 0, <<"DEVICE_DISCONNECTED", p>>)>>
                  ELSE <<>> ]
 
-\* The device is plugged back in.
-DevicePluggedOk(a) == a.state # "OFF" /\ ~a.devOk
-DevicePlugged(a) ==
+\* The last missing device of the model is plugged back in, on port p:
+\* EVENT(DEVICE_CONNECTED, p) when synced.
+DevicePluggedOk(a, p) == a.state # "OFF" /\ ~a.devOk /\ p \in Ports
+DevicePlugged(a, p) ==
     [ ag  |-> [a EXCEPT !.devOk = TRUE],
       out |-> IF a.state \in Synced
-              THEN <<Out(a.id, MasterId, "EVENT", 0, <<"DEVICE_CONNECTED">>)>>
+              THEN <<Out(a.id, MasterId, "EVENT", 0, <<"DEVICE_CONNECTED", p>>)>>
               ELSE <<>> ]
 
 \* Battery low (critical): tell the master (if synced), stop, shut down.
@@ -355,6 +365,18 @@ BatteryLow(a) ==
       out |-> IF a.state \in Synced
               THEN <<Out(a.id, MasterId, "EVENT", 0, <<"BATTERY_LOW">>)>>
               ELSE <<>> ]
+
+\* A robot event e on port p that changes nothing of the agent's protocol
+\* state (RobotEvents: the bumper pressed, the ultrasonic's alert, a device
+\* connected or unplugged that DevicePlugged / DeviceUnplugged do not take):
+\* a synced agent tells the master EVENT(e, p).  Unsynced, there is no master
+\* to tell (the agent logs it).  An event that interrupts the running action
+\* is reported as ACTION_INTERR by ActionInterrupted instead: the robot side
+\* chooses (docs/devices.md "Events"); both are allowed here.
+RobotEventOk(a, e, p) == a.state \in Synced /\ e \in RobotEvents /\ p \in Ports
+RobotEvent(a, e, p) ==
+    [ ag  |-> a,
+      out |-> <<Out(a.id, MasterId, "EVENT", 0, <<e, p>>)>> ]
 
 -----------------------------------------------------------------------------
 (* Allowed state changes: brief sec. 2, with the action that may cause each.*)

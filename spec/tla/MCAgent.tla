@@ -7,4 +7,5 @@ EXTENDS Agent
 MCBehaviours == {"explore"}
 MCAssignIds  == {2}
 MCMsgIds     == {1, 2}
+MCEventPorts == {"in1"}
 =============================================================================

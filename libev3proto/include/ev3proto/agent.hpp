@@ -6,7 +6,7 @@
 /// No heap, no exceptions, no RTTI, no clocks, no globals, no randomness (the temporary id is drawn
 /// by the caller). All memory is sized at compile time by the template parameters.
 ///
-/// Every spec action has one handler of the same name (RecvMaster ... BatteryLow, and Election.tla's:
+/// Every spec action has one handler of the same name (RecvMaster ... RobotEvent, and Election.tla's:
 /// election.hpp holds their guards); a datagram enters through one prelude (Step: the handler chosen
 /// first, epochs handled once), the state table is the guard of every state change, roles change
 /// only in the become_* functions, and the armed deadlines are a TimerTable (docs/core.md).
@@ -126,7 +126,8 @@ struct AgentVars {
 struct AgentTraceRecord {
   Action action = Action::Tick; ///< The spec action (handler) taken.
   std::string_view msg;         ///< Receive handlers: the datagram as received.
-  std::string_view event;       ///< ActionInterrupted: the warning name.
+  std::string_view event;       ///< ActionInterrupted: the warning name; RobotEvent: the event's.
+  std::string_view port;        ///< DeviceUnplugged, DevicePlugged, RobotEvent: the port.
   Millis ticks = 0;             ///< Tick: number of consecutive spec Ticks this record stands for.
   Millis now = 0;               ///< Time after the action.
   Action cmd = Action::Ignore;  ///< ApplyCommand: the receive handler that took the inner datagram.
@@ -294,33 +295,50 @@ class Agent {
     return true;
   }
 
-  /// Device bit(s) @p device were unplugged. The first unplug while all devices are present is the
-  /// spec's DeviceUnplugged; further unplugs only update the mask. Returns true if the spec action
-  /// was taken.
-  bool device_unplugged(std::uint32_t device, Millis now) noexcept {
+  /// Device bit(s) @p device were unplugged from @p port (one of the EV3's ports, is_port_name();
+  /// otherwise nothing is done). The first unplug while all devices are present is the spec's
+  /// DeviceUnplugged (EVENT DEVICE_DISCONNECTED, port); further unplugs only update the mask (the
+  /// caller may report them with robot_event). Returns true if the spec action was taken.
+  bool device_unplugged(std::uint32_t device, std::string_view port, Millis now) noexcept {
     advance(now);
-    if (!DeviceUnpluggedOk()) {
+    if (!is_port_name(port)) return false;
+    if (!DeviceUnpluggedOk(port)) {
       plugged_ &= ~device;
       return false;
     }
     const AgentVars before = vars();
     plugged_ &= ~device;
     if (dev_ok()) return false;  // not a device of the model
-    DeviceUnplugged();
-    record(Action::DeviceUnplugged, before, {}, {}, 0);
+    DeviceUnplugged(port);
+    record(Action::DeviceUnplugged, before, {}, {}, 0, Action::Ignore, port);
     return true;
   }
 
-  /// Device bit(s) @p device are back. When that makes every device of the model present again it
-  /// is the spec's DevicePlugged. Returns true if the spec action was taken.
-  bool device_plugged(std::uint32_t device, Millis now) noexcept {
+  /// Device bit(s) @p device are back, on @p port (one of the EV3's ports; otherwise nothing is
+  /// done). When that makes every device of the model present again it is the spec's DevicePlugged
+  /// (EVENT DEVICE_CONNECTED, port). Returns true if the spec action was taken.
+  bool device_plugged(std::uint32_t device, std::string_view port, Millis now) noexcept {
     advance(now);
-    const bool ok = DevicePluggedOk();
+    if (!is_port_name(port)) return false;
+    const bool ok = DevicePluggedOk(port);
     const AgentVars before = vars();
     plugged_ |= device & cfg_.caps.devices;
     if (!ok || !dev_ok()) return false;  // still a device missing (or OFF)
-    DevicePlugged();
-    record(Action::DevicePlugged, before, {}, {}, 0);
+    DevicePlugged(port);
+    record(Action::DevicePlugged, before, {}, {}, 0, Action::Ignore, port);
+    return true;
+  }
+
+  /// A robot event @p e about the device on @p port that changes no protocol state (spec
+  /// RobotEvent): EVENT(name, port) to the master. Returns false (nothing done) unless Synced and
+  /// @p port is one of the EV3's ports. The caller decides which events go here: an event that
+  /// interrupted the running action is action_interrupted()'s (docs/devices.md "Events").
+  bool robot_event(RobotEventKind e, std::string_view port, Millis now) noexcept {
+    advance(now);
+    if (!RobotEventOk(port)) return false;
+    const AgentVars before = vars();
+    RobotEvent(e, port);
+    record(Action::RobotEvent, before, {}, to_string(e), 0, Action::Ignore, port);
     return true;
   }
 
@@ -1289,28 +1307,44 @@ class Agent {
     return emit(Dest::master, master_id(), MsgType::SENSOR_VALUE, p, count + 2);
   }
 
-  /// Spec DeviceUnpluggedOk: alive (the table) and all devices present.
-  bool DeviceUnpluggedOk() const noexcept { return Allowed(Action::DeviceUnplugged) && dev_ok(); }
-  /// Spec DeviceUnplugged: behaviour stopped and unloaded, WORKING / PAUSED -> ACTIVE, EVENT.
-  void DeviceUnplugged() noexcept {
+  /// Spec DeviceUnpluggedOk: alive (the table), all devices present, a port.
+  bool DeviceUnpluggedOk(std::string_view port) const noexcept {
+    return Allowed(Action::DeviceUnplugged) && dev_ok() && is_port_name(port);
+  }
+  /// Spec DeviceUnplugged: behaviour stopped and unloaded, WORKING / PAUSED -> ACTIVE,
+  /// EVENT(DEVICE_DISCONNECTED, port) when synced.
+  void DeviceUnplugged(std::string_view port) noexcept {
     const State was = state_;
     Stopped();
     unload();
     Goto(next_state(state_, Action::DeviceUnplugged).to);
     if (is_synced(was)) {
-      const std::string_view p[1] = {"DEVICE_DISCONNECTED"};
-      emit(Dest::master, master_id(), MsgType::EVENT, p, 1);
+      const std::string_view p[2] = {"DEVICE_DISCONNECTED", port};
+      emit(Dest::master, master_id(), MsgType::EVENT, p, 2);
     }
   }
 
-  /// Spec DevicePluggedOk: alive (the table) and a device missing.
-  bool DevicePluggedOk() const noexcept { return Allowed(Action::DevicePlugged) && !dev_ok(); }
-  /// Spec DevicePlugged: EVENT(DEVICE_CONNECTED) when synced.
-  void DevicePlugged() noexcept {
+  /// Spec DevicePluggedOk: alive (the table), a device missing, a port.
+  bool DevicePluggedOk(std::string_view port) const noexcept {
+    return Allowed(Action::DevicePlugged) && !dev_ok() && is_port_name(port);
+  }
+  /// Spec DevicePlugged: EVENT(DEVICE_CONNECTED, port) when synced.
+  void DevicePlugged(std::string_view port) noexcept {
     if (is_synced(state_)) {
-      const std::string_view p[1] = {"DEVICE_CONNECTED"};
-      emit(Dest::master, master_id(), MsgType::EVENT, p, 1);
+      const std::string_view p[2] = {"DEVICE_CONNECTED", port};
+      emit(Dest::master, master_id(), MsgType::EVENT, p, 2);
     }
+  }
+
+  /// Spec RobotEventOk: Synced (the table: ACTIVE, WORKING, PAUSED), a port (the event is one of
+  /// RobotEvents by type).
+  bool RobotEventOk(std::string_view port) const noexcept {
+    return Allowed(Action::RobotEvent) && is_port_name(port);
+  }
+  /// Spec RobotEvent: EVENT(event, port) to the master; nothing else changes.
+  void RobotEvent(RobotEventKind e, std::string_view port) noexcept {
+    const std::string_view p[2] = {to_string(e), port};
+    emit(Dest::master, master_id(), MsgType::EVENT, p, 2);
   }
 
   /// Spec BatteryLowOk: alive (the table: every state but OFF).
@@ -1420,13 +1454,14 @@ class Agent {
   }
 
   void record(Action a, const AgentVars& before, std::string_view msg, std::string_view event,
-              Millis ticks, Action cmd = Action::Ignore) noexcept {
+              Millis ticks, Action cmd = Action::Ignore, std::string_view port = {}) noexcept {
     if constexpr (Trace::enabled) {
       if (trace_ == nullptr) return;
       AgentTraceRecord r;
       r.action = a;
       r.msg = msg;
       r.event = event;
+      r.port = port;
       r.ticks = ticks;
       r.now = now_;
       r.cmd = cmd;
@@ -1434,7 +1469,7 @@ class Agent {
       r.after = vars();
       trace_->record(r, *this);
     } else {
-      (void)a, (void)before, (void)msg, (void)event, (void)ticks, (void)cmd;
+      (void)a, (void)before, (void)msg, (void)event, (void)ticks, (void)cmd, (void)port;
     }
   }
 

@@ -118,7 +118,7 @@ enum class Action : std::uint8_t {
   RecvContinue, RecvRestart, RecvDuplicate, Ignore,
   // Agent, internal (AgentLogic InternalNames).
   Tick, SyncTimeout, HeartbeatLost, ActionOk, ActionInterrupted, ActionFailed, SensorReport,
-  DeviceUnplugged, DevicePlugged, BatteryLow,
+  DeviceUnplugged, DevicePlugged, BatteryLow, RobotEvent,
   // Master (MasterLogic.tla, same names; MasterTick is one resend period).
   MasterSync, MasterAnswer, MasterPing, MasterTick, MasterCommand, MasterReport,
   // Relay and election (spec/tla/Election.tla), agent and master side. Election's Timeout is the
@@ -139,7 +139,7 @@ constexpr std::string_view to_string(Action a) noexcept {
       "RecvMaster", "RecvPong", "RecvBehaviour", "RecvStart", "RecvStop", "RecvPause",
       "RecvResume", "RecvStandby", "RecvContinue", "RecvRestart", "RecvDuplicate", "Ignore",
       "Tick", "SyncTimeout", "HeartbeatLost", "ActionOk", "ActionInterrupted", "ActionFailed",
-      "SensorReport", "DeviceUnplugged", "DevicePlugged", "BatteryLow",
+      "SensorReport", "DeviceUnplugged", "DevicePlugged", "BatteryLow", "RobotEvent",
       "MasterSync", "MasterAnswer", "MasterPing", "MasterTick", "MasterCommand", "MasterReport",
       "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
       "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
@@ -194,7 +194,7 @@ inline constexpr Transition kTransitions[] = {
 /// with no row in either table is refused "wrong state"). The spec's conditions they encode:
 /// RecvPong and RecvBehaviour while Synced, RecvStart also in WORKING, RecvContinue / RecvRestart
 /// in WORKING waiting for them, the behaviour events while Running (WORKING, wait NONE), a device
-/// change in any state but OFF.
+/// change in any state but OFF, a robot event (RobotEvent) while Synced.
 inline constexpr Transition kStays[] = {
     {State::ACTIVE, State::ACTIVE, Action::RecvPong},
     {State::WORKING, State::WORKING, Action::RecvPong},
@@ -217,6 +217,9 @@ inline constexpr Transition kStays[] = {
     {State::WORKING, State::WORKING, Action::DevicePlugged},
     {State::PAUSED, State::PAUSED, Action::DevicePlugged},
     {State::PANIC, State::PANIC, Action::DevicePlugged},
+    {State::ACTIVE, State::ACTIVE, Action::RobotEvent},
+    {State::WORKING, State::WORKING, Action::RobotEvent},
+    {State::PAUSED, State::PAUSED, Action::RobotEvent},
 };
 
 /// The state changes Election.tla adds, refined to the core's states (its CANDIDATE and MASTER are
@@ -349,6 +352,42 @@ enum class Warning : std::uint8_t { OBSTACLE_DETECTED, PROXIMITY_ALERT };
 /// The spec's spelling of a warning.
 constexpr std::string_view to_string(Warning w) noexcept {
   return w == Warning::OBSTACLE_DETECTED ? "OBSTACLE_DETECTED" : "PROXIMITY_ALERT";
+}
+
+/// The robot events a synced agent reports as EVENT(name, port) without a state change (AgentLogic
+/// `RobotEvents`, spec RobotEvent): the warnings outside a running action, a device connected or
+/// unplugged that DevicePlugged / DeviceUnplugged do not take.
+enum class RobotEventKind : std::uint8_t { OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED, DEVICE_DISCONNECTED };
+
+/// The spec's (and EVENT's) spelling of a robot event.
+constexpr std::string_view to_string(RobotEventKind k) noexcept {
+  switch (k) {
+    case RobotEventKind::OBSTACLE_DETECTED: return "OBSTACLE_DETECTED";
+    case RobotEventKind::PROXIMITY_ALERT: return "PROXIMITY_ALERT";
+    case RobotEventKind::DEVICE_CONNECTED: return "DEVICE_CONNECTED";
+    case RobotEventKind::DEVICE_DISCONNECTED: return "DEVICE_DISCONNECTED";
+  }
+  return {};
+}
+
+/// The robot event named @p name (false when it is none of them).
+constexpr bool parse_robot_event(std::string_view name, RobotEventKind& out) noexcept {
+  for (auto k : {RobotEventKind::OBSTACLE_DETECTED, RobotEventKind::PROXIMITY_ALERT, RobotEventKind::DEVICE_CONNECTED,
+                 RobotEventKind::DEVICE_DISCONNECTED})
+    if (to_string(k) == name) {
+      out = k;
+      return true;
+    }
+  return false;
+}
+
+/// True for the name of one of the EV3's eight ports (AgentLogic `Ports`): EVENT's second param for
+/// a device's event.
+constexpr bool is_port_name(std::string_view p) noexcept {
+  constexpr std::string_view kPorts[] = {"in1", "in2", "in3", "in4", "outA", "outB", "outC", "outD"};
+  for (std::string_view k : kPorts)
+    if (k == p) return true;
+  return false;
 }
 
 /// An opaque network peer handle: the program maps it to a socket address. 0 means "none".

@@ -174,13 +174,17 @@ class Node {
                      std::size_t count, Millis now) {
     return after(agent_.sensor_report(port, mode, values, count, now), now);
   }
-  /// Device bits unplugged (agent core device_unplugged).
-  bool device_unplugged(std::uint32_t device, Millis now) {
-    return after(agent_.device_unplugged(device, now), now);
+  /// Device bits unplugged from a port (agent core device_unplugged).
+  bool device_unplugged(std::uint32_t device, std::string_view port, Millis now) {
+    return after(agent_.device_unplugged(device, port, now), now);
   }
-  /// Device bits plugged back (agent core device_plugged).
-  bool device_plugged(std::uint32_t device, Millis now) {
-    return after(agent_.device_plugged(device, now), now);
+  /// Device bits plugged back on a port (agent core device_plugged).
+  bool device_plugged(std::uint32_t device, std::string_view port, Millis now) {
+    return after(agent_.device_plugged(device, port, now), now);
+  }
+  /// A robot event that changes no protocol state (agent core robot_event).
+  bool robot_event(RobotEventKind e, std::string_view port, Millis now) {
+    return after(agent_.robot_event(e, port, now), now);
   }
   /// The battery is low (agent core battery_low).
   bool battery_low(Millis now) { return after(agent_.battery_low(now), now); }

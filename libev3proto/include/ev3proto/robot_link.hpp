@@ -9,10 +9,15 @@
 ///                    panics, so while the master is lost the motors are stopped, whatever the
 ///                    action was doing, within the call that delivers the core's event.
 ///  runtime -> node   action results -> action_ok / action_interrupted(warning) / action_failed;
-///                    events: DEVICE_DISCONNECTED -> device_unplugged(bits), DEVICE_CONNECTED ->
-///                    device_plugged(bits), BATTERY_LOW -> battery_low (each of these the core
-///                    sends to the master as EVENT, name first; see docs/devices.md "Events" for
-///                    the events it has no spec action for); sensor reports -> sensor_report.
+///                    events, each with the port from the device layer's address:
+///                    DEVICE_DISCONNECTED -> device_unplugged(bits, port), DEVICE_CONNECTED ->
+///                    device_plugged(bits, port), BATTERY_LOW -> battery_low, and what those do
+///                    not take (a device the model does not use, one more while another is
+///                    missing, the first of several back) and OBSTACLE_DETECTED / PROXIMITY_ALERT
+///                    -> robot_event(name, port) (spec RobotEvent, while synced), except a warning
+///                    that interrupted the running action: that one the core sent as
+///                    ACTION_INTERR (docs/devices.md "Events"). DEVICE_ERROR is logged only.
+///                    Sensor reports -> sensor_report.
 ///  capabilities      the devices the agent announces (announced_devices()). The core learns
 ///                    which of them are missing when the agent first syncs (ACTIVE): then it
 ///                    tells the master (EVENT DEVICE_DISCONNECTED) and refuses BEHAVIOUR ("missing
@@ -75,7 +80,7 @@ class RobotLink {
     LinkNote n;
     n.kind = LinkNote::Kind::missing;
     n.bits = missing;
-    n.taken = node.device_unplugged(missing, now);
+    n.taken = node.device_unplugged(missing, to_string(first_port(rt, missing)), now);
     note(n);
   }
 
@@ -106,10 +111,14 @@ class RobotLink {
   void drain(Runtime& rt, NodeT& node, Millis now, Note&& note) {
     LinkNote n;
     n.kind = LinkNote::Kind::result;
+    std::size_t interrupts = 0;  // interruptions the core took (ACTION_INTERR sent) in this drain
     while (rt.poll_result(n.result)) {
       switch (n.result.outcome) {
         case Outcome::finished: n.taken = node.action_ok(now); break;
-        case Outcome::interrupted: n.taken = node.action_interrupted(n.result.warning, now); break;
+        case Outcome::interrupted:
+          n.taken = node.action_interrupted(n.result.warning, now);
+          if (n.taken) ++interrupts;
+          break;
         default: n.taken = node.action_failed(now); break;
       }
       note(n);
@@ -117,16 +126,33 @@ class RobotLink {
     n.kind = LinkNote::Kind::event;
     while (rt.poll_event(n.event)) {
       const Event& e = n.event;
+      const std::string_view port = is_port(e.dev) ? to_string(e.dev) : std::string_view{};
+      const std::uint32_t bits = e.bits & announced_;
       n.taken = false;
       switch (e.kind) {
-        case EventKind::DEVICE_DISCONNECTED:  // before the first sync report_missing() says it
-          if (reported_ && (e.bits & announced_) != 0) n.taken = node.device_unplugged(e.bits & announced_, now);
+        // Before the first sync report_missing() says what is missing (and there is no master).
+        case EventKind::DEVICE_DISCONNECTED:
+          if (!reported_) break;
+          if (bits != 0) n.taken = node.device_unplugged(bits, port, now);
+          if (!n.taken) n.taken = node.robot_event(RobotEventKind::DEVICE_DISCONNECTED, port, now);
           break;
         case EventKind::DEVICE_CONNECTED:
-          if (reported_ && (e.bits & announced_) != 0) n.taken = node.device_plugged(e.bits & announced_, now);
+          if (!reported_) break;
+          if (bits != 0) n.taken = node.device_plugged(bits, port, now);
+          if (!n.taken) n.taken = node.robot_event(RobotEventKind::DEVICE_CONNECTED, port, now);
           break;
         case EventKind::BATTERY_LOW: n.taken = node.battery_low(now); break;
-        default: break;
+        case EventKind::OBSTACLE_DETECTED:
+        case EventKind::PROXIMITY_ALERT:
+          if (e.interrupted && interrupts > 0) {
+            --interrupts;  // the master heard it as ACTION_INTERR: one report per event
+            break;
+          }
+          n.taken = node.robot_event(e.kind == EventKind::OBSTACLE_DETECTED ? RobotEventKind::OBSTACLE_DETECTED
+                                                                            : RobotEventKind::PROXIMITY_ALERT,
+                                     port, now);
+          break;
+        default: break;  // DEVICE_ERROR: the program's log
       }
       note(n);
     }
@@ -183,6 +209,13 @@ class RobotLink {
     };
     drain(rt, node, now, counting);
     return any;
+  }
+
+  /// The port of the lowest of @p bits (a model role's device bit) in the runtime's port map.
+  static Dev first_port(const Runtime& rt, std::uint32_t bits) noexcept {
+    for (std::size_t i = 0; i < kRoleCount; ++i)
+      if ((bits & role_bit(static_cast<Role>(i))) != 0) return rt.ports().of(static_cast<Role>(i));
+    return Dev::outA;  // not reached: report_missing() passes a model device's bits
   }
 
   std::uint32_t announced_;

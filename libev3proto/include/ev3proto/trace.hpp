@@ -78,6 +78,10 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
     json_key(s, "e", afirst);
     json_string(s, r.event);
   }
+  if (!r.port.empty()) {
+    json_key(s, "p", afirst);
+    json_string(s, r.port);
+  }
   if (r.action == Action::Tick) {
     json_key(s, "ticks", afirst);
     s += std::to_string(r.ticks);

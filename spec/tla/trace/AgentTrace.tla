@@ -8,7 +8,8 @@
 (*   [a  |-> the action (a handler of AgentLogic),                         *)
 (*    m  |-> the datagram received, decoded as AgentLogic's messages       *)
 (*           (type "NONE" for an internal action),                         *)
-(*    e  |-> ActionInterrupted's warning ("" otherwise),                   *)
+(*    e  |-> ActionInterrupted's warning, RobotEvent's event ("" otherwise),*)
+(*    p  |-> DeviceUnplugged's, DevicePlugged's, RobotEvent's port ("" else), *)
 (*    n  |-> Tick: the number of consecutive spec Ticks it stands for,     *)
 (*    ch |-> the variables the action changed, with their new values]      *)
 (* The record names the handler; the handler must be the one AgentLogic    *)
@@ -59,9 +60,10 @@ IntOk(r, a) ==
       [] r.a = "ActionInterrupted" -> L!ActionInterruptedOk(a, r.e)
       [] r.a = "ActionFailed"      -> L!ActionFailedOk(a)
       [] r.a = "SensorReport"      -> L!SensorReportOk(a)
-      [] r.a = "DeviceUnplugged"   -> L!DeviceUnpluggedOk(a)
-      [] r.a = "DevicePlugged"     -> L!DevicePluggedOk(a)
+      [] r.a = "DeviceUnplugged"   -> L!DeviceUnpluggedOk(a, r.p)
+      [] r.a = "DevicePlugged"     -> L!DevicePluggedOk(a, r.p)
       [] r.a = "BatteryLow"        -> L!BatteryLowOk(a)
+      [] r.a = "RobotEvent"        -> L!RobotEventOk(a, r.e, r.p)
       [] OTHER                     -> FALSE
 Internal(r, a) ==
     CASE r.a = "SyncTimeout"       -> L!SyncTimeout(a)
@@ -70,9 +72,10 @@ Internal(r, a) ==
       [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
       [] r.a = "ActionFailed"      -> L!ActionFailed(a)
       [] r.a = "SensorReport"      -> L!SensorReport(a)
-      [] r.a = "DeviceUnplugged"   -> L!DeviceUnplugged(a)
-      [] r.a = "DevicePlugged"     -> L!DevicePlugged(a)
+      [] r.a = "DeviceUnplugged"   -> L!DeviceUnplugged(a, r.p)
+      [] r.a = "DevicePlugged"     -> L!DevicePlugged(a, r.p)
       [] r.a = "BatteryLow"        -> L!BatteryLow(a)
+      [] r.a = "RobotEvent"        -> L!RobotEvent(a, r.e, r.p)
 
 \* AgentLogic's effect res ([ag, out]) of record r from a, if r's changes fit it.  (res is bound
 \* once by \in: TLC passes operator arguments by name and would evaluate it at each use.)

@@ -8,7 +8,8 @@
 //   advance MS                                   time moves MS milliseconds
 //   recv DATAGRAM [from=PEER]                    a datagram arrives (symbolic: 1->7 START #3, or
 //                                                wire bytes: 1:7:3:8); PEER defaults to 1
-//   event obstacle|proximity|action_ok|action_failed|battery_low|unplug BITS|plug BITS
+//   event obstacle|proximity|action_ok|action_failed|battery_low|unplug BITS PORT|plug BITS PORT
+//   event robot NAME PORT                        a robot event (RobotEvent: OBSTACLE_DETECTED, ...)
 //   event sensor PORT MODE VALUE...
 //   show                                         the election variables
 //   trace                                        print the NDJSON trace lines of this case
@@ -201,8 +202,13 @@ class AgentDriver {
     else if (e == "action_ok") agent_->action_ok(now_);
     else if (e == "action_failed") agent_->action_failed(now_);
     else if (e == "battery_low") agent_->battery_low(now_);
-    else if (e == "unplug" && w.size() == 3) agent_->device_unplugged(static_cast<std::uint32_t>(std::stoul(w[2])), now_);
-    else if (e == "plug" && w.size() == 3) agent_->device_plugged(static_cast<std::uint32_t>(std::stoul(w[2])), now_);
+    else if (e == "unplug" && w.size() == 4) agent_->device_unplugged(static_cast<std::uint32_t>(std::stoul(w[2])), w[3], now_);
+    else if (e == "plug" && w.size() == 4) agent_->device_plugged(static_cast<std::uint32_t>(std::stoul(w[2])), w[3], now_);
+    else if (e == "robot" && w.size() == 4) {
+      RobotEventKind k{};
+      if (!parse_robot_event(w[2], k)) lines_.push_back("error: bad robot event " + w[2]);
+      else if (!agent_->robot_event(k, w[3], now_)) lines_.push_back("robot event refused");
+    }
     else if (e == "sensor" && w.size() >= 5) {
       std::vector<std::string_view> v(w.begin() + 4, w.end());
       if (!agent_->sensor_report(w[2], w[3], v.data(), v.size(), now_)) lines_.push_back("sensor refused");

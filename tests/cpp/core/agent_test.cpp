@@ -188,8 +188,9 @@ TEST(AgentNoHeap, WholeLifecycleAllocatesNothing) {
     a->sensor_report("in1", "US-DIST-CM", v, 1, t0 + 1006);
     a->action_interrupted(Warning::OBSTACLE_DETECTED, t0 + 1007);
     a->handle_datagram("garbage", 1, t0 + 1008);
-    a->device_unplugged(1, t0 + 1009);
-    a->device_plugged(1, t0 + 1010);
+    a->robot_event(RobotEventKind::OBSTACLE_DETECTED, "in1", t0 + 1008);
+    a->device_unplugged(1, "outB", t0 + 1009);
+    a->device_plugged(1, "outB", t0 + 1010);
     a->advance(t0 + 20000);  // master lost: PANIC
     drain(*a);
   }

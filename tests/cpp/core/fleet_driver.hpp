@@ -19,7 +19,7 @@
 //   cut X Y | partition X... | heal     links: cut one, cut X... from the rest, heal them all
 //   cmd [at=X] ID|all|aK start|stop|pause|resume|standby|continue|restart|assign NAME [ARG...]
 //                            an operator command at the PC (or at node X's Master core)
-//   event X action_ok|action_failed|obstacle|battery_low|unplug BITS|plug BITS
+//   event X action_ok|action_failed|obstacle|battery_low|unplug BITS PORT|plug BITS PORT
 //   crash pc | restart pc    the PC stops; it comes back as a candidate with its epoch, members,
 //                            ids and msgids (stable storage)
 //   show                     one line per node
@@ -374,8 +374,8 @@ class FleetDriver {
     else if (e == "action_failed") ok = r.action_failed(now_);
     else if (e == "obstacle") ok = r.action_interrupted(Warning::OBSTACLE_DETECTED, now_);
     else if (e == "battery_low") ok = r.battery_low(now_);
-    else if (e == "unplug" && w.size() == 4) ok = r.device_unplugged(static_cast<std::uint32_t>(std::stoul(w[3])), now_);
-    else if (e == "plug" && w.size() == 4) ok = r.device_plugged(static_cast<std::uint32_t>(std::stoul(w[3])), now_);
+    else if (e == "unplug" && w.size() == 5) ok = r.device_unplugged(static_cast<std::uint32_t>(std::stoul(w[3])), w[4], now_);
+    else if (e == "plug" && w.size() == 5) ok = r.device_plugged(static_cast<std::uint32_t>(std::stoul(w[3])), w[4], now_);
     else lines_.push_back("error: bad event " + e);
     if (!ok) block(i).push_back("  not enabled");
     settle(i);

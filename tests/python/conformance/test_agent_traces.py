@@ -63,8 +63,11 @@ events = st.one_of(
     st.sampled_from(["action_ok", "action_failed", "battery_low"]).map(lambda e: {"type": "event", "event": e}),
     st.sampled_from(["OBSTACLE_DETECTED", "PROXIMITY_ALERT"]).map(
         lambda w: {"type": "event", "event": "action_interrupted", "warning": w}),
-    st.sampled_from(["device_unplugged", "device_plugged"]).map(
-        lambda e: {"type": "event", "event": e, "devices": 1}),
+    st.tuples(st.sampled_from(["device_unplugged", "device_plugged"]), st.sampled_from(["in1", "outB"])).map(
+        lambda ep: {"type": "event", "event": ep[0], "devices": 1, "port": ep[1]}),
+    st.tuples(st.sampled_from(["OBSTACLE_DETECTED", "PROXIMITY_ALERT", "DEVICE_CONNECTED", "DEVICE_DISCONNECTED"]),
+              st.sampled_from(["in1", "in4", "outC"])).map(
+        lambda ep: {"type": "event", "event": "robot_event", "name": ep[0], "port": ep[1]}),
     st.just({"type": "event", "event": "sensor_report", "port": "1", "mode": "m", "values": ["3"]}))
 advances = st.integers(0, 7).map(lambda ms: {"type": "advance", "ms": ms})
 step = st.one_of(command(), command(), master(), garbage, events, advances, advances)

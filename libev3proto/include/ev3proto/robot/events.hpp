@@ -58,6 +58,7 @@ struct Event {
   Dev dev = Dev::outA;
   Millis at = 0;
   std::uint32_t bits = 0;  ///< the model's device bits this event is about (0: none of its devices)
+  bool interrupted = false;  ///< it interrupted the running action (the runtime's result says so)
   Text<128> detail;
 
   Severity severity() const noexcept { return severity_of(kind); }

@@ -389,9 +389,9 @@ class Runtime {
   bool poll_write(Write& out) noexcept { return writes_.pop(out); }
   /// The next action result (false when none).
   bool poll_result(ActionResult& out) noexcept { return results_.pop(out); }
-  /// The next event handled (false when none): feed it to the agent core (DEVICE_DISCONNECTED:
-  /// device_unplugged(bits), DEVICE_CONNECTED: device_plugged(bits), BATTERY_LOW: battery_low) and
-  /// send it to the master as EVENT (Event::params()).
+  /// The next event handled (false when none), for the agent core (robot_link.hpp: the device
+  /// events and BATTERY_LOW to their spec actions, the rest to robot_event unless it interrupted
+  /// the running action: Event::interrupted).
   bool poll_event(Event& out) noexcept { return out_events_.pop(out); }
   /// The next clean sensor reading a Pause took (agent core: sensor_report).
   bool poll_report(Report& out) noexcept { return reports_.pop(out); }
@@ -411,6 +411,8 @@ class Runtime {
 
   /// The model's device bits plugged now (tell the core the missing ones after the first scan).
   std::uint32_t plugged() const noexcept { return plugged_; }
+  /// The port of each role (the configuration's, `--ports`).
+  const PortMap& ports() const noexcept { return cfg_.ports; }
   /// True once BATTERY_LOW was handled: motors stopped, nothing starts any more (exit cleanly).
   bool off() const noexcept { return off_; }
   /// True while an action runs or is paused.
@@ -559,7 +561,10 @@ class Runtime {
           break;
         default: {
           const Outcome o = runner_.event(e, c);
-          if (o == Outcome::interrupted) outcome(o, now);
+          if (o == Outcome::interrupted) {
+            e.interrupted = true;  // the link sends no EVENT for it when the core sent ACTION_INTERR
+            outcome(o, now);
+          }
           break;
         }
       }
