@@ -1,7 +1,8 @@
 // The link between a robot node and the robot runtime (robot_link.hpp), without a device layer:
 // what the agent announces, the devices missing at start, a behaviour control reaching the runtime
 // and its result reaching the master, a bad argument failing, BATTERY_LOW reaching the master and
-// switching both off.
+// switching both off; the robot's events reaching the master as EVENT(name, port), and an obstacle
+// that interrupts the drive as ACTION_INTERR only.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -9,6 +10,7 @@
 
 #include "ev3proto/robot/behaviours.hpp"
 #include "ev3proto/robot_link.hpp"
+#include "../robot/fixtures.hpp"
 #include "symbolic.hpp"
 
 namespace {
@@ -184,6 +186,111 @@ TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
   out.clear();
   settle(710);
   EXPECT_TRUE(has(out, "ACTION_ERR")) << ::testing::PrintToString(out);
+}
+
+/// Model A plugged on its default ports (the runtime's DEVICE_CONNECTED events at @p now).
+void plug_model_a(Rig& r, Millis now) {
+  using robot::Dev;
+  r.rt.device_connected(ev3test::large_motor(Dev::outB), now);
+  r.rt.device_connected(ev3test::large_motor(Dev::outC), now);
+  r.rt.device_connected(ev3test::sensor(Dev::in1, "lego-ev3-touch", "TOUCH", "TOUCH", "0"), now);
+  r.rt.device_connected(ev3test::sensor(Dev::in3, "lego-ev3-color", "COL-REFLECT COL-AMBIENT COL-COLOR", "COL-COLOR", "0"), now);
+  r.rt.device_connected(ev3test::sensor(Dev::in4, "lego-ev3-us", "US-DIST-CM US-DIST-IN US-LISTEN", "US-DIST-CM", "1"), now);
+  r.settle(now);
+}
+
+/// The bumper reads @p pressed at @p now (one control tick).
+void bumper(Rig& r, bool pressed, Millis now) {
+  r.rt.reading(robot::Dev::in1, robot::Attr::value0, pressed ? "1\n" : "0\n", now);
+  r.rt.tick(now);
+  r.node.advance(now);
+  r.settle(now);
+}
+
+TEST(RobotLink, NormalEventsReachTheMasterAsEventWithTheirPort) {
+  Rig r(true);
+  plug_model_a(r, 0);
+  r.datagram("1:7:1:2:50001", 10);  // MASTER: synced, nothing missing
+  EXPECT_FALSE(has(r.notes, "missing"));
+  r.sent();
+  // WORKING with `wait` (no motion): the bumper pressed is EVENT OBSTACLE_DETECTED in1, the wait
+  // goes on.
+  r.datagram("1:7:2:7:wait:seconds=100", 20);
+  r.datagram("1:7:3:8", 30);
+  ASSERT_EQ(r.node.agent().state(), State::WORKING);
+  r.sent();
+  bumper(r, true, 100);
+  auto out = r.sent();
+  EXPECT_TRUE(has(out, "EVENT #4 OBSTACLE_DETECTED in1")) << ::testing::PrintToString(out);
+  EXPECT_FALSE(has(out, "ACTION_INTERR"));
+  EXPECT_TRUE(has(r.notes, "event OBSTACLE_DETECTED taken"));
+  EXPECT_EQ(r.node.agent().state(), State::WORKING);
+  bumper(r, true, 200);  // held: one event per press
+  EXPECT_TRUE(r.sent().empty());
+  bumper(r, false, 300);
+  bumper(r, false, 400);
+  // A device the model does not use, plugged and unplugged: EVENT with its port, nothing else.
+  r.rt.device_connected(ev3test::sensor(robot::Dev::in2, "lego-ev3-gyro", "GYRO-ANG GYRO-RATE", "GYRO-ANG", "0"), 500);
+  r.settle(500);
+  out = r.sent();
+  EXPECT_TRUE(has(out, "EVENT #5 DEVICE_CONNECTED in2")) << ::testing::PrintToString(out);
+  r.rt.device_disconnected(robot::Dev::in2, 510);
+  r.settle(510);
+  out = r.sent();
+  EXPECT_TRUE(has(out, "EVENT #6 DEVICE_DISCONNECTED in2")) << ::testing::PrintToString(out);
+  EXPECT_EQ(r.node.agent().state(), State::WORKING);
+}
+
+TEST(RobotLink, AnObstacleThatInterruptsTheDriveIsActionInterrOnly) {
+  Rig r(true);
+  plug_model_a(r, 0);
+  r.datagram("1:7:1:2:50001", 10);
+  r.datagram("1:7:2:7:drive:speed=400", 20);
+  r.datagram("1:7:3:8", 30);
+  ASSERT_EQ(r.node.agent().state(), State::WORKING);
+  r.sent();
+  bumper(r, true, 100);
+  const auto out = r.sent();
+  EXPECT_TRUE(has(out, "ACTION_INTERR #4 0 OBSTACLE_DETECTED")) << ::testing::PrintToString(out);
+  EXPECT_FALSE(has(out, "EVENT")) << ::testing::PrintToString(out);
+  EXPECT_TRUE(has(r.notes, "event OBSTACLE_DETECTED")) << ::testing::PrintToString(r.notes);
+  EXPECT_FALSE(has(r.notes, "event OBSTACLE_DETECTED taken"));
+}
+
+TEST(RobotLink, DeviceEventsCarryTheirPort) {
+  Rig r(true);
+  plug_model_a(r, 0);
+  r.datagram("1:7:1:2:50001", 10);
+  r.sent();
+  // Two model devices unplugged: the first is DeviceUnplugged (devOk FALSE), the second a
+  // RobotEvent; replugged, the first back a RobotEvent, the last DevicePlugged (devOk TRUE).
+  r.rt.device_disconnected(robot::Dev::in3, 100);
+  r.rt.device_disconnected(robot::Dev::in4, 100);
+  r.settle(100);
+  auto out = r.sent();
+  ASSERT_EQ(out.size(), 2u) << ::testing::PrintToString(out);
+  EXPECT_TRUE(has(out, "EVENT #2 DEVICE_DISCONNECTED in3"));
+  EXPECT_TRUE(has(out, "EVENT #3 DEVICE_DISCONNECTED in4"));
+  EXPECT_FALSE(r.node.agent().dev_ok());
+  r.rt.device_connected(ev3test::sensor(robot::Dev::in3, "lego-ev3-color", "COL-REFLECT COL-AMBIENT COL-COLOR", "COL-COLOR", "0"), 200);
+  r.settle(200);
+  EXPECT_FALSE(r.node.agent().dev_ok());
+  r.rt.device_connected(ev3test::sensor(robot::Dev::in4, "lego-ev3-us", "US-DIST-CM US-DIST-IN US-LISTEN", "US-DIST-CM", "1"), 300);
+  r.settle(300);
+  out = r.sent();
+  ASSERT_EQ(out.size(), 2u) << ::testing::PrintToString(out);
+  EXPECT_TRUE(has(out, "EVENT #4 DEVICE_CONNECTED in3"));
+  EXPECT_TRUE(has(out, "EVENT #5 DEVICE_CONNECTED in4"));
+  EXPECT_TRUE(r.node.agent().dev_ok());
+}
+
+TEST(RobotLink, TheFirstMissingDeviceIsToldWithItsPort) {
+  Rig r(true);
+  r.rt.device_connected(ev3test::large_motor(robot::Dev::outB), 0);
+  r.rt.device_connected(ev3test::large_motor(robot::Dev::outC), 0);
+  r.settle(0);
+  r.datagram("1:7:1:2:50001", 10);  // ultrasonic (bit 4), touch, colour missing: the first is in4
+  EXPECT_TRUE(has(r.sent(), "EVENT #2 DEVICE_DISCONNECTED in4"));
 }
 
 }  // namespace

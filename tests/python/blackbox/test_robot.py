@@ -2,7 +2,8 @@
 driven through its console. The LEDs follow the lifecycle; `drive` moves the robot; the bumper stops
 it within one control tick and the master hears OBSTACLE_DETECTED; an unplugged motor is
 DEVICE_DISCONNECTED at the master; a low battery is BATTERY_LOW at the master and a clean exit;
-the master killed while driving stops the motors. The armel agent under qemu-arm drives too.
+the master killed while driving stops the motors; the robot's events outside an action reach the
+master as EVENT with their port. The armel agent under qemu-arm drives too.
 
 ev3-sim needs /dev/fuse and the armel test qemu-arm: without them these tests FAIL (never skip).
 Each test is a few seconds of real time; the agents' NDJSON traces are checked against the spec
@@ -228,26 +229,58 @@ def test_unplugged_motor_and_low_battery_reach_the_master(sim_factory, fleet, ag
     fleet.start_master()
     a = fleet.start_agent(agent_exe, sim.root())
     wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
-    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED")
+    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED in3")
     sim.ctl("replug in3")
-    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED", 4)
+    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED in3", 4)
     fleet.say("behaviour 2 drive speed=300")
     fleet.say("start 2")
     wait_until(lambda: driving(sim), 3, "driving")
     sim.ctl("unplug outC")
-    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED(.|\n)*EVENT DEVICE_DISCONNECTED")
+    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED outC")
     wait_until(lambda: stopped(sim), 1, "the other motor stopped")
     wait_until(lambda: fleet.agent_state("ACTIVE"), 3, "back to ACTIVE (behaviour unloaded)")
     fleet.say("behaviour 2 drive speed=300")
     fleet.heard(r"BEHAVIOUR refused \(NOT\): missing")
     sim.ctl("replug outC")
-    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED(.|\n)*EVENT DEVICE_CONNECTED", 4)
+    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED outC", 4)
     sim.ctl("battery 5.9")
     fleet.heard(r"agent 2: EVENT BATTERY_LOW", 8)
     wait_until(lambda: a.proc.poll() is not None, 3, "the agent to exit after BATTERY_LOW")
     assert a.proc.returncode == 0, a.stderr()
     assert stopped(sim)
     assert leds(sim) == "DARK"
+
+
+def test_normal_events_reach_the_master_with_their_port(sim_factory, fleet, agent_exe):
+    """WORKING with `wait` (no motion): the robot is placed with its bumper against the box, the
+    bumper closes: EVENT OBSTACLE_DETECTED in1 at the master, no ACTION_INTERR, still WORKING. A
+    gyro plugged into the free port in2: EVENT DEVICE_CONNECTED in2. The colour sensor unplugged
+    and plugged back: EVENT DEVICE_DISCONNECTED in3, then DEVICE_CONNECTED in3 (spec RobotEvent,
+    DeviceUnplugged, DevicePlugged)."""
+    sim = sim_factory(BOX)
+    fleet.start_master()
+    fleet.start_agent(agent_exe, sim.root())
+    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+    fleet.say("behaviour 2 wait seconds=60")
+    fleet.heard(r"BEHAVIOUR acknowledged")
+    fleet.say("start 2")
+    wait_until(lambda: fleet.agent_state("WORKING"), 3, "WORKING")
+    # The bumper's face 0.3 cm short of the box (x = 120): within its 0.6 cm travel, no overlap.
+    sim.ctl("place 107.7 150 0")
+    wait_until(lambda: sim.robot()["bumper"], 2, "the bumper pressed against the box")
+    fleet.heard(r"agent 2: EVENT OBSTACLE_DETECTED in1", 4)
+    assert "ACTION_INTERR" not in fleet.master.stdout()
+    assert fleet.agent_state("WORKING")
+    assert stopped(sim)
+    sim.ctl("plug in2 lego-ev3-gyro")
+    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED in2", 4)
+    assert fleet.agent_state("WORKING")
+    sim.ctl("unplug in3")
+    fleet.heard(r"agent 2: EVENT DEVICE_DISCONNECTED in3", 4)
+    sim.ctl("replug in3")
+    fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED in3", 4)
+    out = fleet.master.stdout()
+    assert out.count("EVENT OBSTACLE_DETECTED") == 1, out  # one press, one report
 
 
 def test_armel_agent_drives_the_simulated_robot(sim_factory, fleet):
