@@ -254,16 +254,60 @@ constexpr DecodeResult fail(Reason r, std::size_t field) noexcept {
   return DecodeResult{r, static_cast<std::uint8_t>(field)};
 }
 
-/// True when every byte of the param [p, e) (its ':' not included) stands for itself: none is '%'
-/// and none lies outside 0x20..0x7E. Looks at every byte, without an early exit, so that the
-/// compiler may check many at once.
-inline bool all_plain(const char* p, const char* e) noexcept {
-  unsigned char special = 0;  // the width of the bytes looked at: the compiler need not widen them
+/// The first @p c in [p, e), or e if there is none (memchr, which the C library makes fast).
+inline const char* find_byte(const char* p, const char* e, char c) noexcept {
+  const void* hit = std::memchr(p, c, static_cast<std::size_t>(e - p));
+  return hit != nullptr ? static_cast<const char*>(hit) : e;
+}
+
+/// True when every byte of [p, e) lies within 0x20..0x7E, that is when its smallest and its largest
+/// byte do. A loop without an early exit or a branch, so that the compiler may look at many bytes at
+/// once.
+inline bool all_printable(const char* p, const char* e) noexcept {
+  unsigned char lo = 0xFF;
+  unsigned char hi = 0x00;
   for (; p != e; ++p) {
     const unsigned char c = static_cast<unsigned char>(*p);
-    special |= static_cast<unsigned char>((c < 0x20) | (c > 0x7E) | (c == '%'));
+    lo = c < lo ? c : lo;
+    hi = c > hi ? c : hi;
   }
-  return special == 0;
+  return lo >= 0x20 && hi <= 0x7E;
+}
+
+/// The first byte of [p, e) outside 0x20..0x7E, or e if there is none.
+inline const char* find_non_printable(const char* p, const char* e) noexcept {
+  while (p != e && static_cast<unsigned char>(*p) >= 0x20 && static_cast<unsigned char>(*p) <= 0x7E) ++p;
+  return p;
+}
+
+/// Unescapes the param [p, end) of a datagram that ends at @p e into @p dst (room for end - p bytes)
+/// and stores the value's size in @p size. Checks its bytes left to right (docs/protocol.md step 4):
+/// a byte outside 0x20..0x7E is a non-printable byte; a '%' must open an escape of two upper-case hex
+/// digits, of a byte that must be escaped (else bad escape); each escape becomes its byte, every
+/// other byte is copied as it is. @p pct is the first '%' at or after p in the datagram (e if none)
+/// and is left at the first one after the param; @p bad is the first byte outside 0x20..0x7E at or
+/// after p (e if none). The bytes between them are copied whole.
+inline Reason unescape(const char* p, const char* end, const char* e, const char*& pct, const char* bad,
+                       char* dst, std::size_t& size) noexcept {
+  char* w = dst;
+  for (;;) {
+    const char* const stop = pct < end ? pct : end;  // the next escape, or the end of the param
+    if (bad < stop) return Reason::non_printable_byte;
+    std::memcpy(w, p, static_cast<std::size_t>(stop - p));
+    w += stop - p;
+    if (stop == end) break;
+    if (end - stop < 3) return Reason::bad_escape;
+    const int hi = upper_hex_value(static_cast<unsigned char>(stop[1]));
+    const int lo = upper_hex_value(static_cast<unsigned char>(stop[2]));
+    if (hi < 0 || lo < 0) return Reason::bad_escape;
+    const unsigned char byte = static_cast<unsigned char>(hi * 16 + lo);
+    if (!must_escape(byte)) return Reason::bad_escape;  // not canonical
+    *w++ = static_cast<char>(byte);
+    p = stop + 3;
+    pct = find_byte(p, e, '%');
+  }
+  size = static_cast<std::size_t>(w - dst);
+  return Reason::ok;
 }
 
 } // namespace detail
@@ -303,10 +347,13 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   out.type = static_cast<MsgType>(header[kFieldType]);
 
   // 4. The params, in order. The whole param region is first copied into out.data_ as it is: a param
-  // without escapes is then its own value, in place; one with escapes is unescaped in place (it
-  // only shrinks). p is the first byte of param i in the datagram, `region` the first of param 0.
+  // without '%' and without a byte outside 0x20..0x7E is then its own value, in place. Two pointers
+  // into the datagram say where the next such bytes are, so that only a param holding one is
+  // unescaped (into out.data_, over its copy). p is the first byte of param i, `region` that of param 0.
   const char* const region = p;
   std::memcpy(out.data_, region, static_cast<std::size_t>(e - region));
+  const char* const bad = detail::all_printable(region, e) ? e : detail::find_non_printable(region, e);
+  const char* pct = detail::find_byte(region, e, '%');
   std::size_t count = 0;  // params accepted so far
   out.count_ = 0;
   while (params_follow) {
@@ -315,37 +362,18 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     // When param i begins: too many params?
     if (i >= kMaxParams || i >= spec->max_params) return fail(Reason::too_many_params, field);
     // Its bytes: up to the next ':' or the end of the datagram.
-    const char* const colon = static_cast<const char*>(std::memchr(p, ':', static_cast<std::size_t>(e - p)));
-    const char* const end = colon != nullptr ? colon : e;
+    const char* const end = detail::find_byte(p, e, ':');
     const std::size_t begin = static_cast<std::size_t>(p - region);
-    std::size_t w = static_cast<std::size_t>(end - region);  // just past its value in out.data_
-    if (!detail::all_plain(p, end)) {
-      // Left to right: a byte outside 0x20..0x7E is not allowed raw; a '%' must open an escape of
-      // two upper-case hex digits, of a byte that must be escaped. Each escape becomes its byte.
-      w = begin;
-      while (p != end) {
-        const unsigned char c = static_cast<unsigned char>(*p);
-        if (!detail::must_escape(c)) {
-          out.data_[w++] = static_cast<char>(c);
-          ++p;
-          continue;
-        }
-        if (c != '%') return fail(Reason::non_printable_byte, field);
-        if (end - p < 3) return fail(Reason::bad_escape, field);
-        const int hi = detail::upper_hex_value(static_cast<unsigned char>(p[1]));
-        const int lo = detail::upper_hex_value(static_cast<unsigned char>(p[2]));
-        if (hi < 0 || lo < 0) return fail(Reason::bad_escape, field);
-        const unsigned char byte = static_cast<unsigned char>(hi * 16 + lo);
-        if (!detail::must_escape(byte)) return fail(Reason::bad_escape, field);  // not canonical
-        out.data_[w++] = static_cast<char>(byte);
-        p += 3;
-      }
+    std::size_t size = static_cast<std::size_t>(end - p);
+    if (pct < end || bad < end) {
+      const Reason r = detail::unescape(p, end, e, pct, bad, out.data_ + begin, size);
+      if (r != Reason::ok) return fail(r, field);
     }
     // Its value against its kind.
-    const Reason r = detail::check_kind(spec->kind(i), std::string_view(out.data_ + begin, w - begin));
+    const Reason r = detail::check_kind(spec->kind(i), std::string_view(out.data_ + begin, size));
     if (r != Reason::ok) return fail(r, field);
     out.begins_[i] = static_cast<std::uint16_t>(begin);
-    out.ends_[i] = static_cast<std::uint16_t>(w);
+    out.ends_[i] = static_cast<std::uint16_t>(begin + size);
     out.count_ = static_cast<std::uint8_t>(++count);
     params_follow = end != e;  // stopped at a ':': another param begins after it
     p = params_follow ? end + 1 : e;
