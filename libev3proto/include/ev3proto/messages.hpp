@@ -265,6 +265,8 @@ constexpr std::string_view to_string(AgentState s) noexcept {
 
 /// Parses a state's wire spelling; returns false (and leaves @p out alone) if it is not one.
 inline bool parse_state(std::string_view s, AgentState& out) noexcept {
+  // Unrolled, each comparison is with a name of known length, which compilers do without a call.
+#pragma GCC unroll 5
   for (const AgentState a : {AgentState::IDLE, AgentState::ACTIVE, AgentState::WORKING, AgentState::PAUSED,
                              AgentState::PANIC}) {
     if (s == to_string(a)) {

@@ -260,14 +260,16 @@ inline const char* find_byte(const char* p, const char* e, char c) noexcept {
   return hit != nullptr ? static_cast<const char*>(hit) : e;
 }
 
-/// True when every byte of [p, e) lies within 0x20..0x7E, that is when its smallest and its largest
-/// byte do. A loop without an early exit or a branch, so that the compiler may look at many bytes at
-/// once.
-inline bool all_printable(const char* p, const char* e) noexcept {
+/// Copies [p, e) to @p dst and tells whether every byte lies within 0x20..0x7E (the smallest and the
+/// largest do). A loop without an early exit or a branch, so that the compiler may copy and look at
+/// many bytes at once.
+inline bool copy_printable(const char* p, const char* e, char* dst) noexcept {
   unsigned char lo = 0xFF;
   unsigned char hi = 0x00;
-  for (; p != e; ++p) {
-    const unsigned char c = static_cast<unsigned char>(*p);
+  const std::size_t n = static_cast<std::size_t>(e - p);
+  for (std::size_t k = 0; k < n; ++k) {
+    const unsigned char c = static_cast<unsigned char>(p[k]);
+    dst[k] = static_cast<char>(c);
     lo = c < lo ? c : lo;
     hi = c > hi ? c : hi;
   }
@@ -280,31 +282,30 @@ inline const char* find_non_printable(const char* p, const char* e) noexcept {
   return p;
 }
 
-/// Unescapes the param [p, end) of a datagram that ends at @p e into @p dst (room for end - p bytes)
-/// and stores the value's size in @p size. Checks its bytes left to right (docs/protocol.md step 4):
-/// a byte outside 0x20..0x7E is a non-printable byte; a '%' must open an escape of two upper-case hex
-/// digits, of a byte that must be escaped (else bad escape); each escape becomes its byte, every
-/// other byte is copied as it is. @p pct is the first '%' at or after p in the datagram (e if none)
-/// and is left at the first one after the param; @p bad is the first byte outside 0x20..0x7E at or
-/// after p (e if none). The bytes between them are copied whole.
-inline Reason unescape(const char* p, const char* end, const char* e, const char*& pct, const char* bad,
-                       char* dst, std::size_t& size) noexcept {
-  char* w = dst;
-  for (;;) {
-    const char* const stop = pct < end ? pct : end;  // the next escape, or the end of the param
-    if (bad < stop) return Reason::non_printable_byte;
-    std::memcpy(w, p, static_cast<std::size_t>(stop - p));
-    w += stop - p;
-    if (stop == end) break;
-    if (end - stop < 3) return Reason::bad_escape;
-    const int hi = upper_hex_value(static_cast<unsigned char>(stop[1]));
-    const int lo = upper_hex_value(static_cast<unsigned char>(stop[2]));
-    if (hi < 0 || lo < 0) return Reason::bad_escape;
-    const unsigned char byte = static_cast<unsigned char>(hi * 16 + lo);
-    if (!must_escape(byte)) return Reason::bad_escape;  // not canonical
-    *w++ = static_cast<char>(byte);
-    p = stop + 3;
-    pct = find_byte(p, e, '%');
+/// Unescapes the param [p, end) into @p dst, where its bytes already are (copied as they are), and
+/// stores the value's size in @p size. The bytes before @p special (the param's first '%' or byte
+/// outside 0x20..0x7E) stand for themselves and stay; from there on, left to right (docs/protocol.md
+/// step 4): a '%' must open an escape of two upper-case hex digits, of a byte that must be escaped
+/// (else bad escape), and becomes its byte; a byte outside 0x20..0x7E is a non-printable byte; any
+/// other byte stands for itself.
+inline Reason unescape(const char* p, const char* end, const char* special, char* dst, std::size_t& size) noexcept {
+  char* w = dst + (special - p);
+  for (const char* q = special; q != end; ++q) {
+    const unsigned char c = static_cast<unsigned char>(*q);
+    if (c == '%') {
+      if (end - q < 3) return Reason::bad_escape;
+      const int hi = upper_hex_value(static_cast<unsigned char>(q[1]));
+      const int lo = upper_hex_value(static_cast<unsigned char>(q[2]));
+      if (hi < 0 || lo < 0) return Reason::bad_escape;
+      const unsigned char byte = static_cast<unsigned char>(hi * 16 + lo);
+      if (!must_escape(byte)) return Reason::bad_escape;  // not canonical
+      *w++ = static_cast<char>(byte);
+      q += 2;
+    } else if (c < 0x20 || c > 0x7E) {
+      return Reason::non_printable_byte;
+    } else {
+      *w++ = static_cast<char>(c);
+    }
   }
   size = static_cast<std::size_t>(w - dst);
   return Reason::ok;
@@ -346,41 +347,48 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   out.msgid = header[kFieldMsgid];
   out.type = static_cast<MsgType>(header[kFieldType]);
 
-  // 4. The params, in order. The whole param region is first copied into out.data_ as it is: a param
-  // without '%' and without a byte outside 0x20..0x7E is then its own value, in place. Two pointers
-  // into the datagram say where the next such bytes are, so that only a param holding one is
-  // unescaped (into out.data_, over its copy). p is the first byte of param i, `region` that of param 0.
+  // 4. The params, in order. The whole param region is first copied into out.data_ as it is, and
+  // checked for bytes outside 0x20..0x7E on the way: a param holding neither such a byte nor a '%' is
+  // then its own value, in place. `bad` and `pct` point at the first such bytes in the datagram, so
+  // that only a param holding one is looked at byte by byte (and unescaped over its copy). p is the
+  // first byte of param i, `region` that of param 0.
   const char* const region = p;
-  std::memcpy(out.data_, region, static_cast<std::size_t>(e - region));
-  const char* const bad = detail::all_printable(region, e) ? e : detail::find_non_printable(region, e);
+  const char* const bad = detail::copy_printable(region, e, out.data_) ? e : detail::find_non_printable(region, e);
   const char* pct = detail::find_byte(region, e, '%');
+  const std::size_t max_params = spec->max_params < kMaxParams ? spec->max_params : kMaxParams;
+  // Params from this index on are text, whose value needs no check.
+  const std::size_t typed = spec->kind(spec->declared) == ParamKind::text ? spec->declared : max_params;
   std::size_t count = 0;  // params accepted so far
   out.count_ = 0;
   while (params_follow) {
     const std::size_t i = count;
     const std::size_t field = kFieldParam0 + i;
     // When param i begins: too many params?
-    if (i >= kMaxParams || i >= spec->max_params) return fail(Reason::too_many_params, field);
+    if (i >= max_params) return fail(Reason::too_many_params, field);
     // Its bytes: up to the next ':' or the end of the datagram.
     const char* const end = detail::find_byte(p, e, ':');
     const std::size_t begin = static_cast<std::size_t>(p - region);
     std::size_t size = static_cast<std::size_t>(end - p);
     if (pct < end || bad < end) {
-      const Reason r = detail::unescape(p, end, e, pct, bad, out.data_ + begin, size);
+      const Reason r = detail::unescape(p, end, pct < bad ? pct : bad, out.data_ + begin, size);
       if (r != Reason::ok) return fail(r, field);
+      pct = detail::find_byte(end, e, '%');
     }
     // Its value against its kind.
-    const Reason r = detail::check_kind(spec->kind(i), std::string_view(out.data_ + begin, size));
-    if (r != Reason::ok) return fail(r, field);
+    if (i < typed) {
+      const Reason r = detail::check_kind(spec->kind(i), std::string_view(out.data_ + begin, size));
+      if (r != Reason::ok) return fail(r, field);
+    }
     out.begins_[i] = static_cast<std::uint16_t>(begin);
     out.ends_[i] = static_cast<std::uint16_t>(begin + size);
-    out.count_ = static_cast<std::uint8_t>(++count);
+    ++count;
     params_follow = end != e;  // stopped at a ':': another param begins after it
     p = params_follow ? end + 1 : e;
   }
 
   // 5. Fewer params than the type's min.
   if (count < spec->min_params) return fail(Reason::too_few_fields, kFieldParam0 + count);
+  out.count_ = static_cast<std::uint8_t>(count);
   return DecodeResult{};
 }
 
