@@ -355,6 +355,7 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
   const char* const region = p;
   const char* const bad = detail::copy_printable(region, e, out.data_) ? e : detail::find_non_printable(region, e);
   const char* pct = detail::find_byte(region, e, '%');
+  const char* special = pct < bad ? pct : bad;  // the first of them
   const std::size_t max_params = spec->max_params < kMaxParams ? spec->max_params : kMaxParams;
   // Params from this index on are text, whose value needs no check.
   const std::size_t typed = spec->kind(spec->declared) == ParamKind::text ? spec->declared : max_params;
@@ -369,10 +370,11 @@ inline DecodeResult decode(std::string_view datagram, Message& out) noexcept {
     const char* const end = detail::find_byte(p, e, ':');
     const std::size_t begin = static_cast<std::size_t>(p - region);
     std::size_t size = static_cast<std::size_t>(end - p);
-    if (pct < end || bad < end) {
-      const Reason r = detail::unescape(p, end, pct < bad ? pct : bad, out.data_ + begin, size);
+    if (special < end) {
+      const Reason r = detail::unescape(p, end, special, out.data_ + begin, size);
       if (r != Reason::ok) return fail(r, field);
       pct = detail::find_byte(end, e, '%');
+      special = pct < bad ? pct : bad;
     }
     // Its value against its kind.
     if (i < typed) {
