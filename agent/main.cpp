@@ -48,6 +48,9 @@ namespace robot = ev3proto::robot;
 constexpr ev3proto::BehaviourSpec kModelABehaviours[] = {
     {robot::kModelABehaviours[0].name, robot::kModelABehaviours[0].devices},
     {robot::kModelABehaviours[1].name, robot::kModelABehaviours[1].devices},
+    {robot::kModelABehaviours[2].name, robot::kModelABehaviours[2].devices},
+    {robot::kModelABehaviours[3].name, robot::kModelABehaviours[3].devices},
+    {robot::kModelABehaviours[4].name, robot::kModelABehaviours[4].devices},
 };
 static_assert(std::size(robot::kModelABehaviours) == std::size(kModelABehaviours));
 

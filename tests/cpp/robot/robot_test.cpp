@@ -12,6 +12,8 @@
 #include <random>
 #include <string>
 
+#include "ev3proto/behaviour/builtins.hpp"
+#include "ev3proto/behaviour/checker.hpp"
 #include "ev3proto/behaviour/definition.hpp"
 #include "ev3proto/behaviour/model.hpp"
 #include "ev3proto/robot/runtime.hpp"
@@ -302,10 +304,24 @@ TEST(Behaviours, ModelADeclaresItsActionsAndBehaviours) {
   std::string names;
   for (const ActionSupport& a : kModelAActions) names += std::string(action::to_string(a.kind)) + " ";
   EXPECT_EQ(names, "DriveDistance Turn RunForever Stop Pause Wait ");
-  ASSERT_EQ(std::size(kModelABehaviours), 2u);
+  ASSERT_EQ(std::size(kModelABehaviours), ev3proto::behaviour::kBuiltinCount + 1);
   EXPECT_EQ(kModelABehaviours[0].name, "wait");
-  EXPECT_EQ(kModelABehaviours[1].devices, kMotors | kTouch);
+  EXPECT_EQ(kModelABehaviours[1].devices, kMotors | kTouch | kUltrasonic);
   for (const BuiltinBehaviour& b : kModelABehaviours) EXPECT_EQ(b.devices & ~kModelADevices, 0u) << b.name;
+  // Each built-in needs what its definition needs (the behaviour language's device bits are robot/'s
+  // role bits); custom needs nothing until its definition is checked at START.
+  static ev3proto::behaviour::Definition def;
+  for (const BuiltinBehaviour& b : kModelABehaviours) {
+    if (b.name == "custom") {
+      EXPECT_EQ(b.devices, 0u);
+      continue;
+    }
+    const ev3proto::behaviour::Builtin* text = ev3proto::behaviour::find_builtin(b.name);
+    ASSERT_NE(text, nullptr) << b.name;
+    ev3proto::behaviour::Diagnostic d;
+    ASSERT_TRUE(ev3proto::behaviour::parse(text->text, def, d)) << b.name;
+    EXPECT_EQ(b.devices, ev3proto::behaviour::devices_needed(def, ev3proto::behaviour::kModelA)) << b.name;
+  }
 }
 
 // The behaviour language (issue 16, ev3proto/behaviour/) names the robot's events, devices and stop

@@ -33,10 +33,16 @@ inline constexpr ActionSupport kModelAActions[] = {
     {action::Kind::stop, kMotors},           {action::Kind::pause, 0},      {action::Kind::wait, 0},
 };
 
-/// Model A's behaviours: `wait` needs nothing; `drive` the two motors and the bumper.
+/// Model A's behaviours and the devices each needs plugged (the agent core refuses BEHAVIOUR with
+/// "missing device" otherwise): the built-ins of behaviours/*.bhv, each the devices its definition
+/// needs (behaviour::devices_needed; a test keeps the two equal), and `custom`, whose definition the
+/// runtime checks when it starts it.
 inline constexpr BuiltinBehaviour kModelABehaviours[] = {
     {"wait", 0},
-    {"drive", kMotors | kTouch},
+    {"drive", kMotors | kTouch | kUltrasonic},
+    {"explore", kMotors | kTouch | kUltrasonic},
+    {"exploit", kMotors | kTouch | kUltrasonic | kColour},
+    {"custom", 0},
 };
 
 /// Longest `wait` accepted (seconds).
