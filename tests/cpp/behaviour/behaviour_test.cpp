@@ -341,8 +341,9 @@ TEST(Runtime, NegatedParamsAndRepeat) {
 TEST(Devices, NeededByModelA) {
   static Definition d;
   Diagnostic g;
-  ASSERT_TRUE(parse(find_builtin("explore")->text, d, g));
-  EXPECT_EQ(devices_needed(d, kModelA), kDriveMotors | bit(Device::touch) | bit(Device::ultrasonic));
+  ASSERT_TRUE(parse(find_builtin("explore")->text, d, g));  // it reports the colour too
+  EXPECT_EQ(devices_needed(d, kModelA),
+            kDriveMotors | bit(Device::touch) | bit(Device::ultrasonic) | bit(Device::colour));
   ASSERT_TRUE(parse(find_builtin("exploit")->text, d, g));
   EXPECT_EQ(devices_needed(d, kModelA),
             kDriveMotors | bit(Device::touch) | bit(Device::ultrasonic) | bit(Device::colour));

@@ -64,7 +64,8 @@ int main() {
   CHECK(!check(def, kModelA, f) && f.items[0].code == Code::range);
   const std::string_view bad[] = {"speed"};
   CHECK(!apply_args(def, bad, 1, d));
-  // The automaton runs explore: forward, a bump, its reaction, a pause and resume, a report.
+  // The automaton runs explore: forward, a bump, its reaction, a pause and resume, its reports
+  // (distance, colour).
   CHECK(parse(find_builtin("explore")->text, def, d));
   static Automaton a;
   const std::uint8_t ports[kSensorCount] = {8, 1, 4, 0};
@@ -82,7 +83,7 @@ int main() {
     reports += o.kind == Output::Kind::report ? 1 : 0;
     starts += o.kind == Output::Kind::start ? 1 : 0;
   }
-  CHECK(reports == 1 && starts == 3 && a.state() == def.find_state("backoff"));
+  CHECK(reports == 2 && starts == 3 && a.state() == def.find_state("backoff"));
   std::puts("no_heap: ok");
   return 0;
 }

@@ -40,7 +40,7 @@ inline constexpr ActionSupport kModelAActions[] = {
 inline constexpr BuiltinBehaviour kModelABehaviours[] = {
     {"wait", 0},
     {"drive", kMotors | kTouch | kUltrasonic},
-    {"explore", kMotors | kTouch | kUltrasonic},
+    {"explore", kMotors | kTouch | kUltrasonic | kColour},
     {"exploit", kMotors | kTouch | kUltrasonic | kColour},
     {"custom", 0},
 };
