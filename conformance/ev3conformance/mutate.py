@@ -1,6 +1,7 @@
 """Mutation score of the conformance checks: seeded faults in the cores (libev3proto/include), each
 applied to a COPY of the sources in build/mutate/src; ev3-agent / ev3-master are rebuilt there (one
-ninja tree, -O0, so each mutant recompiles only what includes the patched header) and checked.
+ninja tree, -O0, so each mutant recompiles only what includes the patched header; for election mutants
+also the transcript program, transcript_tests) and checked.
 
 A mutant is found by structure, not by position: its site is a spec action (the handler X and its
 guard XOk, wherever they are defined: the action's name is the rule, docs/core.md), a named function
@@ -15,7 +16,9 @@ Checks, stopping at the first that fails:
                     trace (a fixed scenario, trace_script) validated by TLC, the election traces;
   election mutants: the election traces (election_scripts: driver runs with the election on, each
                     validated by TLC against AgentLogic composed with Election.tla's per-agent rules),
-                    then the agent trace and the agent replay;
+                    the fleet transcripts (tests/cpp/testdata/fleet_*.txt: several nodes over a
+                    scripted network, where the environment one agent's trace cannot see is in
+                    view, e.g. Election's HeartbeatOK), then the agent trace and the agent replay;
   master mutants:   master replay of MCMaster's state graph, strict (stops at the first mismatch).
 
 A mutant is caught when a check fails (a mismatch, a driver crash, or the driver killed by its CPU
@@ -27,6 +30,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 import re
 import shutil
 import subprocess
@@ -424,7 +428,8 @@ class Outcome:
 class Workspace:
     """A copy of the sources (build/mutate/src) and one ninja tree (build/mutate/build): the library,
     cmake/ and every top-level directory the top CMakeLists.txt adds (so a new program directory
-    does not break the copy); only ev3-agent and ev3-master are built."""
+    does not break the copy); ev3-agent and ev3-master are built, and the transcript program for
+    election mutants."""
 
     BASE_DIRS = ("cmake", "libev3proto")
 
@@ -446,7 +451,7 @@ class Workspace:
         # A mutant may leave a parameter unused: warnings stay on, but not as errors, in the copy.
         (self.src / "CMakeLists.txt").write_text(top.replace(" -Werror", ""))
         self.pristine = {p.name: p.read_text() for p in (self.src / INC).glob("*.hpp")}
-        cmd = ["cmake", "-S", str(self.src), "-B", str(self.bld), "-G", "Ninja", "-DEV3_TESTS=OFF",
+        cmd = ["cmake", "-S", str(self.src), "-B", str(self.bld), "-G", "Ninja", "-DEV3_TESTS=ON",
                "-DCMAKE_BUILD_TYPE=Debug", "-DCMAKE_CXX_FLAGS_DEBUG=-O0",
                f"-DCMAKE_RUNTIME_OUTPUT_DIRECTORY={self.bin}"]
         p = subprocess.run(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
@@ -470,13 +475,18 @@ class Workspace:
         (self.src / INC / f).write_text(text[:a] + m.new + text[b:])
         return where
 
-    def build(self, jobs: int) -> tuple[bool, str]:
-        p = subprocess.run(["ninja", "-C", str(self.bld), f"-j{jobs}", "ev3-agent", "ev3-master"],
+    PROGRAMS = ("ev3-agent", "ev3-master")
+    TRANSCRIPTS = "transcript_tests"
+
+    def build(self, jobs: int, kinds: set[str]) -> tuple[bool, str]:
+        """ev3-agent, ev3-master and, when an election mutant is among @kinds, the transcripts."""
+        extra = [self.TRANSCRIPTS] if "election" in kinds else []
+        p = subprocess.run(["ninja", "-C", str(self.bld), f"-j{jobs}", *self.PROGRAMS, *extra],
                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
         return p.returncode == 0, p.stdout[-3000:]
 
     def digest(self) -> dict:
-        return {n: hashlib.sha256((self.bin / n).read_bytes()).hexdigest() for n in ("ev3-agent", "ev3-master")}
+        return {n: hashlib.sha256((self.bin / n).read_bytes()).hexdigest() for n in self.PROGRAMS}
 
 
 class Checks:
@@ -566,15 +576,37 @@ class Checks:
             n += r.records
         return True, f"{len(election_scripts())} election traces, {n} records matched"
 
+    def fleet_transcripts(self) -> tuple[bool, str]:
+        """The fleet transcripts (tests/cpp/testdata/fleet_*.txt) of the mutant's transcript program:
+        several nodes (node.hpp: the agent core and its Master core) and the PC over a scripted
+        network, each datagram and action compared with the file."""
+        env = {k: v for k, v in os.environ.items() if k != "EV3_REWRITE"}  # check, never rewrite
+        try:
+            p = subprocess.run(["prlimit", f"--cpu={int(self.limit)}", str(self.bin / Workspace.TRANSCRIPTS),
+                                "--gtest_filter=*FleetTranscript*", "--gtest_brief=1"], env=env, text=True,
+                               capture_output=True, timeout=10 * self.limit)
+        except subprocess.TimeoutExpired:
+            return False, "the fleet transcripts hung"
+        if p.returncode != 0:
+            failed = sorted(set(re.findall(r"\[  FAILED  \] \S*FleetTranscript\.Matches/(\w+)", p.stdout)))
+            case = re.search(r"(fleet_\w+\.txt:\d+)", p.stdout)
+            return False, (f"{', '.join(failed) or 'exit ' + str(p.returncode)} differs"
+                           + (f" (the case at {case[1]})" if case else ""))
+        n = re.search(r"\[  PASSED  \] (\d+) test", p.stdout)
+        if not n or int(n[1]) < 1:
+            return False, "no fleet transcript ran"
+        return True, f"{n[1]} fleet transcripts matched"
+
     def for_kind(self, kind: str, work: Path) -> list[tuple[str, object]]:
         """The checks of a mutant of @kind, the likeliest to fail first."""
         replay = ("agent replay", self.agent_replay)
         trace = ("agent trace", lambda: self.agent_trace(work / "trace"))
         election = ("election traces", lambda: self.election_traces(work / "election"))
+        fleet = ("fleet transcripts", self.fleet_transcripts)
         if kind == "agent":
             return [replay, trace, election]
         if kind == "election":
-            return [election, trace, replay]
+            return [election, fleet, trace, replay]
         return [("master replay", self.master_replay)]
 
 
@@ -585,14 +617,14 @@ def run(root: Path, names: list[str] | None = None, jobs: int = 2, limit: float 
     chosen = [m for m in MUTANTS if not names or any(m.name.startswith(n) for n in names)]
     t0 = time.monotonic()
     ws.prepare()
-    ok, out = ws.build(jobs)
+    kinds = {m.kind for m in chosen}
+    ok, out = ws.build(jobs, kinds)
     if not ok:
         raise RuntimeError(f"the unmutated copy does not build (retry when the tree builds):\n{out}")
     base_digest = ws.digest()
     log(f"mutate: workspace {base} built in {time.monotonic() - t0:.0f}s")
     ck = Checks(ws.bin, limit)
     t1 = time.monotonic()
-    kinds = {m.kind for m in chosen}
     figs = ck.load({"agent" if k == "election" else k for k in kinds})
     log(f"mutate: state graphs dumped in {time.monotonic() - t1:.0f}s "
         + " ".join(f"{k}: {v.get('distinct')} states" for k, v in figs.items()))
@@ -616,7 +648,7 @@ def run(root: Path, names: list[str] | None = None, jobs: int = 2, limit: float 
                 res.append(Outcome(m, "stale", detail=where[7:]))
                 log(f"  {m.name:36} STALE ({where[7:]})")
                 continue
-            ok, out = ws.build(jobs)
+            ok, out = ws.build(jobs, {m.kind})
             if not ok:
                 res.append(Outcome(m, "build-failed", detail=out[-500:], seconds=time.monotonic() - s))
                 log(f"  {m.name:36} BUILD FAILED")
