@@ -427,11 +427,11 @@ class Outcome:
 
 class Workspace:
     """A copy of the sources (build/mutate/src) and one ninja tree (build/mutate/build): the library,
-    cmake/ and every top-level directory the top CMakeLists.txt adds (so a new program directory
-    does not break the copy); ev3-agent and ev3-master are built, and the transcript program for
-    election mutants."""
+    cmake/, behaviours/ (the built-in behaviours cmake embeds) and every top-level directory the top
+    CMakeLists.txt adds (so a new program directory does not break the copy); ev3-agent and
+    ev3-master are built, and the transcript program for election mutants."""
 
-    BASE_DIRS = ("cmake", "libev3proto")
+    BASE_DIRS = ("behaviours", "cmake", "libev3proto")
 
     def __init__(self, root: Path, base: Path) -> None:
         self.root, self.base = root, base
