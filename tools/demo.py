@@ -8,8 +8,11 @@ Phases (each a function):
                 --broadcast lists make a line: agent #1 and agent #3 do not hear each other, agent
                 #2 hears both (and everyone hears the PC)
   2. behaviour  `wait seconds=N` is assigned, started, paused, resumed, stopped; another agent
-                runs one to the end (ACTION_OK); then agents #2 and #3 `drive` across the arena
-                until their ultrasonic or bumper stops them (ACTION_INTERR at the master)
+                runs one to the end (ACTION_OK); then the thesis' explore-then-exploit scenario:
+                the operator switches on the master's rule `explore-exploit red`, agents #2 and #3
+                `explore` the arena (driving, backing off and turning at walls and boxes, reporting
+                distance and colour), and the robot whose colour sensor reports the red patch is
+                switched to `exploit colour=red` and stays on the patch (checked with ev3-sim)
   3. master     the master is killed (SIGKILL); the agents fall back (WORKING -> PAUSED -> PANIC,
                 ACTIVE -> PANIC), read from their NDJSON traces
   4. election   the weakest agent (lowest --score: #1) stands first and wins epoch 2; #2 follows it
@@ -52,7 +55,12 @@ WORLD = Path(__file__).resolve().parents[1] / "sim" / "worlds" / "arena.txt"
 # Start poses (x cm, y cm, heading deg): robot 1 faces the middle box from the west, robot 2 the
 # south-east box, robot 3 the middle box from the north (the agents' ids decide which ones drive).
 POSES = ("60,150,0", "375,25,135", "200,275,-90")
-DRIVE_SPEED = 700  # deg/s of both wheels (model A's large motors: max 1050): about 34 cm/s
+# The red patch of arena.txt (x, y, width, height in cm), on robot 3's way down from its start; the
+# robot the rule switches to `exploit red` must still be on it (its centre, within PATCH_MARGIN: the
+# colour sensor is ahead of the centre) after EXPLOIT_SECONDS.
+RED_PATCH = (150, 215, 100, 50)
+PATCH_MARGIN = 10
+EXPLOIT_SECONDS = 6
 MASTER_SCRIPT = "# run by the agent that wins an election (ev3-agent --master-script)\nwait 2\nbehaviour all wait seconds=2\nstart all\n"
 TYPES = {21: "RELAY_REQ", 22: "RELAY_OFFER", 23: "RELAY_ACCEPT", 24: "RELAY_ROUTE", 25: "RELAY", 26: "RELAY_DROP",
          27: "ELECT", 28: "VOTE", 29: "LEADER", 30: "EPOCH_STALE", 31: "EPOCH_CMD", 32: "HANDOVER"}
@@ -324,30 +332,51 @@ class Demo:
         self.cmd(f"start {a}")
         self.wait_state(a, "WORKING")
         self.show_table(force=True)
-        _, b, c = self.ids
-        self.heading(f"   agents {b} and {c} drive their robots across the arena (ev3-sim) until something is in the way")
+        self.phase_explore_exploit()
+
+    def phase_explore_exploit(self) -> None:
+        """The thesis' explore-then-exploit scenario: robots 2 and 3 explore the arena; the master's
+        rule switches the one whose colour sensor reports the red patch to `exploit red`, which keeps
+        it inside the patch."""
+        self.agent_states()  # which agent runs which robot (id_of)
+        b, c = (self.id_of.get(i) for i in (1, 2))
+        if b is None or c is None:
+            raise DemoFailed("the agents of robots 2 and 3 are not known from their traces")
+        self.heading(f"   agents {b} and {c} explore the arena (ev3-sim); the master's rule switches a robot whose "
+                     f"colour sensor reports red to `exploit red`")
+        self.cmd("rule explore-exploit red", expect="rule explore-exploit on")
         for x in (b, c):
-            self.cmd(f"behaviour {x} drive speed={DRIVE_SPEED}")
+            self.cmd(f"behaviour {x} explore")
             self.cmd(f"start {x}")
-        stopped = {}
+        switched = []
 
-        def interrupted(lines):
+        def on_red(lines):
             for line in lines:
-                for x in (b, c):
-                    if f"agent {x}: ACTION_INTERR" in line and x not in stopped:
-                        stopped[x] = line.split("ACTION_INTERR", 1)[1].split()[-1]
-                        self.event(f"agent {x}'s robot stopped: {stopped[x]} (ACTION_INTERR; it waits for CONTINUE)")
-                    elif f"agent {x}: ACTION_ERR" in line and x not in stopped:  # e.g. a wheel stalled on a corner
-                        stopped[x] = "ACTION_ERR"
-                        self.event(f"agent {x}'s robot stopped: ACTION_ERR (its log says why; it waits for RESTART)")
-            return len(stopped) == 2
-        self.pump(25, interrupted, f"ACTION_INTERR (or ACTION_ERR) from agents {b} and {c}")
-        self.show_robots()
+                if "rule explore-exploit: agent " in line:
+                    switched.append(int(line.split("rule explore-exploit: agent ", 1)[1].split()[0]))
+                    self.event(f"agent {switched[-1]}'s robot reported red while exploring: the rule sent it "
+                               f"`exploit colour=red`")
+            return bool(switched)
+        self.pump(30, on_red, "an exploring robot on the red patch (rule explore-exploit)")
+        x = switched[0]
+        self.pump(4, lambda _: any(a["id"] == x and a["behaviour"] == "exploit" for a in self.status().get("agents", [])),
+                  f"agent {x} acknowledging exploit")
+        self.pump(EXPLOIT_SECONDS)  # it drives about the patch, turning back at its edge
+        robot = next(i for i, v in self.id_of.items() if v == x) + 1
+        pos = self.show_robots().get(f"robot{robot}")
+        x0, y0, w, h = RED_PATCH
+        if pos is None:
+            raise DemoFailed(f"ev3-sim did not say where robot{robot} is")
+        inside = x0 - PATCH_MARGIN <= pos[0] <= x0 + w + PATCH_MARGIN and y0 - PATCH_MARGIN <= pos[1] <= y0 + h + PATCH_MARGIN
+        if not inside:
+            raise DemoFailed(f"robot{robot} (agent {x}) left the red patch while exploiting it: at {pos}")
+        self.event(f"after {EXPLOIT_SECONDS} s of `exploit red` robot{robot} (agent {x}) is still on the red patch "
+                   f"({pos[0]:.0f}, {pos[1]:.0f}) cm")
 
-    def show_robots(self) -> None:
-        """Where ev3-sim's robots are (its status JSON, written on SIGUSR1)."""
+    def show_robots(self) -> dict[str, tuple[float, float]]:
+        """Where ev3-sim's robots are (its status JSON, written on SIGUSR1): name -> (x, y) cm."""
         if not self.sim or self.sim.poll() is not None:
-            return
+            return {}
         path = self.dir / "sim-status.json"
         before = path.stat().st_mtime_ns if path.exists() else 0
         self.sim.send_signal(signal.SIGUSR1)
@@ -357,10 +386,11 @@ class Demo:
         try:
             robots = json.loads(path.read_text())["robots"]
         except (OSError, ValueError, KeyError):
-            return
+            return {}
         for r in robots:
             print(f"         ev3-sim | {r['name']}: at ({r['x']:.0f}, {r['y']:.0f}) cm heading {r['heading']:.0f} deg, "
                   f"travelled {r['travelled']:.0f} cm, {r['speed']:.1f} cm/s", flush=True)
+        return {r["name"]: (r["x"], r["y"]) for r in robots}
 
     def phase_master_lost(self) -> None:
         self.heading("3. the master is killed (SIGKILL): the agents fall back")

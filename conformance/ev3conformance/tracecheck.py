@@ -39,10 +39,23 @@ TRACE_SPEC = gr.SPEC / "trace"
 AGENT_VARS = ["state", "led", "id", "beh", "step", "wait", "motors", "devOk", "silence", "clk", "win"]
 REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTION_ERR"}
 
+
+
+def model_a_behaviours() -> list[str]:
+    """The behaviours ev3-agent's model A accepts: the names of kModelABehaviours in
+    robot/behaviours.hpp (one list, read where the agent takes it from)."""
+    src = (gr.ROOT / "libev3proto" / "include" / "ev3proto" / "robot" / "behaviours.hpp").read_text()
+    table = re.search(r"kModelABehaviours\[\] = \{(.*?)\n\};", src, re.S)
+    names = re.findall(r'\{"([a-z]+)",', table.group(1)) if table else []
+    if not names:
+        raise RuntimeError("kModelABehaviours not found in robot/behaviours.hpp")
+    return names
+
+
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
 # them passed (validate --timers).
 DEFAULTS = {"TSync": 10000, "TPing": 1000, "TLoss": 3000, "TPaused": 6000, "Window": 50,
-            "Behaviours": ["wait", "drive"], "ModelName": "A", "Steps": 1000000000}
+            "Behaviours": model_a_behaviours(), "ModelName": "A", "Steps": 1000000000}
 
 
 @dataclass
