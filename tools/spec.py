@@ -5,8 +5,10 @@ Subcommands:
   check --size small|full [--update]   SANY + TLC on each model of that size;
                                        figures compared with spec/tla/manifest.json;
                                        then the trace modules (spec/tla/trace) on their samples
-  refute                               every broken variant must be refuted on
-                                       the property it breaks
+  refute                               every broken variant (every BUG switch of the
+                                       spec) must be refuted on the property it
+                                       breaks, by a model make spec runs, with that
+                                       model's constants; fails on any other
   diagram [--check]                    docs/lifecycle.{dot,svg} from TLC's state graph
                                        of MCAgent; --check fails if they are stale
 
@@ -164,15 +166,24 @@ def is_liveness(p):
     return not (p.endswith("Inv") or p.endswith("Prop") or p == "TypeOK")
 
 
-def variant_cfg(base, bug, props):
-    """The base cfg with BUG = bug and only the given properties checked."""
+def variant_cfg(base, bug, props, name=None, sets=None):
+    """The base cfg with BUG = bug (and the constants in sets changed) and only the given
+    properties checked (props None: the base cfg's own properties)."""
     with open(os.path.join(SPEC, base)) as f:
         lines = f.read().splitlines()
+    sets = dict(sets or {})
     outl, skip = [], False
     for ln in lines:
         s = ln.strip()
         if s.startswith("BUG"):
             outl.append('    BUG = "%s"' % bug)
+            continue
+        key = s.split("=")[0].strip() if "=" in s else None
+        if key in sets:
+            outl.append("    %s = %s" % (key, sets.pop(key)))
+            continue
+        if props is None:
+            outl.append(ln)
             continue
         if s in ("INVARIANTS", "INVARIANT", "PROPERTIES", "PROPERTY"):
             skip = True
@@ -180,23 +191,76 @@ def variant_cfg(base, bug, props):
         if skip and (ln.startswith(" ") or ln.startswith("\t")):
             continue
         skip = False
-        if s.startswith("SPECIFICATION") and not any(is_liveness(p) for p in props):
+        if s == "SPECIFICATION FairSpec" and not any(is_liveness(p) for p in props):
             ln = "SPECIFICATION Spec"  # safety only; a liveness variant keeps FairSpec
         outl.append(ln)
-    for p in props:
+    if sets:
+        raise SystemExit("variant %s: %s not constants of %s" % (bug, sorted(sets), base))
+    for p in props or ():
         outl.append(("INVARIANT %s" if p.endswith("Inv") or p == "TypeOK" else "PROPERTY %s") % p)
     os.makedirs(BUILD, exist_ok=True)
-    path = os.path.join(BUILD, "refute-%s.cfg" % bug)
+    path = os.path.join(BUILD, "refute-%s.cfg" % (name or bug))
     with open(path, "w") as f:
         f.write("\n".join(outl) + "\n")
     return path
 
 
+# Every broken variant is a BUG switch of the spec (or a protocol switch turned off, "set"), checked
+# with the constants of a model that `make spec` runs on the shipped spec (size small): a variant
+# refuted only by a model of its own would show nothing about the CI models.
+BUG_RE = re.compile(r'\bBUG\s*(?:=|#)\s*"(\w+)"')
+
+
+def spec_switches():
+    """Every BUG value the spec modules test, with the module naming it."""
+    found = {}
+    for fn in sorted(os.listdir(SPEC)):
+        if fn.endswith(".tla") and not fn.startswith("MC"):
+            with open(os.path.join(SPEC, fn)) as f:
+                for b in BUG_RE.findall(f.read()):
+                    if b.lower() != "none":
+                        found.setdefault(b, fn)
+    return found
+
+
+def variants_declared():
+    """Fails unless every BUG switch of the spec is refuted by a CI (small) model in the manifest,
+    and no variant has a configuration of its own (MC*Bug*.cfg)."""
+    man = load_manifest()
+    small = {m["name"] for m in man["models"] if m["size"] == "small"}
+    el = man["election"]
+    small_el = {m["name"] for m in el["models"] + el.get("live", []) if m["size"] == "small"}
+    problems = []
+    refuted = set()
+    for v in man["refute"]:
+        if v["model"] not in small:
+            problems.append("BUG=%s is refuted by %s, not a model make spec runs" % (v["bug"], v["model"]))
+        refuted.add(v["bug"])
+    for v in el["refute"]:
+        if v.get("model") not in small_el:
+            problems.append("BUG=%s is refuted by %s, not a model make spec runs"
+                            % (v["bug"], v.get("model", v.get("cfg"))))
+        refuted.add(v["bug"])
+    for b, fn in sorted(spec_switches().items()):
+        if b not in refuted:
+            problems.append("BUG=%s (%s) is refuted by no model make spec runs" % (b, fn))
+    own = sorted(fn for fn in os.listdir(SPEC) if re.match(r"MC\w*Bug\w*\.cfg$", fn))
+    if own:
+        problems.append("variants with configurations of their own (not the CI models' constants): %s"
+                        % ", ".join(own))
+    for p in problems:
+        print("FAIL " + p)
+    if problems:
+        raise SystemExit(1)
+    print("variants: %d BUG switches, each refuted by a model make spec runs" % len(refuted))
+
+
 def cmd_refute(args):
+    variants_declared()
     man = load_manifest()
     failed = False
     for v in man["refute"]:
-        base = next(m for m in man["models"] if m["name"] == v["model"])
+        base = next(m for m in man["models"] if m["name"] == v["model"] and m["size"] == "small")
         cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]])
         rc, out, secs = tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"])
         got = violation(out)
@@ -204,8 +268,8 @@ def cmd_refute(args):
         if got == "temporal" and len(live) == 1:
             got = live[0]  # TLC 2.18 does not name the violated temporal property
         ok = got == v["property"]
-        print("%-4s BUG=%-18s expect %-28s got %-28s %5.1fs" % (
-            "ok" if ok else "FAIL", v["bug"], v["property"], got, secs))
+        print("%-4s BUG=%-18s %-12s expect %-28s got %-28s %5.1fs" % (
+            "ok" if ok else "FAIL", v["bug"], v["model"], v["property"], got, secs))
         if not ok:
             print(counterexample(out)[:3000])
             failed = True
@@ -303,8 +367,9 @@ def cmd_diagram(args):
 #   models     exhaustive runs (size small: make spec; full: make spec-full), distinct/depth checked;
 #   live       temporal properties (stabilisation variant), run with the models of its size;
 #   simulate   the 5-agent random simulation (size full);
-#   refute     every MCElectionBug*.cfg must FAIL (exit 12) on its named invariant, and
-#              MCElectionLiveBug*.cfg on a temporal property (exit 13);
+#   refute     every variant: the constants of the make-spec model it names ("model", size small)
+#              with its BUG switch (and the protocol switches of "set", e.g. PreVote = FALSE)
+#              must FAIL on its named invariant (exit 12) or a temporal property (exit 13);
 #   chart      docs/thesis-split-brain.svg, drawn by tools/seqchart.py from a fresh thesis trace.
 # Election cfgs say CHECK_DEADLOCK FALSE themselves (bounded models stop).
 
@@ -390,15 +455,26 @@ def election_check(args):
 
 
 def election_refute(args):
+    """Each variant: the constants of the CI model it names, with its BUG switch (and the protocol
+    switches in "set" turned off), all the model's properties (or those of "only"); it must fail on
+    the one named."""
     el = load_manifest()["election"]
     failed = False
     for v in el["refute"]:
-        rc, out, secs = election_tlc(v, "refute-" + v["cfg"][:-4])
+        base = next(m for m in el["models"] + el.get("live", [])
+                    if m["name"] == v["model"] and m["size"] == "small")
+        # "only": the variant is checked on these properties alone (another property the bug
+        # also breaks would be found first and hide whether this one is reached)
+        cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-" + v["bug"], sets=v.get("set"))
+        entry = dict(base, cfg=cfg)
+        rc, out, secs = election_tlc(entry, "refute-" + v["bug"])
         got = violation(out)
         # exit 12: an invariant is violated; 13: a temporal property (the Live variant)
         ok = rc == v.get("exit", 12) and got == v["property"]
-        print("%-4s %-36s expect %-28s got %-28s %5.1fs" % (
-            "ok" if ok else "FAIL", v["cfg"], v["property"], "%s (exit %d)" % (got, rc), secs))
+        fig = re.search(r"([\d,]+) distinct states found", out)
+        print("%-4s BUG=%-18s %-20s expect %-28s got %-28s %8s distinct %5.1fs" % (
+            "ok" if ok else "FAIL", v["bug"], v["model"], v["property"], "%s (exit %d)" % (got, rc),
+            fig.group(1) if fig else "?", secs))
         if not ok:
             print(counterexample(out)[:3000])
             failed = True

@@ -165,6 +165,11 @@ BehaviourOnlyInWorkingInv == L!MotionOnlyWorking(ag)
 NoUnsupervisedMotionInv == L!Supervised(ag)
 \* No command is acted on while its (sender, msgid) is in the window.
 ActedOnceInv == ~ag.dupActed
+\* A WORKING agent runs a behaviour it has loaded (START without one is refused).
+WorkingLoadedInv == ag.state = "WORKING" => ag.beh # L!NoBehaviour
+\* Only OFF is terminal: in every other state some step is enabled (an agent that
+\* freezes, e.g. never leaves WORKING when its master's heartbeat is lost, has none).
+OnlyOffTerminalInv == ag.state # "OFF" => ENABLED Next
 \* Every state change is one of brief sec. 2's table (action named).
 AllowedTransitionsProp ==
     [][L!TransitionOk(ag, ag', lastAction'.name)]_vars

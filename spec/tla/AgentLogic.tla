@@ -113,7 +113,7 @@ AddressedTo(a, m) ==
 Accepts(a, m) == IF BUG = "NoAddressFilter" THEN TRUE ELSE AddressedTo(a, m)
 
 \* A message the agent acts on: from the master, addressed to it, alive.
-FromMaster(a, m) == a.state # "OFF" /\ m.src = MasterId /\ Accepts(a, m)
+FromMaster(a, m) == a.state # "OFF" /\ (m.src = MasterId \/ BUG = "NoSenderCheck") /\ Accepts(a, m)
 
 Seen(a, m) == \E i \in 1..Len(a.win) : a.win[i].src = m.src /\ a.win[i].msgid = m.msgid
 Stored(a, m) == LET i == CHOOSE i \in 1..Len(a.win) :
@@ -246,7 +246,9 @@ Handler(a, m) ==
 
 \* Everything else is dropped silently: not addressed to it, from another
 \* agent, a MASTER it does not take, PONG/ACK without a master, reports.
-Ignore(a, m) == [ag |-> a, out |-> <<>>]
+\* (BUG "SilenceOnIgnored": a datagram with the master's id that the agent ignores, e.g. one
+\* for another agent, still counts as hearing the master.)
+Ignore(a, m) == [ag |-> IF BUG = "SilenceOnIgnored" /\ m.src = MasterId THEN [a EXCEPT !.silence = 0] ELSE a, out |-> <<>>]
 
 \* Dispatch: the effect of receiving m.
 Receive(a, m) ==
@@ -296,7 +298,7 @@ SyncTimeout(a) ==
 
 \* Master not heard for too long: ACTIVE -> PANIC, WORKING -> PAUSED
 \* (behaviour stopped, progress kept), PAUSED -> PANIC.
-HeartbeatLostOk(a) == LossDue(a)
+HeartbeatLostOk(a) == LossDue(a) /\ (BUG = "FreezeOnLoss" => a.state # "WORKING")
 HeartbeatLost(a) ==
     IF a.state = "WORKING"
     THEN [ag |-> [Goto(a, "PAUSED") EXCEPT !.motors = "OFF"], out |-> <<>>]

@@ -4,11 +4,14 @@
 (* faults and BUG (figures: docs/election.md, spec/tla/manifest.json):     *)
 (*   MCElectionSmall.cfg  3 agents, master crash, relay, one election      *)
 (*                        round, loss and duplication, commands (make spec)*)
+(*   MCElectionVote.cfg   3 agents, master and agent crashes, spurious     *)
+(*                        timeouts, no pre-vote: double votes (make spec)  *)
 (*   MCElectionFull.cfg   3 agents, cuts, the PC master returning          *)
 (*                        (make spec-full)                                 *)
 (*   MCElectionSim.cfg    5 agents, everything, for -simulate              *)
-(*   MCElectionBug*.cfg   the broken variants, each refuted by TLC         *)
 (*   MCElectionLive*.cfg  liveness under stabilisation (MCElectionLive)    *)
+(* The broken variants (BUG) have no cfg of their own: tools/spec.py runs  *)
+(* each with the constants of a make-spec model (manifest.json "refute").  *)
 (* Delivery keeps a datagram in net (duplication), so MaxMsgs bounds the   *)
 (* datagrams sent in a behaviour (plus those lost), not only those in     *)
 (* flight.                                                                 *)
@@ -30,11 +33,20 @@ NetBound == Cardinality(net) <= MaxMsgs
 CONSTANT CutLinks
 CutBound == NetBound /\ down \subseteq CutLinks
 
-\* State constraint for the broken election variants (DoubleVote,
-\* MinorityQuorum, ForgetVote): no relay traffic (RELAY_REQ stays: it is
-\* also the pre-vote).  It only prunes behaviours,
-\* so a violation found under it is a violation of the unconstrained spec.
-NoRelayBound ==
+\* State constraint of the vote model (MCElectionVote.cfg): no relay traffic and no
+\* commands (RELAY_REQ stays: it is also the pre-vote); the relay and the fence are the
+\* small model's.  Without the pre-vote (PreVote = FALSE: an agent may stand whenever it
+\* has no master, a superset of the behaviours with it) two candidacies in one epoch and a
+\* voter answering both take four datagrams, so five reach double votes and a vote moved
+\* across a crash.  It only prunes behaviours, so a violation found under it is a
+\* violation of the unconstrained spec.
+VoteBound ==
     /\ NetBound
     /\ \A m \in net : m.t \notin {"ROFFER", "RACCEPT", "RDROP", "RELAY", "CMD"}
+
+\* The view of every model: the state without lastAction (the name of the step that
+\* led to it, kept for traces and the conformance replay).  No invariant reads it, so
+\* two states that differ only in it have the same successors and the same verdicts.
+StateView == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+               net, down, faults, lost, elected, applied>>
 =============================================================================

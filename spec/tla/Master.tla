@@ -51,7 +51,7 @@ EnvMsgs(e) ==
          {Msg(x.id, Broadcast, i, "PANIC", 0, <<>>) : i \in MsgIds}
     \cup {Msg(x.id, MasterId, i, "PING", 0, <<s>>) : s \in States, i \in MsgIds}
     \cup {Msg(x.id, MasterId, 1, "ACK", r, <<>>) : r \in {x.mid, 0}}
-    \cup {Msg(x.id, MasterId, 1, "NOT", x.mid, <<"wrong state">>)}
+    \cup {Msg(x.id, MasterId, 1, "NOT", x.mid, <<r>>) : r \in {"wrong state", "missing device"}}
     \cup {Msg(x.id, MasterId, 1, "ACTION_OK", 0, <<>>)}
        : x \in {y \in ms.reg : y.ep = e}}
   ELSE {Msg(TempOf(e), Broadcast, 1, "AGENT", 0, <<"A">>)}
@@ -118,4 +118,23 @@ ReconcileFreshProp ==
 NoPendingResendProp ==
     [][lastAction'.name \in {"MasterPing", "MasterCommand"}
        => \A o \in out' : \A x \in ms.reg : ~(x.pending /\ o.m.msgid = x.mid /\ o.to = x.ep)]_vars
+\* Reconcile: a fresh PING from a synced agent with nothing pending or queued whose reported
+\* state differs from the desired one (Restore has a fix) makes the master start a command.
+\* (An agent paused by a lost heartbeat would otherwise never work again.)
+ReconcileProp ==
+    [][(lastAction'.name = "MasterPing"
+        /\ \E x \in ms.reg :
+              LET m == lastAction'.args[1] IN
+              /\ x.id = m.src /\ x.synced /\ ~x.pending /\ x.queue = <<>>
+              /\ m.msgid > x.hi /\ M!Restore(m.args[1], x.desired, x.beh) # <<>>)
+       => \E o \in out' : o.m.type \in Commands]_vars
+\* A permanent refusal (NOT "unknown behaviour" / "missing device") of the pending command
+\* ends reconciling: the desired state becomes UNKNOWN, so the refused command is not
+\* queued again on every PING.
+PermanentRefusalProp ==
+    [][(lastAction'.name = "MasterAnswer"
+        /\ LET m == lastAction'.args[1] IN
+           /\ m.type = "NOT" /\ m.args[1] \in M!PermanentRefusals
+           /\ \E x \in ms.reg : x.id = m.src /\ x.synced /\ x.pending /\ m.ref = x.mid)
+       => \A y \in ms'.reg : y.id = lastAction'.args[1].src => y.desired = M!UnknownDesired]_vars
 =============================================================================

@@ -1,0 +1,108 @@
+------------------------------- MODULE AgentEnv -------------------------------
+(***************************************************************************)
+(* One agent (Agent.tla, unchanged) and what its environment really did   *)
+(* (issue 13): properties stated over what happened, not over the agent's *)
+(* own bookkeeping.                                                        *)
+(*                                                                         *)
+(*  - heard: history of the environment, ticks since a genuine datagram of *)
+(*    the master (sender MasterId, addressed to the agent) last reached    *)
+(*    the agent, saturated at Cap (> TPaused: every threshold is below it). *)
+(*    The agent's own silence is not read by any property here.            *)
+(*  - gone: the master is gone for good (MasterGone); from then on the     *)
+(*    environment delivers no datagram of the master.                      *)
+(*  - Peers and spoofed ids: besides Agent's EnvMsgs, the environment      *)
+(*    delivers MASTER, commands and PONG from ids that are not the         *)
+(*    master's (PeerSrcs: a peer's id, an unsynced agent's temporary id).  *)
+(*  - The agent crashes and restarts (Reboot): it comes back as at Init,   *)
+(*    with a new temporary id drawn (here the same TempId), nothing kept.  *)
+(*                                                                         *)
+(* Older epochs (a fenced master) are Election.tla's (StaleMasterFenced-   *)
+(* Inv): the one-agent model has one master.                               *)
+(***************************************************************************)
+EXTENDS Agent
+
+CONSTANT PeerSrcs   \* sender ids that are not the master's
+
+ASSUME MasterId \notin PeerSrcs
+
+VARIABLES heard, gone
+
+envVars == <<ag, out, lastAction, heard, gone>>
+
+Cap == TPaused + 1
+
+\* Datagrams from anyone but the master: the commands the agent acts on, MASTER naming its
+\* id (to an id a master may assign), PONG.
+PeerMsgs ==
+       {Msg(s, ag.id, i, c, 0, <<>>) : s \in PeerSrcs, i \in MsgIds,
+                                        c \in {"START", "STOP", "PAUSE", "RESUME"}}
+  \cup {Msg(s, ag.id, 1, "BEHAVIOUR", 0, <<b>>) : s \in PeerSrcs, b \in Behaviours}
+  \cup {Msg(s, d, 1, "MASTER", ag.id, <<>>) : s \in PeerSrcs, d \in AssignIds}
+  \cup {Msg(s, ag.id, 0, "PONG", 0, <<>>) : s \in PeerSrcs}
+
+\* A datagram of the master that reaches the agent (whatever the agent does with it).
+Genuine(m) == m.src = MasterId /\ L!AddressedTo(ag, m)
+
+EnvInit == Init /\ heard = 0 /\ gone = FALSE
+
+Deliver(m) ==
+    /\ m.src = MasterId => ~gone
+    /\ Receive(m)
+    /\ heard' = IF Genuine(m) THEN 0 ELSE heard
+    /\ UNCHANGED gone
+
+TickE == Tick /\ heard' = (IF heard < Cap THEN heard + 1 ELSE Cap) /\ UNCHANGED gone
+HeartbeatLostE == HeartbeatLost /\ UNCHANGED <<heard, gone>>
+SyncTimeoutE == SyncTimeout /\ UNCHANGED <<heard, gone>>
+
+Internal ==
+    /\ \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
+       \/ ActionFailed \/ SensorReport
+       \/ DeviceUnplugged \/ DevicePlugged \/ BatteryLow
+    /\ UNCHANGED <<heard, gone>>
+
+\* The master is gone for good.
+MasterGone == ~gone /\ gone' = TRUE /\ UNCHANGED <<ag, out, lastAction, heard>>
+
+\* The agent crashes (power, firmware) and starts again from scratch.
+Reboot ==
+    /\ ag.state # "OFF"
+    /\ ag' = L!InitAgent(TempId)
+    /\ out' = <<>>
+    /\ lastAction' = [name |-> "Init", args |-> <<>>]
+    /\ UNCHANGED <<heard, gone>>
+
+EnvNext ==
+    \/ \E m \in EnvMsgs \cup PeerMsgs : Deliver(m)
+    \/ TickE \/ SyncTimeoutE \/ HeartbeatLostE
+    \/ Internal
+    \/ MasterGone \/ Reboot
+
+\* Time passes and due timeouts fire.
+EnvFairness == WF_envVars(TickE) /\ WF_envVars(HeartbeatLostE) /\ WF_envVars(SyncTimeoutE)
+
+EnvSpec == EnvInit /\ [][EnvNext]_envVars /\ EnvFairness
+
+-----------------------------------------------------------------------------
+(* Properties.                                                              *)
+
+\* No motion without a master: WORKING (motors may run) only while a genuine datagram of
+\* the master reached the agent within the last TLoss ticks.
+MotionHeardInv == ag.state = "WORKING" => heard <= TLoss
+
+\* Datagrams not from the master change nothing the agent does: no state change, nothing
+\* emitted.
+NotFromMasterInertProp ==
+    [][lastAction'.name \in L!RecvNames /\ lastAction'.args[1].src # MasterId
+         => ag' = ag /\ out' = <<>>]_envVars
+
+\* A WORKING agent whose master is gone leaves WORKING.
+MasterGoneLeavesWorking == (gone /\ ag.state = "WORKING") ~> ag.state # "WORKING"
+
+\* Every state change is one of brief sec. 2's table, or a reboot (lastAction Init).
+TransitionsProp ==
+    [][lastAction'.name = "Init" \/ L!TransitionOk(ag, ag', lastAction'.name)]_envVars
+
+\* The view: out and lastAction name the last step (for traces); no successor depends on them.
+EnvView == <<ag, heard, gone>>
+=============================================================================

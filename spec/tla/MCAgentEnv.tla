@@ -1,0 +1,9 @@
+------------------------------ MODULE MCAgentEnv ------------------------------
+(* Bounds of AgentEnv (the one-agent model with the environment's history). *)
+EXTENDS AgentEnv
+
+MCBehaviours == {"explore"}
+MCAssignIds  == {2}
+MCMsgIds     == {1, 2}
+MCPeerSrcs   == {9, 50001}
+=============================================================================
