@@ -471,10 +471,10 @@ def election_refute(args):
         got = violation(out)
         # exit 12: an invariant is violated; 13: a temporal property (the Live variant)
         ok = rc == v.get("exit", 12) and got == v["property"]
-        fig = re.search(r"([\d,]+) distinct states found", out)
+        fig = re.findall(r"([\d,]+) distinct states found", out)   # the last: TLC's final count
         print("%-4s BUG=%-18s %-20s expect %-28s got %-28s %8s distinct %5.1fs" % (
             "ok" if ok else "FAIL", v["bug"], v["model"], v["property"], "%s (exit %d)" % (got, rc),
-            fig.group(1) if fig else "?", secs))
+            fig[-1] if fig else "?", secs))
         if not ok:
             print(counterexample(out)[:3000])
             failed = True
