@@ -58,7 +58,9 @@ SyncTimeoutE == SyncTimeout /\ UNCHANGED <<heard, gone>>
 Internal ==
     /\ \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
        \/ ActionFailed \/ SensorReport
-       \/ DeviceUnplugged \/ DevicePlugged \/ BatteryLow
+       \/ \E p \in EventPorts : DeviceUnplugged(p) \/ DevicePlugged(p)
+       \/ BatteryLow
+       \/ \E e \in L!RobotEvents, p \in EventPorts : RobotEvent(e, p)
     /\ UNCHANGED <<heard, gone>>
 
 \* The master is gone for good.

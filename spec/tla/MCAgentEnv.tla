@@ -6,4 +6,5 @@ MCBehaviours == {"explore"}
 MCAssignIds  == {2}
 MCMsgIds     == {1, 2}
 MCPeerSrcs   == {9, 50001}
+MCEventPorts == {"in1"}
 =============================================================================
