@@ -3,7 +3,10 @@ driven through its console. The LEDs follow the lifecycle; `drive` moves the rob
 it within one control tick and the master hears OBSTACLE_DETECTED; an unplugged motor is
 DEVICE_DISCONNECTED at the master; a low battery is BATTERY_LOW at the master and a clean exit;
 the master killed while driving stops the motors; the robot's events outside an action reach the
-master as EVENT with their port. The armel agent under qemu-arm drives too.
+master as EVENT with their port. The armel agent under qemu-arm drives too. A custom behaviour
+paused in the middle of a drive and of a turn continues the same action on RESUME (the distance and
+the angle asked, not more); after ACTION_ERR (a wheel stalled against a wall), RESTART runs it again
+from its first state.
 
 ev3-sim needs /dev/fuse and the armel test qemu-arm: without them these tests FAIL (never skip).
 Each test is a few seconds of real time; the agents' NDJSON traces are checked against the spec
@@ -16,6 +19,7 @@ import re
 import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -304,3 +308,119 @@ def test_armel_agent_drives_the_simulated_robot(sim_factory, fleet):
     r = sim.robot()
     assert 200 - 12 - 20 < r["x"] + 12 < 200, r  # the bumper's face stopped within 20 cm of the wall
     assert not r["bumper"]
+
+
+# A leg of 1 m and a full turn, paused in the middle of each (tests below).
+LEG_AND_TURN = """behaviour leg_and_turn
+param speed = 250
+state leg = drive 1m -> spin
+on OBSTACLE_DETECTED, PROXIMITY_ALERT -> end
+state spin = turn 360 speed=150 -> end
+on OBSTACLE_DETECTED -> end
+on PROXIMITY_ALERT -> ignore
+"""
+
+
+def test_pause_and_resume_continue_the_same_action(sim_factory, fleet, agent_exe, tmp_path):
+    """A custom behaviour drives 1 m, then turns 360 deg. PAUSE from the master in the middle of the
+    drive stops the wheels where they are; RESUME drives on to the same target, not a new 1 m: the
+    leg ends 100 cm from the start (x), within 3 cm (the brake's slide at 12 cm/s is 0.6 cm; the
+    drive counts whole wheel degrees). Then PAUSE in the middle of the turn, RESUME: the heading
+    turns 360 deg in all, within 6 deg. One ACTION_OK per action (ids 0 and 1), none doubled."""
+    bhv = tmp_path / "leg_and_turn.bhv"
+    bhv.write_text(LEG_AND_TURN)
+    sim = sim_factory(OPEN)
+    fleet.start_master()
+    fleet.start_agent(agent_exe, sim.root())
+    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+    r0 = sim.robot()
+    fleet.say(f"behaviour 2 custom @{bhv}")
+    fleet.heard(r"BEHAVIOUR acknowledged")
+    fleet.say("start 2")
+    wait_until(lambda: sim.robot()["x"] > r0["x"] + 25, 10, "the robot 25 cm along its leg")
+    fleet.say("pause 2")
+    wait_until(lambda: fleet.agent_state("PAUSED"), 3, "PAUSED")
+    wait_until(lambda: stopped(sim), 2, "the wheels stopped on PAUSE")
+    at_pause = sim.robot()["x"] - r0["x"]
+    assert 25 < at_pause < 80, f"paused at {at_pause:.1f} cm: not in the middle of the 100 cm leg"
+    time.sleep(1.0)
+    assert stopped(sim) and abs(sim.robot()["x"] - r0["x"] - at_pause) < 0.05, "moved while PAUSED"
+    fleet.say("resume 2")
+    wait_until(lambda: fleet.agent_state("WORKING"), 3, "WORKING again")
+    fleet.heard(r"agent 2: ACTION_OK 0\b", 15)
+    leg = sim.robot()
+    # The turn starts at once (the leg's ACTION_OK is sent as it starts): wait for a third of it.
+    h0 = leg["heading_total"]
+    assert abs(leg["y"] - r0["y"]) < 1.0, leg
+    wait_until(lambda: sim.robot()["heading_total"] > h0 + 90, 10, "a quarter of the turn")
+    fleet.say("pause 2")
+    wait_until(lambda: fleet.agent_state("PAUSED"), 3, "PAUSED in the turn")
+    wait_until(lambda: stopped(sim), 2, "the wheels stopped on PAUSE")
+    turned_at_pause = sim.robot()["heading_total"] - h0
+    assert 90 < turned_at_pause < 300, f"paused {turned_at_pause:.1f} deg into the 360 deg turn"
+    fleet.say("resume 2")
+    fleet.heard(r"agent 2: ACTION_OK 1\b", 15)
+    wait_until(lambda: stopped(sim), 2, "still after the turn")
+    end = sim.robot()
+    leg_cm = leg["x"] - r0["x"]
+    turned = end["heading_total"] - h0
+    print(f"leg: paused at {at_pause:.2f} cm, ended at {leg_cm:.2f} cm of 100; "
+          f"turn: paused at {turned_at_pause:.1f} deg, ended at {turned:.2f} deg of 360")
+    assert abs(leg_cm - 100) < 3.0, f"the leg ended at {leg_cm:.2f} cm, not 100 (restarted or stopped short?)"
+    assert abs(turned - 360) < 6.0, f"the turn ended at {turned:.2f} deg, not 360"
+    out = fleet.master.stdout()
+    assert len(re.findall(r"agent 2: ACTION_OK 0\b", out)) == 1, out
+    assert len(re.findall(r"agent 2: ACTION_OK 1\b", out)) == 1, out
+
+
+# Forward 20 cm, then back 1 m into the wall behind: the wheels stall, the action fails (ACTION_ERR).
+FORTH_AND_BACK = """behaviour forth_and_back
+param speed = 300
+state forth = drive 20cm -> back
+on OBSTACLE_DETECTED, PROXIMITY_ALERT -> end
+state back = drive -1m -> end
+on OBSTACLE_DETECTED, PROXIMITY_ALERT -> ignore
+"""
+# The robot's back (6 cm behind the axle) 24 cm from the wall x = 0; 5 m of floor ahead.
+BACK_TO_WALL = "bounds 0 0 600 300\nstart 30 150 0\n"
+
+
+def test_restart_after_action_err_starts_over(sim_factory, fleet, agent_exe, tmp_path):
+    """A custom behaviour drives 20 cm forward, then 1 m back: the wall behind stops the body, the
+    wheels stall and the drive fails (ACTION_ERR after the runner's 1 s without progress). The
+    robot waits (no motion) until RESTART from the master, which runs the behaviour from its first
+    state: the 20 cm forward again (ACTION_OK 0 again, the robot 20 cm from the wall), then back into
+    the wall, ACTION_ERR again. Continuing the failed action instead would only push on the wall."""
+    bhv = tmp_path / "forth_and_back.bhv"
+    bhv.write_text(FORTH_AND_BACK)
+    sim = sim_factory(BACK_TO_WALL)
+    fleet.start_master()
+    fleet.start_agent(agent_exe, sim.root())
+    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+    fleet.say(f"behaviour 2 custom @{bhv}")
+    fleet.heard(r"BEHAVIOUR acknowledged")
+    fleet.say("start 2")
+    xs, travelled = [], []
+    for run in (1, 2):
+        fleet.heard(r"agent 2: ACTION_OK 0\b" + (r"[\s\S]*agent 2: ACTION_OK 0\b" if run == 2 else ""), 10)
+        wait_until(lambda: sim.robot()["x"] < 20, 10, "backing towards the wall")
+        out = fleet.heard(r"agent 2: ACTION_ERR 1\b" + (r"[\s\S]*agent 2: ACTION_ERR 1\b" if run == 2 else ""), 10)
+        wait_until(lambda: stopped(sim), 2, "the motors stopped after ACTION_ERR")
+        r = sim.robot()
+        xs.append(r["x"])
+        travelled.append(r["travelled"])
+        time.sleep(0.5)
+        assert stopped(sim), "moved while waiting for RESTART"
+        if run == 1:
+            fleet.say("restart 2")
+    print(f"against the wall at x = {xs[0]:.2f} then {xs[1]:.2f} cm; travelled {travelled[0]:.2f} cm, "
+          f"then {travelled[1] - travelled[0]:.2f} cm after RESTART; master's console:\n{out}")
+    assert all(abs(x - 6.0) < 0.5 for x in xs), xs  # the robot's back on the wall, not through it
+    # The first run: 20 cm forth, 44 cm back; after RESTART 20 cm forth and the same 20 cm back.
+    assert abs(travelled[0] - 64.0) < 3.0, travelled
+    assert abs(travelled[1] - travelled[0] - 40.0) < 3.0, travelled
+    # The agent's log names the failure: the back leg's wheel stalled 44 cm, then 20 cm into its 1 m.
+    log = wait_until(lambda: len(re.findall(r"ACTION_ERR - out[BC] stalled", t := (fleet.tmp / "agent.log").read_text()))
+                     == 2 and t, 2, "both failures in the agent's log (flushed every 200 ms)")
+    backs = [int(n) for n in re.findall(r"ACTION_ERR - out[BC] stalled at -(\d+) of -2046 counts", log)]
+    assert len(backs) == 2 and abs(backs[0] - 900) < 60 and abs(backs[1] - 410) < 60, backs
