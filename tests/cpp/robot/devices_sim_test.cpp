@@ -1,9 +1,10 @@
 // The device layer and the robot runtime on ev3-sim's FUSE tree (docs/devices.md "Simulator"):
 // what plain files cannot show, from the real thing: ENODEV after an unplug and the replug found
 // by the next scan, EBUSY from `position` while a motor holds, the LEDs' timer attributes coming
-// and going, one system call per access (no truncate on FUSE), and a drive into a wall stopped at
-// the bumper. Each test starts its own ev3-sim (1 robot, the pen world, real time); without
-// /dev/fuse ev3-sim exits and the tests fail, they do not skip.
+// and going, one system call per access (no truncate on FUSE), a drive into a wall stopped at
+// the bumper, the built-in explore in a walled world. Each test starts its own ev3-sim (1 robot,
+// the pen world, real time but for explore's twice real time); without /dev/fuse ev3-sim exits
+// and the tests fail, they do not skip.
 #include <gtest/gtest.h>
 
 #include <fcntl.h>
@@ -15,9 +16,15 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
+#include <cmath>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <map>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -46,16 +53,17 @@ ev3proto::Millis mono_ms() {
 
 void sleep_ms(int ms) { std::this_thread::sleep_for(std::chrono::milliseconds(ms)); }
 
-/// One ev3-sim with one robot on a fresh directory; stopped (quit, then SIGTERM) at the end.
+/// One ev3-sim with one robot on a fresh directory; stopped (quit, then SIGTERM) at the end. Its
+/// simulated time runs @p time_scale times as fast as real time (--time-scale).
 class Sim {
  public:
-  explicit Sim(bool jessie = false) {
+  explicit Sim(bool jessie = false, double time_scale = 1) : time_scale_(time_scale) {
     char tmpl[] = "/tmp/ev3sim-devices-XXXXXX";
     dir_ = mkdtemp(tmpl);
     root_ = dir_ + "/robot";
     ctl_ = dir_ + "/ctl";
     std::vector<std::string> args = {EV3_SIM_BIN, "--world", EV3_SIM_WORLD, "--sysfs-root", root_, "--control", ctl_,
-                                     "--log-level", "1"};
+                                     "--time-scale", std::to_string(time_scale), "--log-level", "1"};
     if (jessie) args.push_back("--jessie");
     std::vector<char*> argv;
     for (auto& a : args) argv.push_back(a.data());
@@ -106,6 +114,7 @@ class Sim {
     return s.str();
   }
   const std::string& root() const { return root_; }
+  double time_scale() const { return time_scale_; }
   /// One line to the control FIFO.
   void control(const std::string& line) const {
     for (int i = 0; i < 100; ++i) {
@@ -123,6 +132,7 @@ class Sim {
 
  private:
   std::string dir_, root_, ctl_;
+  double time_scale_ = 1;
   pid_t pid_ = -1;
   bool up_ = false;
 };
@@ -247,33 +257,80 @@ TEST(SimDevices, OneSystemCallPerAccessOnFuse) {
   EXPECT_EQ(io.calls() - before, 100u);
 }
 
+/// What one turn of the robot loop gave: the runtime's clock, the automaton's state before the turn,
+/// and what the runtime handed on in it.
+struct LoopTurn {
+  ev3proto::Millis now = 0;
+  std::size_t state_before = 0;
+  std::vector<ActionResult> results;
+  std::vector<Event> events;
+  std::size_t reports = 0;
+};
+
+/// The agent program's robot loop on a simulated robot's tree: Ev3Devices + RobotIo + Runtime, the
+/// runtime's clock the monotonic one times the simulator's time scale (so both run alike). Start
+/// something on runtime(), then run(); no read or write of the tree may fail.
+class RobotLoop {
+ public:
+  explicit RobotLoop(const Sim& sim)
+      : devices_(sim.root()), rio_(devices_), rt_(RuntimeConfig{}, 0), scale_(sim.time_scale()), t0_(mono_ms()) {
+    rio_.scan(rt_, 0);
+    rio_.flush(rt_, 0);
+  }
+  ~RobotLoop() { EXPECT_EQ(rio_.stats().failed_reads + rio_.stats().failed_writes, 0u); }
+  Runtime& runtime() { return rt_; }
+  ev3proto::Millis now() const { return static_cast<ev3proto::Millis>(static_cast<double>(mono_ms() - t0_) * scale_); }
+  /// Turns until @p done(turn) says true or the clock reaches @p max_ms: each turn scans and ticks
+  /// when they are due, makes the runtime's writes, and gives @p done what came out.
+  template <typename Done>
+  void run(Done done, ev3proto::Millis max_ms) {
+    for (ev3proto::Millis now = this->now(); now < max_ms; now = this->now()) {
+      LoopTurn turn;
+      turn.now = now;
+      turn.state_before = rt_.automaton().state();
+      if (now >= rio_.next_scan()) rio_.scan(rt_, now);
+      if (now >= rt_.next_deadline()) rio_.tick(rt_, now);
+      rio_.flush(rt_, now);
+      for (ActionResult r; rt_.poll_result(r);) turn.results.push_back(r);
+      for (Event e; rt_.poll_event(e);) turn.events.push_back(e);
+      for (Report r; rt_.poll_report(r);) ++turn.reports;
+      if (done(static_cast<const LoopTurn&>(turn))) break;
+      sleep_ms(1);
+    }
+    rio_.flush(rt_, now());
+  }
+
+ private:
+  Ev3Devices devices_;
+  ev3io::RobotIo rio_;
+  Runtime rt_;
+  double scale_;
+  ev3proto::Millis t0_;
+};
+
+std::string text_of(const ActionResult& r) {
+  return std::string(to_string(r.outcome)) + ": " + std::string(r.detail.view());
+}
+
 /// What a run of the runtime on a simulated robot gave: the results' outcome + detail, the events.
 struct SimRun {
   std::vector<std::string> results, events;
 };
 
-/// The agent program's robot loop on @p sim's tree, in real time: @p start(rt) starts something,
-/// then the loop runs until a result (at most @p max_ms).
+/// The robot loop on @p sim's tree: @p start(rt) starts something, then the loop runs until a result
+/// (at most @p max_ms).
 template <typename Start>
 SimRun run_until_result(const Sim& sim, Start start, ev3proto::Millis max_ms) {
   SimRun run;
-  Ev3Devices devices(sim.root());
-  ev3io::RobotIo rio(devices);
-  const ev3proto::Millis t0 = mono_ms();
-  Runtime rt(RuntimeConfig{}, 0);
-  rio.scan(rt, 0);
-  rio.flush(rt, 0);
-  start(rt);
-  for (ev3proto::Millis now = 0; now < max_ms && run.results.empty(); now = mono_ms() - t0) {
-    if (now >= rio.next_scan()) rio.scan(rt, now);
-    if (now >= rt.next_deadline()) rio.tick(rt, now);
-    rio.flush(rt, now);
-    for (ActionResult r; rt.poll_result(r);)
-      run.results.push_back(std::string(to_string(r.outcome)) + ": " + std::string(r.detail.view()));
-    for (Event e; rt.poll_event(e);) run.events.push_back(std::string(to_string(e.kind)));
-    sleep_ms(1);
-  }
-  EXPECT_EQ(rio.stats().failed_reads + rio.stats().failed_writes, 0u);
+  RobotLoop loop(sim);
+  start(loop.runtime());
+  loop.run(
+      [&run](const LoopTurn& t) {
+        for (const auto& r : t.results) run.results.push_back(text_of(r));
+        for (const auto& e : t.events) run.events.push_back(std::string(to_string(e.kind)));
+        return !run.results.empty();
+      },
+      max_ms);
   return run;
 }
 
@@ -285,21 +342,26 @@ SimRun drive(const Sim& sim) {
   }, 5000);
 }
 
-/// A number of the robot in the simulator's status ("x", "heading_total", ...).
-double status_of(const Sim& sim, const std::string& field) {
-  const std::string file = sim.root() + "-status.json";
+/// The simulator's status (JSON), written on request to @p file (whole: a temporary file renamed).
+std::string status_text(const Sim& sim, const std::string& file) {
   std::error_code ec;
   fs::remove(file, ec);
   sim.control("status " + file);
-  for (int i = 0; i < 100 && !fs::exists(file); ++i) sleep_ms(10);
-  sleep_ms(5);
+  for (int i = 0; i < 500 && !fs::exists(file); ++i) sleep_ms(2);
   std::ifstream in(file);
   std::stringstream ss;
   ss << in.rdbuf();
-  const std::string t = ss.str();
+  return ss.str();
+}
+/// The first number named @p field in a status ("time", "x", "heading_total", ...).
+double number_in(const std::string& status, const std::string& field) {
   const std::string key = "\"" + field + "\":";
-  const auto at = t.find(key);
-  return at == std::string::npos ? -1e9 : std::stod(t.substr(at + key.size()));
+  const auto at = status.find(key);
+  return at == std::string::npos ? -1e9 : std::stod(status.substr(at + key.size()));
+}
+/// A number of the robot in the simulator's status.
+double status_of(const Sim& sim, const std::string& field) {
+  return number_in(status_text(sim, sim.root() + "-status.json"), field);
 }
 double robot_x(const Sim& sim) { return status_of(sim, "x"); }
 
@@ -376,83 +438,181 @@ TEST(SimActions, DriveDistanceAndTurnEndWithinTolerance) {
 
 namespace {
 
-/// The robot's position in the simulator (cm).
-struct Pose {
-  double x = 0, y = 0;
+/// Where the simulated robot's axle midpoint was (cm) at a simulated time (s).
+struct Sample {
+  double t = 0, x = 0, y = 0;
 };
-Pose pose_of(const Sim& sim) { return Pose{status_of(sim, "x"), status_of(sim, "y")}; }
 
-// The built-in explore (behaviours/explore.bhv, run by the automaton) in the pen world for 20 s of real
-// time, started with its bumper against the end of the wall (the ultrasonic's ray passes it): the bump
-// is reacted to (bumped, backoff, recoil, turning: back to the normal course), the robot never gets
-// through a wall or out of the pen, and it keeps going (finished actions, no failure).
-TEST(SimBehaviour, ExploreReactsToTheBumpAndNeverPassesAWall) {
-  Sim sim;
+/// Samples the robot's position from the simulator's status every @p period_ms of real time, on its
+/// own thread, so that the robot loop is not held up by it.
+class PathSampler {
+ public:
+  PathSampler(const Sim& sim, int period_ms)
+      : thread_([this, &sim, period_ms] {
+          const std::string file = sim.root() + "-path.json";
+          while (!stop_) {
+            const std::string st = status_text(sim, file);
+            const Sample s{number_in(st, "time"), number_in(st, "x"), number_in(st, "y")};
+            if (s.t > -1e8 && s.x > -1e8 && s.y > -1e8) {
+              std::lock_guard<std::mutex> lock(mu_);
+              samples_.push_back(s);
+            }
+            sleep_ms(period_ms);
+          }
+        }) {}
+  ~PathSampler() { finish(); }
+  /// Stops sampling; the samples taken, in time order.
+  std::vector<Sample> finish() {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    return samples_;
+  }
+  /// The simulated time of the latest sample (s), -1 before the first.
+  double latest() const {
+    std::lock_guard<std::mutex> lock(mu_);
+    return samples_.empty() ? -1 : samples_.back().t;
+  }
+
+ private:
+  std::atomic<bool> stop_{false};
+  mutable std::mutex mu_;
+  std::vector<Sample> samples_;
+  std::thread thread_;
+};
+
+/// How many cells of a @p cell_cm grid the path passed through up to simulated time @p until (s),
+/// walking the straight segments between samples in 1 cm steps.
+std::size_t cells_visited(const std::vector<Sample>& path, double until, double cell_cm) {
+  std::set<std::pair<long, long>> cells;
+  for (std::size_t i = 0; i < path.size() && path[i].t <= until; ++i) {
+    const Sample& b = path[i];
+    const Sample& a = i == 0 ? b : path[i - 1];
+    const double len = std::hypot(b.x - a.x, b.y - a.y);
+    const int steps = 1 + static_cast<int>(len);
+    for (int k = 0; k <= steps; ++k) {
+      const double x = a.x + (b.x - a.x) * k / steps, y = a.y + (b.y - a.y) * k / steps;
+      cells.insert({static_cast<long>(std::floor(x / cell_cm)), static_cast<long>(std::floor(y / cell_cm))});
+    }
+  }
+  return cells.size();
+}
+
+// The built-in explore (behaviours/explore.bhv, run by the automaton) in the pen world for 30 s of
+// simulated time (ev3-sim and the runtime's clock at twice real time: 15 s), started with its bumper
+// against the end of the wall (the ultrasonic's ray passes it). Checked:
+// - every bump (OBSTACLE_DETECTED) in a moving state (forward, turning) is followed by its reaction,
+//   bumped, backoff, recoil, turning (back to the normal course), every PROXIMITY_ALERT in forward by
+//   near, turning; the first is the bump at the start;
+// - it never gets through a wall or out of the pen: the samples (every 100 ms simulated) stay inside
+//   the pen and out of the box (120..150, 150..180), and the path never crosses the wall x = 200,
+//   y 0..120 (it may go round its end);
+// - it keeps going: finished actions, none failed, the sensors reported;
+// - the area it covers grows with time: the 10 cm cells its axle passed through after 10 s < after
+//   20 s < after 30 s, each 10 s adding at least 5 cells (measured: 6, 21-22, 35-37; it drives at
+//   19.5 cm/s between its pauses and turns).
+TEST(SimBehaviour, ExploreReactsToEveryBumpNeverPassesAWallAndCoversMoreWithTime) {
+  constexpr double kScale = 2, kSeconds = 30, kCellCm = 10;
+  Sim sim(false, kScale);
   ASSERT_SIM_UP(sim);
   sim.control("place 160 124 0");
   sleep_ms(50);
-  Ev3Devices devices(sim.root());
-  ev3io::RobotIo rio(devices);
-  const ev3proto::Millis t0 = mono_ms();
-  Runtime rt(RuntimeConfig{}, 0);
-  rio.scan(rt, 0);
-  rio.flush(rt, 0);
+  RobotLoop loop(sim);
+  Runtime& rt = loop.runtime();
+  const double t0 = number_in(status_text(sim, sim.root() + "-status.json"), "time");
+  ASSERT_GE(t0, 0.0);
+  PathSampler sampler(sim, 50);
   const std::string_view args[] = {"seed=3"};
-  rt.control(ev3proto::ControlKind::start, "explore", args, 1, 0);
+  rt.control(ev3proto::ControlKind::start, "explore", args, 1, loop.now());
   const auto& def = rt.automaton().definition();
-  std::vector<std::string> states{std::string(def.states[rt.automaton().state()].name.view())};
+  const auto name = [&def](std::size_t i) { return std::string(def.states[i].name.view()); };
+  std::vector<std::string> path{name(rt.automaton().state())};
+  struct Warning {
+    std::string what;
+    std::size_t at;  // the index in path of the state it came in
+  };
+  std::vector<Warning> warnings;
   std::vector<std::string> results;
-  int bumps = 0, reports = 0;
-  std::vector<Pose> poses;
-  ev3proto::Millis next_pose = 0;
-  for (ev3proto::Millis now = 0; now < 20000; now = mono_ms() - t0) {
-    if (now >= rio.next_scan()) rio.scan(rt, now);
-    if (now >= rt.next_deadline()) rio.tick(rt, now);
-    rio.flush(rt, now);
-    for (ActionResult r; rt.poll_result(r);)
-      results.push_back(std::string(to_string(r.outcome)) + ": " + std::string(r.detail.view()));
-    for (Event e; rt.poll_event(e);) bumps += e.kind == EventKind::OBSTACLE_DETECTED ? 1 : 0;
-    for (Report r; rt.poll_report(r);) ++reports;
-    const std::string state(def.states[rt.automaton().state()].name.view());
-    if (state != states.back()) states.push_back(state);
-    if (now >= next_pose) {
-      poses.push_back(pose_of(sim));
-      next_pose = now + 250;
+  std::size_t reports = 0;
+  loop.run(
+      [&](const LoopTurn& t) {
+        EXPECT_EQ(name(t.state_before), path.back());
+        for (const auto& r : t.results) results.push_back(text_of(r));
+        reports += t.reports;
+        for (const Event& e : t.events)
+          if (e.kind == EventKind::OBSTACLE_DETECTED || e.kind == EventKind::PROXIMITY_ALERT)
+            warnings.push_back(Warning{std::string(to_string(e.kind)), path.size() - 1});
+        const std::string state = name(rt.automaton().state());
+        if (state != path.back()) path.push_back(state);
+        return sampler.latest() >= t0 + kSeconds;
+      },
+      static_cast<ev3proto::Millis>((kSeconds + 20) * 1000));
+  const auto phase = rt.automaton().phase();
+  rt.control(ev3proto::ControlKind::stop, "", nullptr, 0, loop.now());
+  const std::vector<Sample> samples = sampler.finish();
+  std::string states;
+  for (const auto& s : path) states += s + " ";
+  RecordProperty("states", states);
+  ASSERT_FALSE(samples.empty());
+  ASSERT_GE(samples.back().t, t0 + kSeconds) << "the loop ended before 30 s of simulated time";
+  EXPECT_EQ(phase, ev3proto::behaviour::Phase::running) << states;
+  for (const auto& r : results) EXPECT_NE(r.rfind("failed", 0), 0u) << r << " (" << states << ")";
+  EXPECT_GE(results.size(), 8u) << states;
+  EXPECT_GE(reports, 10u);  // `report distance, colour every 1s`, and after each pause
+
+  // Every warning in a moving state that reacts to it: its reaction follows (as far as the run goes).
+  const std::map<std::pair<std::string, std::string>, std::vector<std::string>> reactions = {
+      {{"forward", "OBSTACLE_DETECTED"}, {"bumped", "backoff", "recoil", "turning"}},
+      {{"turning", "OBSTACLE_DETECTED"}, {"bumped", "backoff", "recoil", "turning"}},
+      {{"forward", "PROXIMITY_ALERT"}, {"near", "turning"}},
+  };
+  std::size_t bumps = 0, alerts = 0, elsewhere = 0;
+  std::string other;
+  for (const Warning& w : warnings) {
+    const auto it = reactions.find({path[w.at], w.what});
+    if (it == reactions.end()) {  // turning away from what is close, backing off, standing still
+      ++elsewhere;
+      other += w.what + " in " + path[w.at] + "; ";
+      continue;
     }
-    sleep_ms(1);
+    ++(w.what == "OBSTACLE_DETECTED" ? bumps : alerts);
+    const auto& chain = it->second;
+    EXPECT_LT(w.at + 1, path.size()) << w.what << " in " << path[w.at] << ": no reaction (" << states << ")";
+    for (std::size_t k = 0; k < chain.size() && w.at + 1 + k < path.size(); ++k)
+      EXPECT_EQ(path[w.at + 1 + k], chain[k]) << w.what << " in " << path[w.at] << " (state " << w.at << " of: " << states << ")";
   }
-  rt.control(ev3proto::ControlKind::stop, "", nullptr, 0, mono_ms() - t0);
-  rio.flush(rt, mono_ms() - t0);
-  std::string path;
-  for (const auto& s : states) path += s + " ";
-  RecordProperty("states", path);
-  ASSERT_GE(states.size(), 5u) << path;
-  EXPECT_EQ(states[0], "forward");
-  EXPECT_GE(bumps, 1);
-  // The bump: bumped, then back off, settle, turn, and on to the normal course.
-  EXPECT_EQ(std::vector<std::string>(states.begin(), states.begin() + 5),
-            (std::vector<std::string>{"forward", "bumped", "backoff", "recoil", "turning"}))
-      << path;
-  EXPECT_EQ(rt.automaton().phase(), ev3proto::behaviour::Phase::idle);  // stopped by us, never failed
-  for (const auto& r : results) EXPECT_NE(r.rfind("failed", 0), 0u) << r << " (" << path << ")";
-  EXPECT_GE(results.size(), 4u) << path;
-  EXPECT_GE(reports, 1);  // `report distance every 1s`, and after each pause
-  // Never through a wall: inside the pen, never in the box (120..150, 150..180), and the path never
-  // crosses the wall x = 200, y 0..120 (it may go round its end).
-  ASSERT_GE(poses.size(), 2u);
-  for (std::size_t i = 0; i < poses.size(); ++i) {
-    const Pose& p = poses[i];
+  ASSERT_FALSE(warnings.empty());
+  EXPECT_EQ(warnings[0].what, "OBSTACLE_DETECTED");
+  EXPECT_EQ(warnings[0].at, 0u);  // the bump at the start, in forward
+  RecordProperty("bumps_reacted", std::to_string(bumps));
+  RecordProperty("alerts_reacted", std::to_string(alerts));
+  RecordProperty("warnings_elsewhere", std::to_string(elsewhere) + " " + other);
+
+  // Never through a wall.
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    const Sample& p = samples[i];
     EXPECT_GT(p.x, 5.0);
     EXPECT_LT(p.x, 295.0);
     EXPECT_GT(p.y, 5.0);
     EXPECT_LT(p.y, 195.0);
     EXPECT_FALSE(p.x > 120.0 && p.x < 150.0 && p.y > 150.0 && p.y < 180.0) << p.x << "," << p.y;
     if (i == 0) continue;
-    const Pose& q = poses[i - 1];
+    const Sample& q = samples[i - 1];
     if ((q.x < 200.0) == (p.x < 200.0)) continue;
     const double y = q.y + (p.y - q.y) * (200.0 - q.x) / (p.x - q.x);
-    EXPECT_GT(y, 120.0) << "crossed the wall from " << q.x << "," << q.y << " to " << p.x << "," << p.y << " (" << path << ")";
+    EXPECT_GT(y, 120.0) << "crossed the wall from " << q.x << "," << q.y << " to " << p.x << "," << p.y << " (" << states << ")";
   }
+
+  // The area covered grows with time.
+  const std::size_t c10 = cells_visited(samples, t0 + 10, kCellCm), c20 = cells_visited(samples, t0 + 20, kCellCm),
+                    c30 = cells_visited(samples, t0 + 30, kCellCm);
+  const std::string cells = std::to_string(c10) + " " + std::to_string(c20) + " " + std::to_string(c30);
+  RecordProperty("cells_10cm_after_10_20_30_s", cells);
+  std::printf("explore: %zu samples; 10 cm cells visited after 10, 20, 30 s: %s; bumps %zu, alerts %zu reacted to, "
+              "%zu elsewhere (%s); %zu results, %zu reports\n",
+              samples.size(), cells.c_str(), bumps, alerts, elsewhere, other.c_str(), results.size(), reports);
+  EXPECT_GE(c10, 3u) << cells << " (" << states << ")";
+  EXPECT_GE(c20, c10 + 5) << cells << " (" << states << ")";
+  EXPECT_GE(c30, c20 + 5) << cells << " (" << states << ")";
 }
 
 }  // namespace
