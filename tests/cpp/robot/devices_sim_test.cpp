@@ -403,6 +403,14 @@ std::string run_step(const Sim& sim, const action::Step& step) {
   return run.results.empty() ? "no result" : run.results[0];
 }
 
+/// How far @p step moves the simulated robot by the status' @p field ("travelled", "heading_total"),
+/// measured once the body has settled; @p result gets the step's outcome and detail.
+double moved_by(const Sim& sim, const action::Step& step, const char* field, std::string& result) {
+  const double before = status_of(sim, field);
+  result = run_step(sim, step);
+  return status_of(sim, field) - before;
+}
+
 // DriveDistance and Turn on the simulated robot (model A's geometry is the simulator's): how far
 // they end from what was asked. Stated tolerances: DriveDistance 300 mm at 500 counts/s within
 // 1.5 cm (hold) and 2.5 cm (brake); Turn 90 deg at 200 counts/s within 2 deg (hold) and 6 deg (brake).
@@ -425,12 +433,70 @@ TEST(SimActions, DriveDistanceAndTurnEndWithinTolerance) {
   };
   int i = 0;
   for (const Case& c : cases) {
-    const double before = status_of(sim, c.field);
-    const std::string r = run_step(sim, c.step);
-    const double moved = status_of(sim, c.field) - before;
+    std::string r;
+    const double moved = moved_by(sim, c.step, c.field, r);
     EXPECT_EQ(r.rfind("finished", 0), 0u) << r;
     EXPECT_NEAR(moved, c.want, c.tolerance) << r;
     RecordProperty("case" + std::to_string(i++), std::string(c.field) + " " + std::to_string(moved) + " (" + r + ")");
+  }
+}
+
+// How far past its target an action ends, by speed and stop action, beside the thesis' "a few cm
+// long" and "a few degrees at higher speeds" (docs/benchmarks.md, "Drive overshoot and turn drift"):
+// DriveDistance 300 mm at 250, 500, 1000 counts/s and Turn 90 deg at 200, 500, 800 counts/s, each
+// with hold, brake and coast (forwards and backwards, left and right in turn), on ev3-sim at 4x real
+// time (the driver stops the wheels at the target itself, so the clock's pace does not move where
+// they stop). Checked: never short by more than the action's 5 counts a wheel (0.25 cm, 2.4 deg);
+// with hold within 0.5 cm and 1 deg at the slowest speed, within 3 cm and 6 deg at every speed (the
+// body slides on the tyres; how far varies from run to run by when the runtime's own stop lands,
+// e.g. Turn at 800 from 0.1 to 4.9 deg); with brake and coast past the target more at each higher
+// speed (these do not vary), and more with coast than with brake at every speed.
+// Each figure is a property: past_drive_SPEED_STOP (cm), past_turn_SPEED_STOP (deg).
+TEST(SimActions, OvershootGrowsWithSpeedWithBrakeAndCoast) {
+  Sim sim(false, 4);
+  ASSERT_SIM_UP(sim);
+  sim.control("place 40 100 0");
+  sleep_ms(50);
+  struct Kind {
+    bool drive;
+    const char* field;
+    double want;
+    std::int32_t speeds[3];
+    double short_by, slow_hold_within, hold_within;
+  };
+  const Kind kinds[] = {{true, "travelled", 30.0, {250, 500, 1000}, 0.25, 0.5, 3.0},
+                        {false, "heading_total", 90.0, {200, 500, 800}, 2.4, 1.0, 6.0}};
+  const StopAction stops[] = {StopAction::hold, StopAction::brake, StopAction::coast};
+  int sign = 1;
+  for (const Kind& k : kinds) {
+    double brake[3] = {};
+    for (const StopAction stop : stops) {
+      double slower = 0;
+      for (std::size_t i = 0; i < 3; ++i) {
+        const std::int32_t speed = k.speeds[i];
+        const action::Step step = k.drive ? action::drive_distance(300 * sign, speed, stop) : action::turn(90 * sign, speed, stop);
+        std::string r;
+        const double moved = moved_by(sim, step, k.field, r);  // travelled counts both ways
+        const double past = (k.drive ? moved : moved * sign) - k.want;
+        sign = -sign;
+        const std::string what = std::string(k.drive ? "drive" : "turn") + "_" + std::to_string(speed) + "_" +
+                                 std::string(to_string(stop));
+        RecordProperty("past_" + what, std::to_string(past));
+        std::printf("past_%s: %+.2f (%s)\n", what.c_str(), past, r.c_str());
+        EXPECT_EQ(r.rfind("finished", 0), 0u) << what << ": " << r;
+        EXPECT_GE(past, -k.short_by) << what;
+        if (stop == StopAction::hold) {
+          EXPECT_LE(past, i == 0 ? k.slow_hold_within : k.hold_within) << what;
+        } else if (i > 0) {
+          EXPECT_GT(past, slower) << what << ": no more than at the slower speed";
+        }
+        slower = past;
+        if (stop == StopAction::brake) brake[i] = past;
+        if (stop == StopAction::coast) {
+          EXPECT_GT(past, brake[i]) << what << ": no more than with brake";
+        }
+      }
+    }
   }
 }
 
