@@ -299,6 +299,11 @@ class RobotLoop {
     }
     rio_.flush(rt_, now());
   }
+  /// STOP from above, its writes made.
+  void stop() {
+    rt_.control(ev3proto::ControlKind::stop, "", nullptr, 0, now());
+    rio_.flush(rt_, now());
+  }
 
  private:
   Ev3Devices devices_;
@@ -574,7 +579,7 @@ std::size_t cells_visited(const std::vector<Sample>& path, double until, double 
 //   y 0..120 (it may go round its end);
 // - it keeps going: finished actions, none failed, the sensors reported;
 // - the area it covers grows with time: the 10 cm cells its axle passed through after 10 s < after
-//   20 s < after 30 s, each 10 s adding at least 5 cells (measured: 6, 21-22, 35-37; it drives at
+//   20 s < after 30 s, each 10 s adding at least 5 cells (measured: 6, 20-23, 35-38; it drives at
 //   19.5 cm/s between its pauses and turns).
 TEST(SimBehaviour, ExploreReactsToEveryBumpNeverPassesAWallAndCoversMoreWithTime) {
   constexpr double kScale = 2, kSeconds = 30, kCellCm = 10;
@@ -613,7 +618,7 @@ TEST(SimBehaviour, ExploreReactsToEveryBumpNeverPassesAWallAndCoversMoreWithTime
       },
       static_cast<ev3proto::Millis>((kSeconds + 20) * 1000));
   const auto phase = rt.automaton().phase();
-  rt.control(ev3proto::ControlKind::stop, "", nullptr, 0, loop.now());
+  loop.stop();
   const std::vector<Sample> samples = sampler.finish();
   std::string states;
   for (const auto& s : path) states += s + " ";
