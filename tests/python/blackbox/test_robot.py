@@ -310,6 +310,18 @@ def test_armel_agent_drives_the_simulated_robot(sim_factory, fleet):
     assert not r["bumper"]
 
 
+def start_custom(fleet: Fleet, agent_exe, sim: Sim, bhv: Path, text: str) -> None:
+    """A master and an agent on sim's robot; once ACTIVE, the behaviour `text` (written to bhv, sent
+    by the console's `behaviour 2 custom @FILE`) acknowledged and started."""
+    bhv.write_text(text)
+    fleet.start_master()
+    fleet.start_agent(agent_exe, sim.root())
+    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+    fleet.say(f"behaviour 2 custom @{bhv}")
+    fleet.heard(r"BEHAVIOUR acknowledged")
+    fleet.say("start 2")
+
+
 # A leg of 1 m and a full turn, paused in the middle of each (tests below).
 LEG_AND_TURN = """behaviour leg_and_turn
 param speed = 250
@@ -327,16 +339,9 @@ def test_pause_and_resume_continue_the_same_action(sim_factory, fleet, agent_exe
     leg ends 100 cm from the start (x), within 3 cm (the brake's slide at 12 cm/s is 0.6 cm; the
     drive counts whole wheel degrees). Then PAUSE in the middle of the turn, RESUME: the heading
     turns 360 deg in all, within 6 deg. One ACTION_OK per action (ids 0 and 1), none doubled."""
-    bhv = tmp_path / "leg_and_turn.bhv"
-    bhv.write_text(LEG_AND_TURN)
     sim = sim_factory(OPEN)
-    fleet.start_master()
-    fleet.start_agent(agent_exe, sim.root())
-    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
     r0 = sim.robot()
-    fleet.say(f"behaviour 2 custom @{bhv}")
-    fleet.heard(r"BEHAVIOUR acknowledged")
-    fleet.say("start 2")
+    start_custom(fleet, agent_exe, sim, tmp_path / "leg_and_turn.bhv", LEG_AND_TURN)
     wait_until(lambda: sim.robot()["x"] > r0["x"] + 25, 10, "the robot 25 cm along its leg")
     fleet.say("pause 2")
     wait_until(lambda: fleet.agent_state("PAUSED"), 3, "PAUSED")
@@ -391,15 +396,8 @@ def test_restart_after_action_err_starts_over(sim_factory, fleet, agent_exe, tmp
     robot waits (no motion) until RESTART from the master, which runs the behaviour from its first
     state: the 20 cm forward again (ACTION_OK 0 again, the robot 20 cm from the wall), then back into
     the wall, ACTION_ERR again. Continuing the failed action instead would only push on the wall."""
-    bhv = tmp_path / "forth_and_back.bhv"
-    bhv.write_text(FORTH_AND_BACK)
     sim = sim_factory(BACK_TO_WALL)
-    fleet.start_master()
-    fleet.start_agent(agent_exe, sim.root())
-    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
-    fleet.say(f"behaviour 2 custom @{bhv}")
-    fleet.heard(r"BEHAVIOUR acknowledged")
-    fleet.say("start 2")
+    start_custom(fleet, agent_exe, sim, tmp_path / "forth_and_back.bhv", FORTH_AND_BACK)
     xs, travelled = [], []
     for run in (1, 2):
         fleet.heard(r"agent 2: ACTION_OK 0\b" + (r"[\s\S]*agent 2: ACTION_OK 0\b" if run == 2 else ""), 10)
