@@ -155,7 +155,7 @@ class Driver {
   /// A device or behaviour event for the core (docs/driver.md "event").
   bool event(const std::string& name, const Json& in, Millis now, std::string& err) {
     if (name == "action_ok") return core_->action_ok(now);
-    if (name == "action_failed") return core_->action_failed(now);
+    if (name == "action_failed") return core_->action_failed(in["reason"].str("error"), now);
     if (name == "battery_low") return core_->battery_low(now);
     if (name == "action_interrupted") {
       const std::string w = in["warning"].str("OBSTACLE_DETECTED");

@@ -89,6 +89,8 @@ def agent_input(la: dict) -> dict | None:
     d = {"type": "event", "event": ev}
     if n == "ActionInterrupted":
         d["warning"] = args[0]
+    if n == "ActionFailed":
+        d["reason"] = args[0]
     if n in ("DeviceUnplugged", "DevicePlugged"):
         d.update(devices=1, port=args[0])
     if n == "RobotEvent":

@@ -123,8 +123,8 @@ ActionOk == NoTimeoutDue /\ L!ActionOkOk(ag) /\ Do("ActionOk", <<>>, L!ActionOk(
 \* A warning event the behaviour cannot resolve interrupts it.
 ActionInterrupted(e) == NoTimeoutDue /\ L!ActionInterruptedOk(ag, e)
                         /\ Do("ActionInterrupted", <<e>>, L!ActionInterrupted(ag, e))
-\* The current action failed.
-ActionFailed == NoTimeoutDue /\ L!ActionFailedOk(ag) /\ Do("ActionFailed", <<>>, L!ActionFailed(ag))
+\* The current action failed, for reason f.
+ActionFailed(f) == NoTimeoutDue /\ L!ActionFailedOk(ag) /\ Do("ActionFailed", <<f>>, L!ActionFailed(ag, f))
 \* The behaviour reports a sensor reading.
 SensorReport == NoTimeoutDue /\ L!SensorReportOk(ag) /\ Do("SensorReport", <<>>, L!SensorReport(ag))
 \* The device registry detects an unplugged device of the model on port p.
@@ -144,7 +144,7 @@ Next ==
     \/ \E m \in EnvMsgs : Receive(m)
     \/ Tick \/ SyncTimeout \/ HeartbeatLost
     \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
-    \/ ActionFailed \/ SensorReport
+    \/ (\E f \in L!Failures : ActionFailed(f)) \/ SensorReport
     \/ \E p \in EventPorts : DeviceUnplugged(p) \/ DevicePlugged(p)
     \/ BatteryLow
     \/ \E e \in L!RobotEvents, p \in EventPorts : RobotEvent(e, p)

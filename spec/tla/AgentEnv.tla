@@ -57,7 +57,7 @@ SyncTimeoutE == SyncTimeout /\ UNCHANGED <<heard, gone>>
 
 Internal ==
     /\ \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
-       \/ ActionFailed \/ SensorReport
+       \/ (\E f \in L!Failures : ActionFailed(f)) \/ SensorReport
        \/ \E p \in EventPorts : DeviceUnplugged(p) \/ DevicePlugged(p)
        \/ BatteryLow
        \/ \E e \in L!RobotEvents, p \in EventPorts : RobotEvent(e, p)

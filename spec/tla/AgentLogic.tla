@@ -45,6 +45,9 @@ Leds == {LedOf[s] : s \in States}
 NoBehaviour == "NONE"
 Waits  == {"NONE", "CONTINUE", "RESTART"}   \* WORKING sub-state (brief sec. 3)
 Warnings == {"OBSTACLE_DETECTED", "PROXIMITY_ALERT"}
+\* Why an action failed, as the robot says it in ACTION_ERR ("outB stalled at -913 of -2046
+\* counts"): any text; the protocol does nothing with it, so one stands for all.
+Failures == {"stalled"}
 Reasons  == {"unknown behaviour", "missing device", "no behaviour", "wrong state"}
 
 \* Names of all handlers; lastAction.name is one of these.
@@ -77,7 +80,7 @@ OutMsgs ==
     \cup [src : Nat, dst : {MasterId}, type : {"ACTION_OK"}, ref : Nat, args : {<<>>}]
     \cup [src : Nat, dst : {MasterId}, type : {"ACTION_INTERR"}, ref : Nat,
            args : {<<e>> : e \in Warnings}]
-    \cup [src : Nat, dst : {MasterId}, type : {"ACTION_ERR"}, ref : Nat, args : {<<"error">>}]
+    \cup [src : Nat, dst : {MasterId}, type : {"ACTION_ERR"}, ref : Nat, args : {<<f>> : f \in Failures}]
     \cup [src : Nat, dst : {MasterId}, type : {"SENSOR_VALUE"}, ref : {0},
            args : {<<"port", "mode", "value">>}]
     \cup [src : Nat, dst : {MasterId}, type : {"EVENT"}, ref : {0},
@@ -325,12 +328,12 @@ ActionInterrupted(a, e) ==
     [ ag  |-> [a EXCEPT !.wait = "CONTINUE", !.motors = "OFF"],
       out |-> <<Out(a.id, MasterId, "ACTION_INTERR", a.step, <<e>>)>> ]
 
-\* The current action failed: motors stop, ACTION_ERR, wait for RESTART
-\* (or a new BEHAVIOUR).
+\* The current action failed for reason f: motors stop, ACTION_ERR(action id, f), wait for
+\* RESTART (or a new BEHAVIOUR).
 ActionFailedOk(a) == Running(a)
-ActionFailed(a) ==
+ActionFailed(a, f) ==
     [ ag  |-> [a EXCEPT !.wait = "RESTART", !.motors = "OFF"],
-      out |-> <<Out(a.id, MasterId, "ACTION_ERR", a.step, <<"error">>)>> ]
+      out |-> <<Out(a.id, MasterId, "ACTION_ERR", a.step, <<f>>)>> ]
 
 \* A reading of the sensors the behaviour asked for.
 SensorReportOk(a) == Running(a)

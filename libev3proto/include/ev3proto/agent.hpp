@@ -176,6 +176,8 @@ class Agent {
   static constexpr std::size_t kMaxNameLen = sizeof(AgentVars::beh);
   /// Most behaviour arguments (BEHAVIOUR has at most 31 besides the name).
   static constexpr std::size_t kMaxArgs = kMaxParams - 1;
+  /// Bytes of an action's failure reason that ACTION_ERR carries (the rest is cut off).
+  static constexpr std::size_t kMaxFailure = 96;
   /// "No deadline".
   static constexpr Millis kNever = ~Millis{0};
   /// The dedupe window type (payload: the recorded answer).
@@ -275,11 +277,16 @@ class Agent {
     return true;
   }
 
-  /// The running action failed (spec ActionFailed). Returns false unless Running.
-  bool action_failed(Millis now) noexcept {
+  /// The running action failed for @p why, the robot's words ("outB stalled at -913 of -2046
+  /// counts"; the first kMaxFailure bytes travel, "error" if it is empty) (spec ActionFailed).
+  /// Returns false unless Running.
+  bool action_failed(std::string_view why, Millis now) noexcept {
     advance(now);
     if (!ActionFailedOk()) return false;
-    traced(Action::ActionFailed, [this] { ActionFailed(); });
+    const std::string_view f = why.empty() ? std::string_view("error") : why.substr(0, kMaxFailure);
+    const AgentVars before = vars();
+    ActionFailed(f);
+    record(Action::ActionFailed, before, {}, f, 0);
     return true;
   }
 
@@ -1286,13 +1293,15 @@ class Agent {
 
   /// Spec ActionFailedOk: Running.
   bool ActionFailedOk() const noexcept { return Allowed(Action::ActionFailed); }
-  /// Spec ActionFailed: motors stop, ACTION_ERR(step, "error"), wait for RESTART.
-  void ActionFailed() noexcept {
+  /// Spec ActionFailed: motors stop, ACTION_ERR(step, f), wait for RESTART.
+  void ActionFailed(std::string_view f) noexcept {
     wait_ = Wait::RESTART;
     motors_pause();
     char num[10];
-    const std::string_view p[2] = {number(step_, num), "error"};
-    emit(Dest::master, master_id(), MsgType::ACTION_ERR, p, 2);
+    const std::string_view p[2] = {number(step_, num), f};
+    if (emit(Dest::master, master_id(), MsgType::ACTION_ERR, p, 2)) return;
+    const std::string_view plain[2] = {p[0], "error"};  // f escaped (and relayed) does not fit
+    emit(Dest::master, master_id(), MsgType::ACTION_ERR, plain, 2);
   }
 
   /// Spec SensorReportOk: Running.

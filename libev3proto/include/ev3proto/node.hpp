@@ -167,8 +167,8 @@ class Node {
   bool action_ok(Millis now) { return after(agent_.action_ok(now), now); }
   /// A warning the behaviour cannot resolve (agent core action_interrupted).
   bool action_interrupted(Warning w, Millis now) { return after(agent_.action_interrupted(w, now), now); }
-  /// The running action failed (agent core action_failed).
-  bool action_failed(Millis now) { return after(agent_.action_failed(now), now); }
+  /// The running action failed for @p why (agent core action_failed).
+  bool action_failed(std::string_view why, Millis now) { return after(agent_.action_failed(why, now), now); }
   /// A sensor reading (agent core sensor_report).
   bool sensor_report(std::string_view port, std::string_view mode, const std::string_view* values,
                      std::size_t count, Millis now) {

@@ -119,7 +119,7 @@ class RobotLink {
           n.taken = node.action_interrupted(n.result.warning, now);
           if (n.taken) ++interrupts;
           break;
-        default: n.taken = node.action_failed(now); break;
+        default: n.taken = node.action_failed(n.result.detail.view(), now); break;
       }
       note(n);
     }

@@ -70,7 +70,7 @@ Internal(r, a) ==
       [] r.a = "HeartbeatLost"     -> L!HeartbeatLost(a)
       [] r.a = "ActionOk"          -> L!ActionOk(a)
       [] r.a = "ActionInterrupted" -> L!ActionInterrupted(a, r.e)
-      [] r.a = "ActionFailed"      -> L!ActionFailed(a)
+      [] r.a = "ActionFailed"      -> L!ActionFailed(a, r.e)
       [] r.a = "SensorReport"      -> L!SensorReport(a)
       [] r.a = "DeviceUnplugged"   -> L!DeviceUnplugged(a, r.p)
       [] r.a = "DevicePlugged"     -> L!DevicePlugged(a, r.p)

@@ -8,7 +8,7 @@
 //   advance MS                                   time moves MS milliseconds
 //   recv DATAGRAM [from=PEER]                    a datagram arrives (symbolic: 1->7 START #3, or
 //                                                wire bytes: 1:7:3:8); PEER defaults to 1
-//   event obstacle|proximity|action_ok|action_failed|battery_low|unplug BITS PORT|plug BITS PORT
+//   event obstacle|proximity|action_ok|action_failed [REASON...]|battery_low|unplug BITS PORT|plug BITS PORT
 //   event robot NAME PORT                        a robot event (RobotEvent: OBSTACLE_DETECTED, ...)
 //   event sensor PORT MODE VALUE...
 //   show                                         the election variables
@@ -200,7 +200,7 @@ class AgentDriver {
     if (e == "obstacle") agent_->action_interrupted(Warning::OBSTACLE_DETECTED, now_);
     else if (e == "proximity") agent_->action_interrupted(Warning::PROXIMITY_ALERT, now_);
     else if (e == "action_ok") agent_->action_ok(now_);
-    else if (e == "action_failed") agent_->action_failed(now_);
+    else if (e == "action_failed") agent_->action_failed(words_from(w, 2), now_);
     else if (e == "battery_low") agent_->battery_low(now_);
     else if (e == "unplug" && w.size() == 4) agent_->device_unplugged(static_cast<std::uint32_t>(std::stoul(w[2])), w[3], now_);
     else if (e == "plug" && w.size() == 4) agent_->device_plugged(static_cast<std::uint32_t>(std::stoul(w[2])), w[3], now_);

@@ -371,7 +371,7 @@ class FleetDriver {
     const std::string& e = w[2];
     bool ok = false;
     if (e == "action_ok") ok = r.action_ok(now_);
-    else if (e == "action_failed") ok = r.action_failed(now_);
+    else if (e == "action_failed") ok = r.action_failed(words_from(w, 3), now_);
     else if (e == "obstacle") ok = r.action_interrupted(Warning::OBSTACLE_DETECTED, now_);
     else if (e == "battery_low") ok = r.battery_low(now_);
     else if (e == "unplug" && w.size() == 5) ok = r.device_unplugged(static_cast<std::uint32_t>(std::stoul(w[3])), w[4], now_);

@@ -205,6 +205,14 @@ inline bool parse_symbolic(std::string_view text, std::string& bytes, std::strin
 }
 
 /// True when @p text looks like a symbolic datagram (it has "->" before the first blank).
+/// The words of a transcript line from the @p first one on, joined by single spaces ("error" when
+/// there are none): the free text at the end of a command (a failure's reason).
+inline std::string words_from(const std::vector<std::string>& w, std::size_t first) {
+  std::string out;
+  for (std::size_t i = first; i < w.size(); ++i) out += (out.empty() ? "" : " ") + w[i];
+  return out.empty() ? "error" : out;
+}
+
 inline bool is_symbolic(std::string_view text) {
   const std::size_t arrow = text.find("->");
   return arrow != std::string_view::npos && arrow < text.find(' ');
