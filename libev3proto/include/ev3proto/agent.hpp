@@ -118,6 +118,9 @@ struct AgentVars {
   std::uint32_t following = 0; ///< following
   std::uint16_t via = 0;     ///< via (0 = NoNode)
   std::uint32_t relay_rev = 0; ///< changes whenever relays / offered / votes change
+  /// The next msgid (not a spec variable): a record that sent datagrams moved it, so the trace
+  /// names the msgids each record sent (the merge of a run's traces, docs/spec.md "Whole-run traces").
+  std::uint32_t msgid = 0;
   /// The behaviour name.
   std::string_view beh_name() const noexcept { return std::string_view(beh, beh_len); }
 };
@@ -492,6 +495,7 @@ class Agent {
     v.following = el_.following;
     v.via = el_.via;
     v.relay_rev = el_.sets_rev();
+    v.msgid = msgid_;
     return v;
   }
 

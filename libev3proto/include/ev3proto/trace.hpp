@@ -123,6 +123,7 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
     json_key(s, "win", c);
     s += window_json(agent.window());
   }
+  if (a.msgid != b.msgid) num("msgid", a.msgid);  // the next msgid: this record sent [b.msgid, a.msgid)
   if (a.election) {  // Election.tla's variables of this agent
     auto life = [](const AgentVars& v) {
       return v.role == Role::master ? std::string_view("MASTER")
