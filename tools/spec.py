@@ -522,7 +522,9 @@ def election_main(args):
 def trace_modules():
     """spec/tla/trace/, the trace checks of `ev3-conformance validate` (docs/spec.md "Implementation ->
     spec"): SANY on every module, and each check on its sample trace (must conform; one record changed
-    must be rejected, naming it): ev3conformance.tracecheck.check_modules (standard library only)."""
+    must be rejected, naming it), the whole-run check (MCMergedTrace) on a black-box run (must
+    conform; each planted fault rejected, naming its record): ev3conformance.tracecheck.check_modules
+    (standard library only)."""
     sys.path.insert(0, os.path.join(ROOT, "conformance"))
     from ev3conformance import tracecheck
     t0 = time.monotonic()

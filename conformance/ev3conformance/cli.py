@@ -22,10 +22,16 @@
                                                   [--candidate --epoch E --members 2,3,4: its state file];
                                                   an --election agent's trace: its Master cores
                                                   (node master:ID:EPOCH; timers: ev3-agent's defaults)
+    ev3-conformance merged DIR-or-TRACE... [--epoch FILE:NODE=E ...]
+                                                  the traces of every node of one run merged into one
+                                                  behaviour (happens-before: process order, each receive
+                                                  after its send) and checked with TLC: at most one
+                                                  master per epoch, no command from a stale master,
+                                                  followers agree (spec/tla/trace/MergedTrace.tla)
     ev3-conformance mutate [--only NAME ...] [--list]
                                                   mutation score: seeded core faults vs these checks
 
-Exit status: codec: 0 accepted, 1 rejected, 2 usage error; graph/replay/validate: 0 conforms,
+Exit status: codec: 0 accepted, 1 rejected, 2 usage error; graph/replay/validate/merged: 0 conforms,
 1 mismatch (a report to paste into a bug), 2 usage or tool error.
 """
 
@@ -237,6 +243,22 @@ def _cmd_validate(args: argparse.Namespace) -> int:
     return 1 if bad else 0
 
 
+def _cmd_merged(args: argparse.Namespace) -> int:
+    from ev3conformance import merged
+    epochs = {}
+    for x in args.epoch or ():
+        lab, _, e = x.rpartition("=")
+        if not lab or not e.isdigit():
+            print(f"ev3-conformance merged: --epoch {x!r}: expected FILE:NODE=EPOCH (agent1.nd:agent=2)", file=sys.stderr)
+            return 2
+        epochs[lab] = int(e)
+    r = merged.validate(args.traces, epochs)
+    print(f"{'ok  ' if r.ok else 'FAIL'} merged run: {r.message}")
+    print(f"merged: {'conforms' if r.ok else 'DOES NOT CONFORM'} ({r.records} records, {r.nodes} nodes, "
+          f"{r.seconds:.1f} s)")
+    return 0 if r.ok else 1
+
+
 def _cmd_mutate(args: argparse.Namespace) -> int:
     from ev3conformance import graph, mutate
     if args.list:
@@ -337,6 +359,13 @@ def _parser() -> argparse.ArgumentParser:
     vp.add_argument("--candidate", action="store_true",
                     help="--master --election: restarted from a --state-file, it starts as a CANDIDATE")
     vp.set_defaults(run=_cmd_validate)
+
+    gm = sub.add_parser("merged", help="the traces of one run merged (happens-before) and checked for global safety")
+    gm.add_argument("traces", nargs="+", help="NDJSON trace files of one run, or directories holding them")
+    gm.add_argument("--epoch", action="append", metavar="FILE:NODE=E",
+                    help="a node's epoch before its first record when not 1 (a --state-dir / --state-file "
+                         "it restarted from), e.g. master2.ndjson:master=2")
+    gm.set_defaults(run=_cmd_merged)
 
     mp = sub.add_parser("mutate", help="seeded faults in a copy of the core, each checked by replay/validate")
     mp.add_argument("--only", nargs="*", help="mutant names (prefixes, e.g. A01 M)")

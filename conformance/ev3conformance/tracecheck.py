@@ -699,6 +699,8 @@ def check_modules(say=print, jobs: int = 2) -> bool:
     say(f"trace modules: SANY ok on {', '.join(m for m in mods if not m.startswith('MC'))}")
     spec = json.loads((SAMPLES / "samples.json").read_text())["samples"]
     missing = sorted({m[:-4] for m in mods if m.startswith("MC")} - {s["module"] for s in spec})
+    runs = [s for s in spec if "run" in s]  # whole runs (MCMergedTrace): a directory of traces
+    spec = [s for s in spec if "run" not in s]
     if missing:
         say(f"FAIL trace modules: no sample trace checks {', '.join(missing)} (samples/samples.json)")
         return False
@@ -722,8 +724,25 @@ def check_modules(say=print, jobs: int = 2) -> bool:
                        (f"rejected, record {k} named" if ok else f"NOT REJECTED AS IT SHOULD BE: {r.message}")
         return r.ok, f"{s['module']} on {s['trace']}: {r.message}"
 
+    def run_merged(job):
+        # the run must conform; each planted fault must be rejected, naming the file it was planted in
+        from ev3conformance import merged
+        s, fault = job
+        path = SAMPLES / s["run"]
+        if fault is None:
+            r = merged.validate([path], workdir=wd)
+            return r.ok, f"{s['module']} on {s['run']}/ ({r.seconds:.0f} s): {r.message.splitlines()[0]}"
+        out = Path(tempfile.mkdtemp(prefix="plant-", dir=wd))
+        where = merged.plant([path], out, fault)
+        r = merged.validate([out], workdir=wd)
+        shutil.rmtree(out, ignore_errors=True)
+        ok = not r.ok and where.split(" (")[0] in r.message and "cannot merge" not in r.message
+        return ok, (f"{s['module']} on {s['run']}/ with {fault} planted at {where}: " +
+                    (f"rejected: {r.message.splitlines()[0]}" if ok else f"NOT REJECTED AS IT SHOULD BE: {r.message}"))
+
     with ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
         results = list(ex.map(run, [(s, bad) for s in spec for bad in (False, True)]))
+        results += list(ex.map(run_merged, [(s, f) for s in runs for f in [None] + s["plants"]]))
     for ok, line in results:
         say(f"{'ok  ' if ok else 'FAIL'} {line}")
     return all(ok for ok, _ in results)

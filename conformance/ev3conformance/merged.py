@@ -1,0 +1,502 @@
+"""Whole-run trace validation: the NDJSON traces of every node of one real run merged into one
+behaviour and checked by TLC against the global properties of the election (spec/tla/trace/
+MergedTrace.tla; docs/spec.md "Whole-run traces").
+
+The merge is a topological order of the run's happens-before graph, never of wall clocks (each
+process has its own): every trace file is one process and keeps its order (an agent's records and
+those of the Master core it ran while elected, node master:ID:EPOCH, are written by one process),
+and the receive of a datagram comes after the record that sent it. A datagram is its sender's id
+and msgid: a record with `changed.msgid` (the node's next msgid after it: agent cores, the PC
+master, Master cores) sent the msgids from the node's previous value up to that one; a relay
+forwards a datagram unchanged, with its sender and msgid. A receive whose send is in no trace of
+the set (a node that was not traced, a datagram older than the traces) is allowed and counted in
+the summary; a cycle of the graph is an error naming its records; a datagram two traced nodes
+could have sent is an error too.
+
+As tracecheck does, this module only converts data: each merged record with the fields the check
+reads, the nodes' start and the agent nodes, written as TraceData.tla (definitions of values);
+the properties are TLA+ (MergedTrace.tla), checked by TLC, whose verdict is read back: invariant
+Walked violated = every record was walked and no property failed; another invariant violated =
+the run breaks it, named with the records TLC's last state points at.
+"""
+
+from __future__ import annotations
+
+import heapq
+import json
+import re
+import shutil
+import tempfile
+import time
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from ev3conformance import graph as gr
+from ev3conformance import tla, tracecheck, wire
+
+MODULE = "MCMergedTrace"
+PC_ID = 1            # the PC master's id (AgentLogic's MasterId)
+FIRST_SPAN = 64      # a node's first sending record: the msgids it may have sent below its new value
+GLOBAL_VARS = ("id", "epoch", "leader", "following")
+TRACE_GLOBS = ("*.ndjson", "*.nd")
+_NONE_EM = {"t": "NONE", "src": 0, "e": 0}
+_NONE_M = {"t": "NONE", "src": 0}
+
+
+class MergeError(ValueError):
+    """The traces cannot be merged (a cycle, a datagram two nodes could have sent, no record)."""
+
+
+@dataclass
+class Rec:
+    file: int      # index of its trace file
+    k: int         # its place in that file (0-based)
+    node: str      # the node that wrote it
+    r: dict        # the record as read
+
+
+@dataclass
+class Stream:
+    """One node's records in one file, with the msgid ranges its records sent."""
+    file: int
+    node: str
+    ids: set[int]
+    sends: list[tuple[int | None, int, int]] = field(default_factory=list)  # (from or None, to, rec k)
+
+
+@dataclass
+class Merged:
+    files: list[Path]
+    order: list[Rec]                  # the merged behaviour
+    nodes: dict[str, dict]            # node label -> its start [id, epoch, leader, following]
+    agents: list[str]                 # labels of the agent cores
+    pairs: int = 0                    # receives matched with their send
+    outside: Counter = field(default_factory=Counter)   # sender id (not traced) -> its receives
+    unsent: Counter = field(default_factory=Counter)    # sender id (traced) -> receives of msgids no record sent
+    undecodable: int = 0
+    cut: list[str] = field(default_factory=list)
+
+    def label(self, rec: Rec) -> str:
+        return _label(self.files[rec.file], rec.node)
+
+    def where(self, rec: Rec) -> str:
+        r = rec.r
+        msg = r.get("args", {}).get("msg")
+        return (f"{self.files[rec.file].name} record {rec.k + 1} (node {rec.node}, {r.get('action')}"
+                f"{', msg ' + msg if msg else ''}, changed {json.dumps(r.get('changed', {}))[:160]})")
+
+
+def _label(path: Path, node: str) -> str:
+    return f"{path.name}:{node}"
+
+
+def trace_files(paths: list[Path]) -> list[Path]:
+    """The trace files named, a directory standing for its *.ndjson / *.nd files (driver input
+    files, *.inputs.ndjson, are not traces)."""
+    out: list[Path] = []
+    for p in map(Path, paths):
+        if p.is_dir():
+            found = sorted({f for g in TRACE_GLOBS for f in p.glob(g) if not f.name.endswith(".inputs.ndjson")})
+            if not found:
+                raise MergeError(f"{p}: no trace files (*.ndjson, *.nd) in this directory")
+            out += found
+        else:
+            out.append(p)
+    return out
+
+
+def _datagram(text: str) -> wire.Message | None:
+    try:
+        return wire.decode(text.encode("latin-1"))
+    except wire.DecodeError:
+        return None
+
+
+def _kind(node: str) -> str:
+    if node.startswith("agent"):
+        return "agent"
+    if node == "master":
+        return "pc"
+    parts = node.split(":")
+    if len(parts) == 3 and parts[0] == "master" and parts[1].isdigit() and parts[2].isdigit():
+        return "core"
+    return "other"
+
+
+def _streams(fi: int, recs: list[Rec]) -> dict[str, Stream]:
+    """The sending nodes of one file: their ids and the msgid ranges of their records."""
+    out: dict[str, Stream] = {}
+    by_node: dict[str, list[Rec]] = {}
+    for x in recs:
+        by_node.setdefault(x.node, []).append(x)
+    for node, mine in by_node.items():
+        kind = _kind(node)
+        if kind == "agent":
+            ids = {tracecheck.temp_id_of([x.r for x in mine])}
+            ids |= {int(x.r["changed"]["id"]) for x in mine if "id" in x.r.get("changed", {})}
+        elif kind == "pc":
+            ids = {PC_ID}
+        elif kind == "core":
+            ids = {int(node.split(":")[1])}
+        else:
+            ids = set()
+        s = Stream(fi, node, ids)
+        prev = None
+        for x in mine:
+            m = x.r.get("changed", {}).get("msgid")
+            if isinstance(m, int):
+                s.sends.append((prev, m, x.k))
+                prev = m
+        out[node] = s
+    return out
+
+
+def _sender(streams: list[Stream], src: int, msgid: int) -> tuple[Stream, int] | None | str:
+    """The record that sent datagram (src, msgid): (stream, record k), None when no traced node
+    sent it, or a message when two could have."""
+    exact, first = [], []
+    for s in streams:
+        if src not in s.ids:
+            continue
+        for lo, hi, k in s.sends:
+            if lo is not None and lo <= msgid < hi:
+                exact.append((s, k))
+                break
+            if lo is None and hi - FIRST_SPAN <= msgid < hi:
+                first.append((s, k))
+                break
+    cands = exact or first
+    if len(cands) > 1:
+        return "; ".join(f"node {s.node} of file #{s.file + 1} record {k + 1}" for s, k in cands)
+    return cands[0] if cands else None
+
+
+def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
+    """The traces of @p paths (files or directories) merged: see the module's doc. @p epochs: a
+    node label's epoch before its first record, when not 1 (agent cores, the PC; a Master core
+    starts in the epoch its name gives). Raises MergeError or tracecheck.TraceError."""
+    files = trace_files(paths)
+    if not files:
+        raise MergeError("no trace files given")
+    per_file: list[list[Rec]] = []
+    m = Merged(files, [], {}, [])
+    for fi, f in enumerate(files):
+        try:
+            tf = tracecheck.read_trace(f)
+        except tracecheck.TraceError as e:
+            raise tracecheck.TraceError(f"{f}: {e}") from e
+        if not tf.records:
+            raise MergeError(f"{f}: no records (an empty trace shows nothing)")
+        if tf.cut:
+            m.cut.append(f"{f.name} ({tf.cut} bytes)")
+        per_file.append([Rec(fi, k, str(r.get("node", "")), r) for k, r in enumerate(tf.records)])
+    streams: list[Stream] = []
+    for fi, recs in enumerate(per_file):
+        for node, s in _streams(fi, recs).items():
+            streams.append(s)
+            lab = _label(files[fi], node)
+            kind = _kind(node)
+            ep = (epochs or {}).get(lab, int(node.split(":")[2]) if kind == "core" else 1)
+            sid = min(s.ids) if kind in ("pc", "core") else (min(s.ids) if s.ids else 0)
+            if kind == "agent":
+                sid = tracecheck.temp_id_of([x.r for x in recs if x.node == node])
+                m.agents.append(lab)
+            m.nodes[lab] = {"id": sid, "epoch": ep, "leader": 0, "following": 0}
+    # the happens-before graph: process order + send -> receive
+    succ: dict[tuple[int, int], list[tuple[int, int]]] = {}
+    npred: dict[tuple[int, int], int] = {}
+    for fi, recs in enumerate(per_file):
+        for x in recs:
+            npred[(fi, x.k)] = 1 if x.k > 0 else 0
+            if x.k > 0:
+                succ.setdefault((fi, x.k - 1), []).append((fi, x.k))
+    for fi, recs in enumerate(per_file):
+        for x in recs:
+            text = x.r.get("args", {}).get("msg")
+            if not text:
+                continue
+            d = _datagram(text)
+            if d is None:
+                m.undecodable += 1
+                continue
+            s = _sender(streams, d.sender, d.msgid)
+            if s is None:
+                traced = any(d.sender in st.ids for st in streams)
+                (m.unsent if traced else m.outside)[d.sender] += 1
+                continue
+            if isinstance(s, str):
+                raise MergeError(f"datagram {d.sender}:{d.msgid} received by {m.where(x)} could have been sent by "
+                                 f"more than one traced node: {s}")
+            src = (s[0].file, s[1])
+            succ.setdefault(src, []).append((fi, x.k))
+            npred[(fi, x.k)] += 1
+            m.pairs += 1
+    # Kahn's algorithm: the ready record of the first file first (deterministic; any order would do)
+    ready = [key for key, n in npred.items() if n == 0]
+    heapq.heapify(ready)
+    while ready:
+        key = heapq.heappop(ready)
+        m.order.append(per_file[key[0]][key[1]])
+        for nx in succ.get(key, []):
+            npred[nx] -= 1
+            if npred[nx] == 0:
+                heapq.heappush(ready, nx)
+    total = sum(len(r) for r in per_file)
+    if len(m.order) < total:
+        raise MergeError(_cycle(m, per_file, succ, npred))
+    return m
+
+
+def _cycle(m: Merged, per_file, succ, npred) -> str:
+    """A cycle among the records Kahn's algorithm could not place, named record by record."""
+    preds: dict[tuple[int, int], list[tuple[int, int]]] = {}
+    for a, bs in succ.items():
+        for b in bs:
+            if npred.get(a, 0) > 0 and npred.get(b, 0) > 0:
+                preds.setdefault(b, []).append(a)
+    start = next(k for k, n in npred.items() if n > 0)
+    seen: dict[tuple[int, int], int] = {}
+    path = []
+    cur = start
+    while cur not in seen:
+        seen[cur] = len(path)
+        path.append(cur)
+        cur = preds[cur][0]
+    loop = list(reversed(path[seen[cur]:]))
+    rows = "\n".join(f"  {m.where(per_file[f][k])}" for f, k in loop)
+    left = sum(1 for n in npred.values() if n > 0)
+    return (f"the happens-before graph has a cycle ({left} records cannot be ordered): each record below "
+            f"comes before the next (its process order or a datagram it sent), the last before the first:\n{rows}")
+
+
+# --- the data ------------------------------------------------------------------------------------
+
+def _item(m: Merged, x: Rec) -> dict:
+    r = x.r
+    ch = {k: int(v) for k, v in r.get("changed", {}).items() if k in GLOBAL_VARS and isinstance(v, int)}
+    em, bm = dict(_NONE_EM), dict(_NONE_M)
+    text = r.get("args", {}).get("msg")
+    if text:
+        d = _datagram(text)
+        if d is not None:
+            if (d.type_name or "") in tracecheck._EL_TYPES:
+                e, _inner, _members = tracecheck._el_msg(text)
+                em = {"t": e["t"], "src": e["src"], "e": e["e"]}
+            else:
+                bm = {"t": d.type_name or "?", "src": d.sender}
+    return {"n": m.label(x), "a": str(r.get("action")), "ch": ch, "em": em, "m": bm,
+            "cmd": str(r.get("args", {}).get("cmd", ""))}
+
+
+def data_module(m: Merged) -> str:
+    """TraceData for MCMergedTrace: the merged records, the nodes' start, the agent nodes, the PC's id."""
+    body = ",\n".join("  " + tla.to_tla(_item(m, x)) for x in m.order)
+    start = " @@ ".join(f"{tla.to_tla(lab)} :> {tla.to_tla(s)}" for lab, s in m.nodes.items())
+    return "\n".join([
+        "---- MODULE TraceData ----",
+        "\\* Data only, written by ev3conformance.merged (no TLA+ logic: see spec/tla/trace/MergedTrace.tla).",
+        f"\\* {len(m.order)} records of {len(m.nodes)} nodes in {len(m.files)} traces: "
+        + " ".join(f.name for f in m.files),
+        "EXTENDS TLC",
+        f"Trace == <<\n{body}\n>>",
+        f"Start == {start}",
+        f"Agents == {tla.to_tla(frozenset(m.agents))}",
+        f"PC == {PC_ID}",
+        "====", ""])
+
+
+# --- the check -----------------------------------------------------------------------------------
+
+@dataclass
+class Result:
+    ok: bool
+    records: int
+    nodes: int
+    message: str
+    seconds: float = 0.0
+
+
+def _last_state(out: str) -> dict:
+    """The variables of the last state of TLC's error trace."""
+    blocks = re.split(r"^State \d+:.*$", out, flags=re.M)
+    text = blocks[-1].split("\n\n")[0] if len(blocks) > 1 else ""
+    vals = {}
+    for part in re.split(r"^/\\ ", text, flags=re.M):
+        if "=" in part:
+            name, val = part.split("=", 1)
+            vals[name.strip()] = val.strip()
+    return vals
+
+
+def _explain(m: Merged, inv: str, out: str) -> str:
+    st = _last_state(out)
+    try:
+        cursor = int(st.get("cursor", "0"))
+        elected = tla.parse_value(st["elected"]) if "elected" in st else frozenset()
+        applied = tla.parse_value(st["applied"]) if "applied" in st else frozenset()
+        loc = tla.parse_value(st["loc"]) if "loc" in st else {}
+    except (ValueError, KeyError) as e:
+        return f"{inv} is violated (TLC's last state could not be read: {e})"
+    at = lambda i: m.where(m.order[i - 1]) if 1 <= i <= len(m.order) else "(the start: the PC is master of epoch 1)"
+    last = cursor - 1
+    if inv == "AtMostOneMasterPerEpoch":
+        by_e: dict[int, list] = {}
+        for x in elected:
+            by_e.setdefault(x["e"], []).append(x)
+        rows = []
+        for e, xs in sorted(by_e.items()):
+            if len({x["id"] for x in xs}) > 1:
+                rows += [f"  node id {x['id']} became master of epoch {e} at merged record {x['at']}: {at(x['at'])}"
+                         for x in sorted(xs, key=lambda x: x["at"])]
+        return "two masters in one epoch (AtMostOneMasterPerEpoch):\n" + "\n".join(rows)
+    if inv == "StaleMasterFenced":
+        masters = {(x["e"], x["id"]) for x in elected}
+        rows = []
+        for c in sorted(applied, key=lambda c: c["at"]):
+            if c["e"] != c["seen"] or (c["e"], c["src"]) not in masters:
+                why = (f"epoch {c['e']} is older than the newest the agent has seen ({c['seen']})"
+                       if c["e"] < c["seen"] else
+                       f"epoch {c['e']} is not the agent's ({c['seen']})" if c["e"] != c["seen"] else
+                       f"node {c['src']} was not elected master of epoch {c['e']} before it")
+                rows.append(f"  agent {c['a']} obeyed a command of node {c['src']} in epoch {c['e']}: {why}; "
+                            f"merged record {c['at']}: {at(c['at'])}")
+        el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
+        return f"a command obeyed from a stale master (StaleMasterFenced; elected so far: {el}):\n" + "\n".join(rows)
+    if inv == "FollowersAgree":
+        masters = {(x["e"], x["id"]) for x in elected}
+        el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
+        rows = [f"  {n} follows node {s['leader']} in epoch {s['following']} (its epoch {s['epoch']})"
+                for n, s in loc.items() if n in m.agents and s["following"] != 0 and
+                (s["following"] != s["epoch"] or (s["following"], s["leader"]) not in masters)]
+        return (f"an agent follows a node that is not the master of its epoch (FollowersAgree; elected so far: "
+                f"{el}), after merged record {last}: {at(last)}:\n" + "\n".join(rows))
+    return f"{inv} is violated after merged record {last}: {at(last)}"
+
+
+def summary(m: Merged) -> str:
+    outside = ", ".join(f"{s} ({n})" for s, n in sorted(m.outside.items()))
+    nodes = Counter(m.label(x) for x in m.order)
+    parts = [f"{len(m.order)} records of {len(m.nodes)} nodes in {len(m.files)} traces merged "
+             f"({', '.join(f'{k} {v}' for k, v in nodes.items())}); {m.pairs} receives ordered after their send",
+             f"{sum(m.outside.values())} receives from outside the traced nodes"
+             + (f" (by sender id: {outside})" if outside else "")]
+    if m.unsent:
+        unsent = ", ".join(f"{s} ({n})" for s, n in sorted(m.unsent.items()))
+        parts.append(f"{sum(m.unsent.values())} receives of datagrams of traced nodes that no record of theirs "
+                     f"sent (by sender id: {unsent}: sent after the sender's last record, by a kill's lost records "
+                     f"or LEAVING at exit, or before its trace began), not ordered")
+    if m.undecodable:
+        parts.append(f"{m.undecodable} undecodable datagrams not ordered")
+    if m.cut:
+        parts.append(f"last lines cut by a kill left out: {', '.join(m.cut)}")
+    return "; ".join(parts)
+
+
+def validate(paths: list[Path], epochs: dict[str, int] | None = None, workdir: Path | None = None) -> Result:
+    """Merge the traces of @p paths and check the run with TLC (MCMergedTrace). A run that cannot
+    be merged is a failed check, its message naming why."""
+    t0 = time.monotonic()
+    try:
+        m = merge([Path(p) for p in paths], epochs)
+    except (MergeError, tracecheck.TraceError) as e:
+        return Result(False, 0, 0, f"cannot merge the traces: {e}", time.monotonic() - t0)
+    wd = Path(workdir or (gr.BUILD / "traces"))
+    wd.mkdir(parents=True, exist_ok=True)
+    d = Path(tempfile.mkdtemp(prefix="merged-", dir=wd))
+    for f in list(tracecheck.TRACE_SPEC.glob("MergedTrace.tla")) + list(tracecheck.TRACE_SPEC.glob(f"{MODULE}.*")):
+        shutil.copy(f, d / f.name)
+    (d / "TraceData.tla").write_text(data_module(m))
+    rc, out = gr.tlc(f"{MODULE}.tla", f"{MODULE}.cfg", [], cwd=d)
+    secs = time.monotonic() - t0
+    n = len(m.order)
+    inv = re.search(r"Invariant (\w+) is violated", out)
+    if rc == 12 and inv and inv.group(1) == "Walked":
+        cur = _last_state(out).get("cursor")
+        if cur is not None and int(cur) == n + 1:
+            shutil.rmtree(d, ignore_errors=True)
+            return Result(True, n, len(m.nodes), f"{summary(m)}; at most one master per epoch, no stale command, "
+                                                  f"followers agree", secs)
+        return Result(False, n, len(m.nodes), f"TLC's walk ended at record {cur}, the merge has {n} "
+                                              f"(check kept in {d})", secs)
+    if rc == 12 and inv:
+        return Result(False, n, len(m.nodes), f"{_explain(m, inv.group(1), out)}\n({summary(m)}; check kept in {d})",
+                      secs)
+    return Result(False, n, len(m.nodes), f"TLC failed (exit {rc}); check in {d}:\n{out[-2500:]}", secs)
+
+
+# --- faults planted in a real run: the check's own test (make spec, tests/python/test_merged.py) ---
+
+PLANTS = {
+    "two-masters": "a second node becomes master of an epoch another node won: a BecomeMaster record "
+                   "inserted in its trace after the record where its epoch became that one",
+    "stale-command": "an agent obeys an EPOCH_CMD of an older epoch: the epoch of an obeyed EPOCH_CMD "
+                     "in its trace lowered by one",
+}
+
+
+def _read_all(files: list[Path]) -> dict[Path, list[dict]]:
+    return {f: tracecheck.read_trace(f).records for f in files}
+
+
+def _epochs_of(recs: list[dict], node: str):
+    """(index, the node's epoch after that record) for each of @p node's records."""
+    e = 1
+    for i, r in enumerate(recs):
+        if r.get("node") != node:
+            continue
+        e = int(r.get("changed", {}).get("epoch", e))
+        yield i, e
+
+
+def plant(paths: list[Path], out: Path, fault: str) -> str:
+    """Copies the run's traces to directory @p out with @p fault (PLANTS) planted in one of them;
+    returns where (file and record number, as the check names them). Raises MergeError when the run
+    has no place for it (no epoch won by an agent, no EPOCH_CMD obeyed)."""
+    files = trace_files(paths)
+    recs = _read_all(files)
+    where = None
+    if fault == "two-masters":
+        won = {}  # epoch -> file of the agent that won it
+        for f, rs in recs.items():
+            ep = dict(_epochs_of(rs, "agent"))
+            for i, r in enumerate(rs):
+                if r.get("node") == "agent" and r.get("action") == "BecomeMaster":
+                    won[ep[i]] = f
+        for e, winner in sorted(won.items()):
+            for f, rs in recs.items():
+                if f == winner:
+                    continue
+                k = next((i for i, x in _epochs_of(rs, "agent") if x == e), None)
+                if k is None:
+                    continue
+                rs.insert(k + 1, {"node": "agent", "action": "BecomeMaster", "args": {},
+                                  "now": rs[k].get("now", 0), "changed": {"life": "MASTER"}})
+                where = f"{f.name} record {k + 2} (BecomeMaster in epoch {e}, won by {winner.name})"
+                break
+            if where:
+                break
+    elif fault == "stale-command":
+        for f, rs in recs.items():
+            for i, r in enumerate(rs):
+                text = r.get("args", {}).get("msg", "")
+                if r.get("node") != "agent" or r.get("action") != "ApplyCommand" or r["args"].get("cmd") == "Ignore":
+                    continue
+                d = _datagram(text)
+                if d is None or d.type_name != "EPOCH_CMD" or len(d.params) < 2 or int(d.params[0]) < 2:
+                    continue
+                e = int(d.params[0])
+                older = wire.Message(d.sender, d.receiver, d.msgid, d.type, (str(e - 1).encode(),) + tuple(d.params[1:]))
+                r["args"] = dict(r["args"], msg=wire.encode(older).decode("latin-1"))
+                where = f"{f.name} record {i + 1} (EPOCH_CMD of node {d.sender} in epoch {e - 1}, was {e})"
+                break
+            if where:
+                break
+    else:
+        raise MergeError(f"no such fault {fault!r} (known: {', '.join(PLANTS)})")
+    if where is None:
+        raise MergeError(f"the run has no place for fault {fault}: {PLANTS[fault]}")
+    out.mkdir(parents=True, exist_ok=True)
+    for f, rs in recs.items():
+        (out / f.name).write_text("".join(json.dumps(r) + "\n" for r in rs))
+    return where

@@ -1,0 +1,127 @@
+"""Whole-run trace validation (`ev3-conformance merged`, docs/spec.md "Whole-run traces"): the traces
+of every node of one run merged into one behaviour by send/receive and checked by TLC against the
+global properties of the election (spec/tla/trace/MergedTrace.tla).
+
+testdata/merged_demo/ is one `make demo` run (tools/demo.py): agents #1-#3 (agent1..3; #1 wins epoch
+2 and runs a Master core, node master:ID:2 in its trace), the PC's first run (killed) and its second
+(restarted from its state file in epoch 2: stands, wins epoch 3). The run must conform; the same run
+with a second master planted in an epoch, or with an agent obeying an EPOCH_CMD of an older epoch,
+must fail naming the nodes and records; a cycle of the happens-before graph and a receive from
+outside the traced nodes are shown with hand-made traces."""
+from __future__ import annotations
+
+import gzip
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from ev3conformance import merged
+
+from trace_files import DATA, write
+
+RUN = DATA / "merged_demo"
+EPOCHS = {"master2.ndjson:master": 2}   # the PC's second run starts from its state file: epoch 2
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory) -> Path:
+    """The stored demo run, unpacked."""
+    d = tmp_path_factory.mktemp("run")
+    for f in sorted(RUN.glob("*.ndjson.gz")):
+        (d / f.name[:-3]).write_bytes(gzip.decompress(f.read_bytes()))
+    return d
+
+
+def test_the_demo_run_conforms(run):
+    r = merged.validate([run], EPOCHS)
+    assert r.ok, r.message
+    m = merged.merge([run], EPOCHS)
+    assert r.records == len(m.order) == sum(len(p.read_text().splitlines()) for p in run.glob("*.ndjson"))
+    assert r.nodes == 6 and len(m.agents) == 3
+    # nearly every receive was matched with its send; the ones from outside are counted in the summary
+    assert m.pairs > 1000 and "receives from outside the traced nodes" in r.message
+
+
+def test_the_merge_keeps_each_process_order_and_puts_receives_after_sends(run):
+    m = merged.merge([run], EPOCHS)
+    place = {(x.file, x.k): i for i, x in enumerate(m.order)}
+    for x in m.order:
+        if x.k > 0:
+            assert place[(x.file, x.k - 1)] < place[(x.file, x.k)]
+    # every LEADER an agent took comes after the BecomeMaster of the node that sent it (or is the PC's)
+    became = {}
+    for i, x in enumerate(m.order):
+        if x.r["action"] == "BecomeMaster" and x.node == "agent":
+            became.setdefault(m.label(x), i)
+    assert len(became) == 1
+    (winner, at), = became.items()
+    hb = [i for i, x in enumerate(m.order) if x.r["action"] == "HandleHeartbeat" and x.node == "agent"
+          and x.r["args"]["msg"].split(":")[0] not in ("1",) and m.label(x) != winner]
+    assert hb and min(hb) > at
+
+
+def test_two_masters_in_one_epoch_fail_naming_both(run, tmp_path):
+    where = merged.plant([run], tmp_path / "bad", "two-masters")
+    r = merged.validate([tmp_path / "bad"], EPOCHS)
+    assert not r.ok
+    assert "two masters in one epoch (AtMostOneMasterPerEpoch)" in r.message, r.message
+    assert where.split(" (")[0] in r.message, (where, r.message)
+    assert r.message.count("became master of epoch 2") == 2, r.message
+
+
+def test_a_command_obeyed_from_a_stale_master_fails_naming_the_agent_and_record(run, tmp_path):
+    where = merged.plant([run], tmp_path / "bad", "stale-command")
+    r = merged.validate([tmp_path / "bad"], EPOCHS)
+    assert not r.ok
+    assert "a command obeyed from a stale master (StaleMasterFenced" in r.message, r.message
+    assert where.split(" (")[0] in r.message, (where, r.message)
+    # the PC's STOP of epoch 3 to agent #1, lowered to epoch 2 (the agent-master's epoch)
+    assert "obeyed a command of node 1 in epoch 2: epoch 2 is older than the newest the agent has seen (3)" \
+        in r.message, r.message
+
+
+def _rec(node, action, msg=None, changed=None):
+    return {"node": node, "action": action, "args": {"msg": msg} if msg else {}, "now": 0, "changed": changed or {}}
+
+
+def test_a_cycle_is_an_error_naming_its_records(tmp_path):
+    # the agent takes the master's PONG (msgid 5) before it sends the PING (its msgid 10) that the
+    # master answers before sending msgid 5: impossible, whatever the clocks said
+    write(tmp_path / "a.ndjson", [_rec("agent", "RecvPong", "1:2:5:6:10"), _rec("agent", "Tick", changed={"id": 2, "msgid": 11})])
+    write(tmp_path / "m.ndjson", [_rec("master", "MasterPing", "2:1:10:5:ACTIVE"), _rec("master", "MasterTick",
+                                                                                        changed={"msgid": 6})])
+    with pytest.raises(merged.MergeError) as e:
+        merged.merge([tmp_path])
+    msg = str(e.value)
+    assert "has a cycle" in msg
+    for f, k in (("a.ndjson", 1), ("a.ndjson", 2), ("m.ndjson", 1), ("m.ndjson", 2)):
+        assert f"{f} record {k} " in msg, msg
+    r = merged.validate([tmp_path])
+    assert not r.ok and "cannot merge the traces: the happens-before graph has a cycle" in r.message
+
+
+def test_a_receive_from_outside_the_traced_nodes_is_reported(tmp_path):
+    write(tmp_path / "a.ndjson", [_rec("agent", "Ignore", "9:0:77:19"), _rec("agent", "RecvPong", "1:2:5:6:10")])
+    write(tmp_path / "m.ndjson", [_rec("master", "MasterTick", changed={"msgid": 6})])
+    m = merged.merge([tmp_path])
+    assert m.pairs == 1 and dict(m.outside) == {9: 1}
+    assert [(m.files[x.file].name, x.k) for x in m.order][-1] == ("a.ndjson", 1)   # after the master's send
+    assert "1 receives from outside the traced nodes (by sender id: 9 (1))" in merged.summary(m)
+
+
+def test_the_command_line(tmp_path):
+    # the smaller run make spec checks (spec/tla/trace/samples/run: a black-box election test's)
+    sample = merged.tracecheck.SAMPLES / "run"
+    ok = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "merged", str(sample)],
+                        capture_output=True, text=True)
+    assert ok.returncode == 0 and "merged: conforms" in ok.stdout, ok.stdout + ok.stderr
+    merged.plant([sample], tmp_path / "bad", "two-masters")
+    bad = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "merged", str(tmp_path / "bad")],
+                         capture_output=True, text=True)
+    assert bad.returncode == 1 and "merged: DOES NOT CONFORM" in bad.stdout, bad.stdout + bad.stderr
+    assert "two masters in one epoch" in bad.stdout
+    usage = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "merged", str(sample), "--epoch", "x"],
+                           capture_output=True, text=True)
+    assert usage.returncode == 2 and "expected FILE:NODE=EPOCH" in usage.stderr
