@@ -55,7 +55,8 @@ test-blackbox: build arm
 # A master and three agents on loopback, narrated (tools/demo.py): sync, a behaviour, the master
 # killed, an election (epoch 2) with a relay, the new master's commands, the PC taking over again
 # (epoch 3). Ends by itself in about 25 s, then validates the three agents' traces with TLC
-# (AgentLogic composed with Election.tla's per-agent rules) and fails if one does not conform.
+# (AgentLogic composed with Election.tla's per-agent rules), the master's, and the whole run (every
+# trace merged by send/receive: ev3-conformance merged) and fails if one does not conform.
 demo: build
 	@$(PY) tools/demo.py --bin $(BIN)
 

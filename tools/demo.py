@@ -27,8 +27,10 @@ written when it stops: build/demo/paths.svg), and the NDJSON traces validated by
 three agents' (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
 docs/spec.md "Election traces"), the master's two runs (`validate --master`: MasterLogic composed
 with Election.tla's rules of the PC, "Election master traces") and the Master core the elected agent
-ran (its records in that agent's trace, node master:ID:EPOCH: the same check as node ID); a trace
-that does not conform fails the demo. Logs, traces and the
+ran (its records in that agent's trace, node master:ID:EPOCH: the same check as node ID), and the
+whole run: all those traces merged into one behaviour, each receive after its send (`ev3-conformance
+merged`, docs/spec.md "Whole-run traces": at most one master per epoch, no command obeyed from a stale
+master, followers agreeing); a trace or a run that does not conform fails the demo. Logs, traces and the
 status JSON stay in build/demo/. The standard library, and for the validation the ev3conformance
 package (conformance/) with TLC: runs wherever `make deps` has run.
 """
@@ -569,11 +571,12 @@ def validate_traces(d: Demo) -> bool:
     try:
         from concurrent.futures import ThreadPoolExecutor
 
-        from ev3conformance import tracecheck
+        from ev3conformance import merged, tracecheck
     except ImportError as e:  # pragma: no cover - make deps installs it
         print(f"\n  trace validation skipped: {e}", flush=True)
         return False
-    d.heading("trace validation (TLC: AgentLogic + Election per agent; MasterLogic + Election's PC per master run)")
+    d.heading("trace validation (TLC: AgentLogic + Election per agent; MasterLogic + Election's PC per master run; "
+              "the whole run merged)")
     paths = [d.dir / f"agent{i + 1}.ndjson" for i in range(len(d.agents))]
     jobs: list[tuple[str, object]] = [(f"agent #{i + 1}", i) for i in range(len(paths))]
     jobs += [(f"master ({p.name})", (p, st)) for p, st in d.master_runs if p.exists()]
@@ -581,8 +584,16 @@ def validate_traces(d: Demo) -> bool:
     jobs += [(f"agent #{i + 1}'s {node}", (paths[i], node, c)) for i in range(len(paths)) if paths[i].exists()
              for node, c in tracecheck.agent_master_runs(paths[i])]
 
+    # the whole run: every trace merged into one behaviour (each receive after its send), checked for
+    # at most one master per epoch, no command obeyed from a stale master, followers agreeing
+    runs = [p for p in paths if p.exists()] + [p for p, _ in d.master_runs if p.exists()]
+    epochs = {f"{p.name}:master": int(st["epoch"]) for p, st in d.master_runs if "epoch" in st}
+    jobs.insert(0, (f"the whole run ({len(runs)} traces merged)", ("merged", runs, epochs)))
+
     def one(job):
         t = time.monotonic()
+        if isinstance(job, tuple) and job[0] == "merged":
+            return merged.validate(job[1], job[2]), time.monotonic() - t
         if isinstance(job, tuple) and len(job) == 3:
             path, node, c = job
             return tracecheck.validate_master(path, c, node=node), time.monotonic() - t
@@ -603,7 +614,8 @@ def validate_traces(d: Demo) -> bool:
         print(f"  {label}: {'conforms' if r.ok else 'DOES NOT CONFORM'}: {first} ({secs:.1f} s)", flush=True)
         if not r.ok:
             print("\n".join("    " + line for line in r.message.splitlines()[1:]), flush=True)
-    print(f"  {sum(r.records for r, _ in results)} records in {len(results)} traces, "
+    print(f"  {sum(r.records for (label, _), (r, _) in zip(jobs, results) if not label.startswith('the whole run'))} "
+          f"records in {len(results) - 1} traces and the whole run, "
           f"{time.monotonic() - t0:.1f} s of wall time", flush=True)
     return ok
 

@@ -103,11 +103,11 @@ import ev3net as _ev3net  # noqa: E402
 
 _MODE = os.environ.get("EV3_TRACE_VALIDATE", "1")
 _POOL: _cf.ThreadPoolExecutor | None = None
-_PENDING: list[tuple[str, str, bool, _cf.Future]] = []  # (nodeid, program name, master?, future of Result)
+_PENDING: list[tuple[str, str, bool | str, _cf.Future]] = []  # (nodeid, name, master? or "merged", future of Result)
 _CURRENT: list = []                                 # the running test's item
 _STATS = {"traces": 0, "records": 0, "master_traces": 0, "master_records": 0, "empty": 0,
           "election_masters": 0, "election_agents": 0, "election_agent_masters": 0, "seconds": 0.0,
-          "master_seconds": 0.0}
+          "master_seconds": 0.0, "merged_runs": 0, "merged_records": 0, "merged_seconds": 0.0}
 _STATS_LOCK = _threading.Lock()
 _orig_init = _ev3net.Program.__init__
 
@@ -249,10 +249,47 @@ def _submit(nodeid: str, p, expect_empty: bool = False) -> None:
         _PENDING.append((nodeid, name, is_master, fut))
 
 
-def _count(r, master: bool) -> None:
+def _count(r, master) -> None:
+    if master == "merged":
+        _STATS["merged_runs"] += 1
+        _STATS["merged_records"] += r.records
+        _STATS["merged_seconds"] += r.seconds
+        return
     k = "master_" if master else ""
     _STATS[k + "traces"] += 1
     _STATS[k + "records"] += r.records
+
+
+def _epoch_of(p) -> int:
+    """The epoch a program started from: its --state-dir's / --state-file's (a fresh one: 1)."""
+    st = p.trace_state or {}
+    restored = p.trace_prog == "ev3-agent" or {"next_id", "next_msgid"} <= st.keys()
+    return int(st.get("epoch", 1)) if restored else 1
+
+
+def _submit_merged(nodeid: str, started: list) -> None:
+    """Whole-run validation (docs/spec.md "Whole-run traces"): when the test ran programs with
+    --election, the traces of all the programs it started are merged into one behaviour (each receive
+    after its send) and checked by TLC for at most one master per epoch, no command obeyed from a
+    stale master, followers agreeing (ev3conformance.merged)."""
+    global _POOL
+    progs = [p for p in started if getattr(p, "trace_path", None) is not None]
+    if _MODE == "0" or len(progs) < 2 or not any("--election" in p.trace_args for p in progs):
+        return
+    from ev3conformance import merged
+    paths = list(dict.fromkeys(p.trace_path for p in progs))  # a program restarted on the same trace: once
+    epochs = {f"{p.trace_path.name}:{'master' if p.trace_prog == 'ev3-master' else 'agent'}": _epoch_of(p)
+              for p in progs}
+    if _POOL is None:
+        _POOL = _cf.ThreadPoolExecutor(max_workers=2)
+    fut = _POOL.submit(merged.validate, paths, epochs)
+    name = f"the whole run ({len(paths)} traces merged)"
+    if _MODE == "sync":
+        r = fut.result()
+        _count(r, "merged")
+        assert r.ok, f"trace of {name} does not conform to the spec: {r.message}"
+        return
+    _PENDING.append((nodeid, name, "merged", fut))
 
 
 @pytest.hookimpl(tryfirst=True)
@@ -266,6 +303,7 @@ def _trace_check(request):
     yield
     for p in getattr(request.node, "_ev3_started", []):
         _submit(request.node.nodeid, p, request.node.get_closest_marker("empty_trace") is not None)
+    _submit_merged(request.node.nodeid, getattr(request.node, "_ev3_started", []))
 
 
 def pytest_configure(config):
@@ -299,7 +337,9 @@ def pytest_sessionfinish(session, exitstatus):
                       f"({_STATS['master_records']} records), {_STATS['empty']} empty as expected, "
                       f"{bad} not conforming; with --election: {_STATS['election_agents']} agents (AgentLogic + Election), "
                       f"{_STATS['election_masters']} masters (MasterLogic + Election's PC), "
-                      f"{_STATS['election_agent_masters']} agent-masters' Master cores; "
+                      f"{_STATS['election_agent_masters']} agent-masters' Master cores; whole runs merged "
+                      f"and checked: {_STATS['merged_runs']} ({_STATS['merged_records']} records, "
+                      f"{_STATS['merged_seconds']:.0f} s); "
                       f"TLC {_STATS['seconds'] + _STATS['master_seconds']:.0f} s (masters "
                       f"{_STATS['master_seconds']:.0f} s) in 2 parallel runs, {waited:.0f} s waited at the end")
     if bad:

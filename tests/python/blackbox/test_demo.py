@@ -2,8 +2,9 @@
 a behaviour, the master killed, an election with a relay, the elected agent's commands, the PC taking
 the fleet back) must complete every phase, and every trace it leaves (three agents, the master's two
 runs, the elected agent's Master core) must be validated by TLC as conforming (docs/spec.md
-"Election traces", "Election master traces"). The demo exits 1 on a failed phase or a trace that does
-not conform; its output names which."""
+"Election traces", "Election master traces"), and so must the whole run, all of them merged ("Whole-run
+traces": at most one master per epoch, no command obeyed from a stale master, followers agreeing).
+The demo exits 1 on a failed phase or a trace that does not conform; its output names which."""
 
 from __future__ import annotations
 
@@ -24,4 +25,6 @@ def test_demo_runs_and_its_traces_conform(agent_exe: Path, tmp_path: Path):
     # three agents, the master's runs before and after the kill, the elected agent's Master core
     assert len(verdicts) >= 6, out[-6000:]
     assert all(": conforms: " in line for line in verdicts), "\n".join(verdicts)
+    assert any(line.lstrip().startswith("the whole run (5 traces merged): conforms: ") for line in verdicts), \
+        "\n".join(verdicts)
     assert "DEMO FAILED" not in out
