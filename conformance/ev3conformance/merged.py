@@ -179,6 +179,9 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
     files = trace_files(paths)
     if not files:
         raise MergeError("no trace files given")
+    dup = sorted({f.name for f in files if sum(g.name == f.name for g in files) > 1})
+    if dup:
+        raise MergeError(f"two trace files named {', '.join(dup)}: the check names nodes by file name")
     per_file: list[list[Rec]] = []
     m = Merged(files, [], {}, [])
     for fi, f in enumerate(files):
