@@ -275,7 +275,7 @@ def _cycle(m: Merged, per_file, succ, npred) -> str:
 
 # --- the data ------------------------------------------------------------------------------------
 
-def _item(m: Merged, x: Rec) -> dict:
+def _item(m: Merged, x: Rec, idx: dict[str, int]) -> dict:
     r = x.r
     ch = {k: int(v) for k, v in r.get("changed", {}).items() if k in GLOBAL_VARS and isinstance(v, int)}
     em, bm = dict(_NONE_EM), dict(_NONE_M)
@@ -288,23 +288,29 @@ def _item(m: Merged, x: Rec) -> dict:
                 em = {"t": e["t"], "src": e["src"], "e": e["e"]}
             else:
                 bm = {"t": d.type_name or "?", "src": d.sender}
-    return {"n": m.label(x), "a": str(r.get("action")), "ch": ch, "em": em, "m": bm,
+    return {"n": idx[m.label(x)], "a": str(r.get("action")), "ch": ch, "em": em, "m": bm,
             "cmd": str(r.get("args", {}).get("cmd", ""))}
 
 
+def node_index(m: Merged) -> dict[str, int]:
+    """Each node's number in TraceData (1, 2, ...: its place in NodeNames)."""
+    return {lab: i + 1 for i, lab in enumerate(m.nodes)}
+
+
 def data_module(m: Merged) -> str:
-    """TraceData for MCMergedTrace: the merged records, the nodes' start, the agent nodes, the PC's id."""
-    body = ",\n".join("  " + tla.to_tla(_item(m, x)) for x in m.order)
-    start = " @@ ".join(f"{tla.to_tla(lab)} :> {tla.to_tla(s)}" for lab, s in m.nodes.items())
+    """TraceData for MCMergedTrace: the merged records (n: the node's number), the nodes' start and
+    names in that order, the agent nodes, the PC's id."""
+    idx = node_index(m)
+    body = ",\n".join("  " + tla.to_tla(_item(m, x, idx)) for x in m.order)
     return "\n".join([
         "---- MODULE TraceData ----",
         "\\* Data only, written by ev3conformance.merged (no TLA+ logic: see spec/tla/trace/MergedTrace.tla).",
         f"\\* {len(m.order)} records of {len(m.nodes)} nodes in {len(m.files)} traces: "
         + " ".join(f.name for f in m.files),
-        "EXTENDS TLC",
         f"Trace == <<\n{body}\n>>",
-        f"Start == {start}",
-        f"Agents == {tla.to_tla(frozenset(m.agents))}",
+        f"Start == {tla.to_tla(tuple(m.nodes.values()))}",
+        f"NodeNames == {tla.to_tla(tuple(m.nodes))}",
+        f"Agents == {tla.to_tla(frozenset(idx[a] for a in m.agents))}",
         f"PC == {PC_ID}",
         "====", ""])
 
@@ -342,6 +348,8 @@ def _explain(m: Merged, inv: str, out: str) -> str:
     except (ValueError, KeyError) as e:
         return f"{inv} is violated (TLC's last state could not be read: {e})"
     at = lambda i: m.where(m.order[i - 1]) if 1 <= i <= len(m.order) else "(the start: the PC is master of epoch 1)"
+    names = list(m.nodes)
+    name = lambda n: names[n - 1] if isinstance(n, int) and 1 <= n <= len(names) else str(n)
     last = cursor - 1
     if inv == "AtMostOneMasterPerEpoch":
         by_e: dict[int, list] = {}
@@ -362,15 +370,15 @@ def _explain(m: Merged, inv: str, out: str) -> str:
                        if c["e"] < c["seen"] else
                        f"epoch {c['e']} is not the agent's ({c['seen']})" if c["e"] != c["seen"] else
                        f"node {c['src']} was not elected master of epoch {c['e']} before it")
-                rows.append(f"  agent {c['a']} obeyed a command of node {c['src']} in epoch {c['e']}: {why}; "
+                rows.append(f"  agent {name(c['a'])} obeyed a command of node {c['src']} in epoch {c['e']}: {why}; "
                             f"merged record {c['at']}: {at(c['at'])}")
         el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
         return f"a command obeyed from a stale master (StaleMasterFenced; elected so far: {el}):\n" + "\n".join(rows)
     if inv == "FollowersAgree":
         masters = {(x["e"], x["id"]) for x in elected}
         el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
-        rows = [f"  {n} follows node {s['leader']} in epoch {s['following']} (its epoch {s['epoch']})"
-                for n, s in loc.items() if n in m.agents and s["following"] != 0 and
+        rows = [f"  {name(n)} follows node {s['leader']} in epoch {s['following']} (its epoch {s['epoch']})"
+                for n, s in enumerate(loc, 1) if name(n) in m.agents and s["following"] != 0 and
                 (s["following"] != s["epoch"] or (s["following"], s["leader"]) not in masters)]
         return (f"an agent follows a node that is not the master of its epoch (FollowersAgree; elected so far: "
                 f"{el}), after merged record {last}: {at(last)}:\n" + "\n".join(rows))

@@ -24,7 +24,7 @@
 (*            with the agent's epoch after it (the newest it has seen).    *)
 (* `at` is the record's place in Trace: the check names the records.       *)
 (*                                                                         *)
-(* A record: [n |-> its node, a |-> action, ch |-> the global variables it *)
+(* A record: [n |-> its node (a number), a |-> action, ch |-> the global variables it *)
 (* changed (a record of some of id, epoch, leader, following), em |->      *)
 (* [t, src, e] of an Election datagram (t "NONE": none), m |-> [t, src] of  *)
 (* a bare datagram (t "NONE": none), cmd |-> ApplyCommand's inner handler].*)
@@ -33,8 +33,8 @@ EXTENDS Naturals, Sequences, FiniteSets
 
 CONSTANTS
     Trace,    \* the merged records
-    Start,    \* node -> [id, epoch, leader, following] before its first record
-    Agents,   \* the nodes that are agent cores
+    Start,    \* node n's [id, epoch, leader, following] before its first record: Start[n]
+    Agents,   \* the nodes that are agent cores (numbers)
     PC        \* the PC master's id: master of epoch 1 from the start
 
 ASSUME Len(Trace) > 0 /\ Agents \subseteq DOMAIN Start

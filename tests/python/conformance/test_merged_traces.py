@@ -6,11 +6,13 @@ testdata/merged_demo/ is one `make demo` run (tools/demo.py): agents #1-#3 (agen
 2 and runs a Master core, node master:ID:2 in its trace), the PC's first run (killed) and its second
 (restarted from its state file in epoch 2: stands, wins epoch 3). The run must conform; the same run
 with a second master planted in an epoch, or with an agent obeying an EPOCH_CMD of an older epoch,
-must fail naming the nodes and records; a cycle of the happens-before graph and a receive from
+must fail naming the nodes and records, and so must make spec's black-box run (spec/tla/trace/samples/
+run) with an agent following a node that was not elected; a cycle of the happens-before graph and a receive from
 outside the traced nodes are shown with hand-made traces."""
 from __future__ import annotations
 
 import gzip
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -80,6 +82,22 @@ def test_a_command_obeyed_from_a_stale_master_fails_naming_the_agent_and_record(
     # the PC's STOP of epoch 3 to agent #1, lowered to epoch 2 (the agent-master's epoch)
     assert "obeyed a command of node 1 in epoch 2: epoch 2 is older than the newest the agent has seen (3)" \
         in r.message, r.message
+
+
+def test_an_agent_following_a_node_not_elected_fails_naming_it(tmp_path):
+    # make spec's black-box run: agent #3's last LEADER of the new master (id 2) recorded as one of id 3
+    sample = merged.tracecheck.SAMPLES / "run"
+    (tmp_path / "bad").mkdir()
+    for f in sample.glob("*.nd"):
+        rs = [json.loads(x) for x in f.read_text().splitlines() if x.strip()]
+        if f.name == "agent3.nd":
+            k = max(i for i, r in enumerate(rs) if r.get("changed", {}).get("leader") == 2)
+            rs[k]["changed"]["leader"] = 3
+        write(tmp_path / "bad" / f.name, rs)
+    r = merged.validate([tmp_path / "bad"])
+    assert not r.ok
+    assert "an agent follows a node that is not the master of its epoch (FollowersAgree" in r.message, r.message
+    assert f"agent3.nd record {k + 1} " in r.message and "agent3.nd:agent follows node 3 in epoch 2" in r.message
 
 
 def _rec(node, action, msg=None, changed=None):

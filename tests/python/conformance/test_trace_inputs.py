@@ -119,6 +119,8 @@ def test_the_data_module_holds_values_only():
     TLC run of each sample shows they are the ones the module declares)."""
     spec = json.loads((SAMPLES / "samples.json").read_text())["samples"]
     for s in spec:
+        if "run" in s:  # a whole run (MCMergedTrace): test_the_merged_data_module_holds_values_only
+            continue
         path = SAMPLES / s["trace"]
         nd = (tracecheck.master_data(path, s["consts"]) if s.get("master")
               else tracecheck.agent_data(path, s["consts"]))
@@ -128,3 +130,17 @@ def test_the_data_module_holds_values_only():
         assert isinstance(values["Trace"], tuple) and len(values["Trace"]) == len(nd.records)
         assert all(isinstance(x, dict) and x["a"] == r["action"] for x, r in zip(values["Trace"], nd.records))
         assert set(values) == {"Trace"} | set(nd.consts)
+
+
+def test_the_merged_data_module_holds_values_only():
+    """The whole run's TraceData (ev3conformance.merged, make spec's sample run): values only, one
+    record per record of the run, each naming its node by number; the nodes' start and names."""
+    from ev3conformance import merged
+    m = merged.merge([SAMPLES / "run"])
+    defs = _definitions(merged.data_module(m))
+    values = {k: tla.parse_value(v) for k, v in defs.items()}  # raises on anything but a value
+    assert set(values) == {"Trace", "Start", "NodeNames", "Agents", "PC"}
+    assert len(values["Trace"]) == len(m.order) == sum(len(tracecheck.load(f)) for f in (SAMPLES / "run").glob("*.nd"))
+    assert values["NodeNames"] == tuple(m.nodes) and len(values["Start"]) == len(m.nodes)
+    assert all(x["a"] == r.r["action"] and values["NodeNames"][x["n"] - 1] == m.label(r)
+               for x, r in zip(values["Trace"], m.order))
