@@ -683,7 +683,10 @@ def check_modules(say=print, jobs: int = 2) -> bool:
     """What make spec checks of spec/tla/trace/: SANY on every module (the MC*Trace ones are parsed by
     TLC with their sample's data), and each check on its sample trace (samples/samples.json): the
     sample must conform, and the same trace with one record changed must be rejected naming that
-    record. Every MC*Trace module must have a sample. Prints one line per check; True when all pass."""
+    record. A sample with "run" (MCMergedTrace) is a directory of one run's traces, checked whole
+    (ev3conformance.merged): it must conform, and each of its "plants" planted in it must be rejected
+    naming the file and record. Every MC*Trace module must have a sample. Prints one line per check;
+    True when all pass."""
     wd = gr.BUILD / "trace-modules"
     wd.mkdir(parents=True, exist_ok=True)
     d = Path(tempfile.mkdtemp(prefix="sany-", dir=wd))
