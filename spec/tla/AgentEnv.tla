@@ -15,6 +15,14 @@
 (*    master's (PeerSrcs: a peer's id, an unsynced agent's temporary id).  *)
 (*  - The agent crashes and restarts (Reboot): it comes back as at Init,   *)
 (*    with a new temporary id drawn (here the same TempId), nothing kept.  *)
+(*  - answered: history, the (sender, msgid) of the last Window datagrams  *)
+(*    the agent answered afresh (acted on, or refused), oldest first;      *)
+(*    kept by the environment, not read from the agent's window (a window  *)
+(*    that forgets too early, or is keyed wrongly, is invisible to         *)
+(*    ActedOnceInv, which reads the window itself: spec mutations A05,     *)
+(*    A10, docs/spec.md).  A reboot empties it (the agent's window is      *)
+(*    lost with it).  again: the last step answered afresh a datagram that *)
+(*    was among them.                                                      *)
 (*                                                                         *)
 (* Older epochs (a fenced master) are Election.tla's (StaleMasterFenced-   *)
 (* Inv): the one-agent model has one master.                               *)
@@ -25,9 +33,9 @@ CONSTANT PeerSrcs   \* sender ids that are not the master's
 
 ASSUME MasterId \notin PeerSrcs
 
-VARIABLES heard, gone
+VARIABLES heard, gone, answered, again
 
-envVars == <<ag, out, lastAction, heard, gone>>
+envVars == <<ag, out, lastAction, heard, gone, answered, again>>
 
 Cap == TPaused + 1
 
@@ -43,17 +51,26 @@ PeerMsgs ==
 \* A datagram of the master that reaches the agent (whatever the agent does with it).
 Genuine(m) == m.src = MasterId /\ L!AddressedTo(ag, m)
 
-EnvInit == Init /\ heard = 0 /\ gone = FALSE
+EnvInit == Init /\ heard = 0 /\ gone = FALSE /\ answered = <<>> /\ again = FALSE
+
+\* The handlers that answer a datagram afresh: act on it (or refuse it) and ACK (NOT) it.
+FreshAnswers == L!RecvNames \ {"RecvPong", "RecvDuplicate", "Ignore"}
 
 Deliver(m) ==
     /\ m.src = MasterId => ~gone
     /\ Receive(m)
     /\ heard' = IF Genuine(m) THEN 0 ELSE heard
+    /\ answered' = IF lastAction'.name \notin FreshAnswers THEN answered
+                   ELSE LET w == Append(answered, <<m.src, m.msgid>>)
+                        IN IF Len(w) > Window THEN Tail(w) ELSE w
+    /\ again' = (lastAction'.name \in FreshAnswers
+                 /\ \E i \in 1..Len(answered) : answered[i] = <<m.src, m.msgid>>)
     /\ UNCHANGED gone
 
-TickE == Tick /\ heard' = (IF heard < Cap THEN heard + 1 ELSE Cap) /\ UNCHANGED gone
-HeartbeatLostE == HeartbeatLost /\ UNCHANGED <<heard, gone>>
-SyncTimeoutE == SyncTimeout /\ UNCHANGED <<heard, gone>>
+TickE == Tick /\ heard' = (IF heard < Cap THEN heard + 1 ELSE Cap) /\ again' = FALSE
+         /\ UNCHANGED <<gone, answered>>
+HeartbeatLostE == HeartbeatLost /\ again' = FALSE /\ UNCHANGED <<heard, gone, answered>>
+SyncTimeoutE == SyncTimeout /\ again' = FALSE /\ UNCHANGED <<heard, gone, answered>>
 
 Internal ==
     /\ \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
@@ -61,10 +78,12 @@ Internal ==
        \/ \E p \in EventPorts : DeviceUnplugged(p) \/ DevicePlugged(p)
        \/ BatteryLow
        \/ \E e \in L!RobotEvents, p \in EventPorts : RobotEvent(e, p)
-    /\ UNCHANGED <<heard, gone>>
+    /\ again' = FALSE
+    /\ UNCHANGED <<heard, gone, answered>>
 
 \* The master is gone for good.
-MasterGone == ~gone /\ gone' = TRUE /\ UNCHANGED <<ag, out, lastAction, heard>>
+MasterGone == ~gone /\ gone' = TRUE /\ again' = FALSE
+              /\ UNCHANGED <<ag, out, lastAction, heard, answered>>
 
 \* The agent crashes (power, firmware) and starts again from scratch.
 Reboot ==
@@ -72,6 +91,8 @@ Reboot ==
     /\ ag' = L!InitAgent(TempId)
     /\ out' = <<>>
     /\ lastAction' = [name |-> "Init", args |-> <<>>]
+    /\ answered' = <<>>
+    /\ again' = FALSE
     /\ UNCHANGED <<heard, gone>>
 
 EnvNext ==
@@ -92,6 +113,16 @@ EnvSpec == EnvInit /\ [][EnvNext]_envVars /\ EnvFairness
 \* the master reached the agent within the last TLoss ticks.
 MotionHeardInv == ag.state = "WORKING" => heard <= TLoss
 
+\* Every timeout fires on time, by the environment's clock: ACTIVE only while the master was
+\* heard within TLoss ticks, PAUSED within TPaused (the agent's timeouts may not be late).
+SyncedHeardInv ==
+    /\ ag.state = "ACTIVE" => heard <= TLoss
+    /\ ag.state = "PAUSED" => heard <= TPaused
+
+\* No datagram is answered afresh (acted on) again while it is among the last Window the
+\* agent answered afresh: a copy gets the stored answer (RecvDuplicate).
+AnsweredOnceInv == ~again
+
 \* Datagrams not from the master change nothing the agent does: no state change, nothing
 \* emitted.
 NotFromMasterInertProp ==
@@ -106,5 +137,5 @@ TransitionsProp ==
     [][lastAction'.name = "Init" \/ L!TransitionOk(ag, ag', lastAction'.name)]_envVars
 
 \* The view: out and lastAction name the last step (for traces); no successor depends on them.
-EnvView == <<ag, heard, gone>>
+EnvView == <<ag, heard, gone, answered, again>>
 =============================================================================
