@@ -8,13 +8,16 @@
 #   make arm       static armel (EV3) build in build/arm/
 #   make spec      SANY + TLC on the small models, broken variants refuted, diagram up to date
 #   make spec-full the full models (minutes)
+#   make spec-mutate  the spec mutations of spec/tla/mutations.toml, each killed by a make-spec
+#                  model (docs/spec.md "Spec mutations"; minutes, not part of make test);
+#                  MUTANTS="A0 L" runs a subset (id prefixes)
 #   make diagrams  regenerate docs/lifecycle.svg from TLC's state graph, docs/behaviours/*.svg
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
 .PHONY: help deps build demo test test-unit test-python test-blackbox test-fuzz test-arm fuzz fuzz-build \
         bench bench-master arm conformance mutate \
-        spec spec-full diagrams clean
+        spec spec-full spec-mutate diagrams clean
 
 PY := $(CURDIR)/.venv/bin/python
 BIN := $(CURDIR)/build/bin
@@ -118,6 +121,9 @@ spec: deps
 
 spec-full: deps
 	@python3 tools/spec.py check --size full
+
+spec-mutate: deps
+	@PYTHONUNBUFFERED=1 python3 tools/spec.py mutate $(if $(MUTANTS),--only $(MUTANTS))
 
 diagrams: build
 	@python3 tools/spec.py diagram

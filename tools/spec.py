@@ -11,6 +11,10 @@ Subcommands:
                                        model's constants; fails on any other
   diagram [--check]                    docs/lifecycle.{dot,svg} from TLC's state graph
                                        of MCAgent; --check fails if they are stale
+  mutate [--only ID..] [--all] [--list]
+                                       the spec mutations of spec/tla/mutations.toml, each
+                                       on a copy of spec/tla with the models make spec
+                                       runs, until one kills it (docs/spec.md)
 
 Python 3 standard library only.  Uses the pinned jar .tools/tla2tools.jar; every
 TLC run gets its own -metadir under build/spec/.
@@ -39,10 +43,15 @@ def load_manifest():
         return json.load(f)
 
 
-def run(cmd, timeout=None):
+def run(cmd, timeout=None, cwd=SPEC):
+    """rc, output, seconds; rc None when the run took longer than timeout (it is killed)."""
     t0 = time.monotonic()
-    p = subprocess.run(cmd, cwd=SPEC, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                       text=True, timeout=timeout)
+    try:
+        p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                           text=True, timeout=timeout)
+    except subprocess.TimeoutExpired as e:
+        out = e.stdout.decode(errors="replace") if isinstance(e.stdout, bytes) else (e.stdout or "")
+        return None, out, time.monotonic() - t0
     return p.returncode, p.stdout, time.monotonic() - t0
 
 
@@ -61,13 +70,14 @@ def sany(module):
         raise SystemExit("SANY failed on %s" % module)
 
 
-def tlc(module, cfg, workers=2, extra=(), name=None):
+def tlc(module, cfg, workers=2, extra=(), name=None, cwd=SPEC, timeout=None):
+    """TLC on module (a .tla in cwd, the spec directory unless a mutant's copy) with cfg."""
     md = metadir(name or module)
     # Its own java.io.tmpdir too: TLC extracts the standard modules there, and parallel runs sharing
     # /tmp race on those files (tlaplus/tlaplus#378).
     cmd = JAVA + ["-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.TLC", "-workers", str(workers), "-metadir", md,
                   "-config", cfg] + list(extra) + [module + ".tla"]
-    rc, out, secs = run(cmd)
+    rc, out, secs = run(cmd, timeout=timeout, cwd=cwd)
     shutil.rmtree(md, ignore_errors=True)
     return rc, out, secs
 
@@ -166,16 +176,17 @@ def is_liveness(p):
     return not (p.endswith("Inv") or p.endswith("Prop") or p == "TypeOK")
 
 
-def variant_cfg(base, bug, props, name=None, sets=None):
-    """The base cfg with BUG = bug (and the constants in sets changed) and only the given
-    properties checked (props None: the base cfg's own properties)."""
-    with open(os.path.join(SPEC, base)) as f:
+def variant_cfg(base, bug, props, name=None, sets=None, src=SPEC, dest=BUILD):
+    """The base cfg (in src) with BUG = bug (bug None: BUG as it is) and the constants in sets
+    changed, and only the given properties checked (props None: the base cfg's own properties);
+    written to dest, its path returned."""
+    with open(os.path.join(src, base)) as f:
         lines = f.read().splitlines()
     sets = dict(sets or {})
     outl, skip = [], False
     for ln in lines:
         s = ln.strip()
-        if s.startswith("BUG"):
+        if s.startswith("BUG") and bug is not None:
             outl.append('    BUG = "%s"' % bug)
             continue
         key = s.split("=")[0].strip() if "=" in s else None
@@ -198,8 +209,8 @@ def variant_cfg(base, bug, props, name=None, sets=None):
         raise SystemExit("variant %s: %s not constants of %s" % (bug, sorted(sets), base))
     for p in props or ():
         outl.append(("INVARIANT %s" if p.endswith("Inv") or p == "TypeOK" else "PROPERTY %s") % p)
-    os.makedirs(BUILD, exist_ok=True)
-    path = os.path.join(BUILD, "refute-%s.cfg" % (name or bug))
+    os.makedirs(dest, exist_ok=True)
+    path = os.path.join(dest, "refute-%s.cfg" % (name or bug))
     with open(path, "w") as f:
         f.write("\n".join(outl) + "\n")
     return path
@@ -273,6 +284,175 @@ def cmd_refute(args):
         if not ok:
             print(counterexample(out)[:3000])
             failed = True
+    if failed:
+        raise SystemExit(1)
+
+
+# ------------------------------------------------------------------ spec mutations (issue 13.6)
+# spec/tla/mutations.toml: textual mutations of the shipped spec, each applied to a copy of
+# spec/tla/ and checked with the models `make spec` runs (docs/spec.md "Spec mutations").  Not the
+# BUG variants above: a mutation changes the text of a rule, nothing in the spec switches it.
+MUTATIONS = os.path.join(SPEC, "mutations.toml")
+MUTATION_FIELDS = {"id", "module", "class", "from", "to", "breaks", "models", "expect"}
+MUTATION_OPTIONAL = {"only", "why", "timeout"}
+# The guard classes of issue 13 (each needs at least one mutation), and the other kinds of rule.
+GUARD_CLASSES = {"sender", "epoch", "vote", "relay", "timeout", "dedupe"}
+OTHER_CLASSES = {"state", "registry", "bound", "reconcile"}
+MUTATION_TIMEOUT = 300   # seconds per TLC run unless the mutation says otherwise
+
+
+def mutation_models():
+    """Every model `make spec` runs (size small), by name: [module, cfg]."""
+    man = load_manifest()
+    el = man["election"]
+    return {m["name"]: m for m in man["models"] + el["models"] + el.get("live", [])
+            if m["size"] == "small"}
+
+
+def load_mutations(path=MUTATIONS):
+    """The catalogue, checked: fields, ids, modules, models, and every mutation point found
+    exactly once in its module (a point that moved or was edited fails here, loudly)."""
+    import tomllib
+    with open(path, "rb") as f:
+        cat = tomllib.load(f)
+    muts = cat.get("mutation", [])
+    models = mutation_models()
+    problems, seen = [], set()
+    for i, mu in enumerate(muts):
+        name = mu.get("id", "#%d" % (i + 1))
+        missing = MUTATION_FIELDS - set(mu)
+        extra = set(mu) - MUTATION_FIELDS - MUTATION_OPTIONAL
+        if missing or extra:
+            problems.append("%s: missing %s, unknown %s" % (name, sorted(missing), sorted(extra)))
+            continue
+        if not re.fullmatch(r"[A-Z]\d\d", name):
+            problems.append("%s: an id is a capital letter and two digits" % name)
+        if name in seen:
+            problems.append("%s: id used twice" % name)
+        seen.add(name)
+        if mu["class"] not in GUARD_CLASSES | OTHER_CLASSES:
+            problems.append("%s: class %r is none of %s" % (name, mu["class"],
+                                                           sorted(GUARD_CLASSES | OTHER_CLASSES)))
+        mod = os.path.join(SPEC, mu["module"])
+        if not (mu["module"].endswith(".tla") and not mu["module"].startswith("MC")
+                and os.path.exists(mod)):
+            problems.append("%s: %s is not a spec module of spec/tla" % (name, mu["module"]))
+            continue
+        with open(mod) as f:
+            n = f.read().count(mu["from"])
+        if n != 1:
+            problems.append("%s: the text to replace occurs %d times in %s (must be once): %r"
+                            % (name, n, mu["module"], mu["from"]))
+        if mu["from"] == mu["to"]:
+            problems.append("%s: the replacement is the text itself" % name)
+        for m in mu["models"]:
+            if m not in models:
+                problems.append("%s: %s is not a model make spec runs" % (name, m))
+        only = mu.get("only", {})
+        if not isinstance(only, dict) or not all(
+                k in mu["models"] and isinstance(v, list) and v and all(isinstance(p, str) for p in v)
+                for k, v in only.items()):
+            problems.append("%s: only must map models of models to lists of properties" % name)
+        exp = mu["expect"]
+        if exp == "survives":
+            if not mu.get("why"):
+                problems.append("%s: a mutation expected to survive needs why (equivalent)" % name)
+        else:
+            model, _, prop = exp.partition(":")
+            if model not in mu["models"] or not prop:
+                problems.append("%s: expect %r is not model:Property with a model of models" % (name, exp))
+    for c in sorted(GUARD_CLASSES - {mu.get("class") for mu in muts}):
+        problems.append("no mutation of guard class %s" % c)
+    if problems:
+        raise SystemExit("spec/tla/mutations.toml:\n  " + "\n  ".join(problems))
+    return muts
+
+
+def mutant_dir(mu):
+    """A copy of spec/tla (modules and cfgs) with the mutation applied."""
+    d = os.path.join(BUILD, "mutant-" + mu["id"])
+    shutil.rmtree(d, ignore_errors=True)
+    os.makedirs(d)
+    for fn in os.listdir(SPEC):
+        if fn.endswith((".tla", ".cfg")):
+            shutil.copy(os.path.join(SPEC, fn), d)
+    path = os.path.join(d, mu["module"])
+    with open(path) as f:
+        text = f.read()
+    with open(path, "w") as f:
+        f.write(text.replace(mu["from"], mu["to"], 1))
+    return d
+
+
+def kill_verdict(rc, out, only):
+    """What killed a mutant: (property, exit code), or None if the model passed."""
+    if rc == 0 and "Model checking completed. No error has been found." in out:
+        return None
+    if rc in (11, 12, 13):
+        got = violation(out)
+        if got == "temporal" and only and len(only) == 1:
+            got = only[0]   # TLC 2.18 does not name the violated temporal property
+        return got, rc
+    raise SystemExit("TLC failed (exit %s), not a verdict:\n%s" % (rc, counterexample(out)[:3000]))
+
+
+def run_mutant(mu, models):
+    """Each model of mu in order (one worker, a timeout each) until one kills it.
+    Returns (model, property, exit, seconds in all, runs)."""
+    d = mutant_dir(mu)
+    runs, total = [], 0.0
+    try:
+        for name in mu["models"]:
+            m = models[name]
+            cfg = m["cfg"]
+            only = mu.get("only", {}).get(name)
+            if only:
+                cfg = variant_cfg(m["cfg"], None, only, name="mutant-" + mu["id"], src=d, dest=d)
+            rc, out, secs = tlc(m["module"], cfg, workers=1, name="mutant-" + mu["id"], cwd=d,
+                                timeout=mu.get("timeout", MUTATION_TIMEOUT))
+            total += secs
+            if rc is None:
+                runs.append((name, "timeout", None, secs))
+                continue
+            v = kill_verdict(rc, out, only)
+            runs.append((name, v[0] if v else "passed", rc, secs))
+            if v:
+                return name, v[0], rc, total, runs
+        return None, None, None, total, runs
+    finally:
+        shutil.rmtree(d, ignore_errors=True)
+
+
+def cmd_mutate(args):
+    muts = load_mutations()
+    models = mutation_models()
+    if args.list:
+        for mu in muts:
+            print("%-6s %-16s %-9s %s" % (mu["id"], mu["module"], mu["class"], mu["expect"]))
+        return
+    todo = [mu for mu in muts if (not args.only or any(mu["id"].startswith(o) for o in args.only))
+            and (args.all or args.only or mu["expect"] != "survives")]
+    t0 = time.monotonic()
+    failed = []
+    print("%-6s %-9s %-20s %-30s %4s %7s  %s" % ("id", "class", "killed by", "property", "exit",
+                                                "seconds", "expected"))
+    for mu in todo:
+        model, prop, rc, secs, runs = run_mutant(mu, models)
+        got = "%s:%s" % (model, prop) if model else "survives"
+        ok = got == mu["expect"]
+        passed = ", ".join("%s %s %.0fs" % (r[0], r[1], r[3]) for r in runs if r[1] in ("passed", "timeout")
+                           ) if len(runs) > 1 or not model else ""
+        print("%-6s %-9s %-20s %-30s %4s %7.1f  %s%s%s" % (
+            mu["id"], mu["class"], model or "-", prop or "(survived)", rc if rc is not None else "-",
+            secs, mu["expect"], "" if ok else "  FAIL", "  (tried: %s)" % passed if passed else ""))
+        if not ok:
+            failed.append(mu["id"])
+        sys.stdout.flush()
+    skipped = len([mu for mu in muts if mu["expect"] == "survives" and mu not in todo]) if not args.only else 0
+    print("mutations: %d run, %d as expected%s, %.0f s in all%s" % (
+        len(todo), len(todo) - len(failed),
+        "" if not skipped else ", %d equivalent ones not run (--all runs them)" % skipped,
+        time.monotonic() - t0, "" if not failed else "; FAILED: " + " ".join(failed)))
     if failed:
         raise SystemExit(1)
 
@@ -543,7 +723,14 @@ def main():
     sub.add_parser("refute")
     d = sub.add_parser("diagram")
     d.add_argument("--check", action="store_true")
+    mu = sub.add_parser("mutate", help="the spec mutations of spec/tla/mutations.toml")
+    mu.add_argument("--only", nargs="*", help="mutation ids (prefixes)")
+    mu.add_argument("--all", action="store_true", help="also those expected to survive")
+    mu.add_argument("--list", action="store_true", help="the catalogue, checked, nothing run")
     args = ap.parse_args()
+    if args.cmd == "mutate":
+        cmd_mutate(args)
+        return
     {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
     if args.cmd == "check":
         trace_modules()
