@@ -122,7 +122,7 @@ def simulate(seed: int, num: int, depth: int, cfg: str = SIM_CFG, out_dir: Path 
 CHECK_BOUNDS = {"Behaviours": "MCBehaviours", "UnknownBehaviour": '"dance"', "ModelName": '"A"', "TSync": 2,
                 "TPing": 1, "TLoss": 2, "TPaused": 3, "Window": 3, "Steps": 2, "BUG": '"none"',
                 "Agents": "{a1}", "TDrop": 3, "MaxResends": 2, "MaxLoss": 1, "MaxDup": 1, "MaxCrashes": 1,
-                "MaxOps": 1}
+                "MaxOps": 1, "MaxLate": 0, "MaxAgentCrashes": 0, "MaxSuspect": 0}
 
 
 def check_wrapper(bounds: dict | None = None) -> dict:

@@ -4,17 +4,24 @@
 (* duplicates and reorders datagrams.  Agents run AgentLogic unchanged,    *)
 (* the master runs MasterLogic unchanged.  An operator (environment) gives *)
 (* the master commands; the master syncs agents (AGENT/PANIC -> MASTER     *)
-(* with an id), answers PINGs of registered agents with PONG, resends each *)
+(* with an id), answers PINGs of synced agents with PONG, resends each     *)
 (* pending command every tick until ACK or NOT, reconciles agents whose    *)
 (* reported state differs from what the operator asked, and may crash and  *)
-(* restart with an empty registry.                                         *)
+(* restart with an empty registry.  An agent may crash too (its volatile   *)
+(* state is lost: OFF while down, then a fresh IDLE agent with a new       *)
+(* temporary id and msgid counter, as agent/main.cpp starts one), and may  *)
+(* time out although the master is alive (a false suspicion: its PONGs    *)
+(* late, its clock fast).                                                  *)
 (*                                                                         *)
 (* Time is discrete: Tick advances every agent's timers and the master's   *)
-(* together and is taken only when the network has drained (bounded       *)
-(* delay: a datagram is delivered or lost within the tick it was sent in; *)
-(* order within a tick is arbitrary).  Loss, duplication, crashes and      *)
-(* operator commands each have a budget (set in the cfg): the network      *)
-(* eventually stops losing.                                                *)
+(* together.  A datagram is delivered or lost within the tick it was sent  *)
+(* in, or late: each datagram still in flight when time passes spends one  *)
+(* unit of the late budget (so a datagram may arrive ticks after it was    *)
+(* sent, after the timeouts it should have prevented, after a copy, after *)
+(* the crash of its sender or of its receiver).  Order is arbitrary.      *)
+(* Loss, duplication, lateness, crashes, false suspicions and operator     *)
+(* commands each have a budget (set in the cfg): the network eventually    *)
+(* stops losing.                                                           *)
 (*                                                                         *)
 (* Extension point for relay and election (types 21-39): new endpoint      *)
 (* roles and master-side state go into MasterLogic / a new variable, new   *)
@@ -30,7 +37,10 @@ CONSTANTS Behaviours, UnknownBehaviour, ModelName, TSync, TPing, TLoss,
           MaxLoss,     \* datagrams the network may lose, in all
           MaxDup,      \* datagrams the network may duplicate, in all
           MaxCrashes,  \* master crashes, in all
-          MaxOps       \* operator commands, in all
+          MaxOps,      \* operator commands, in all
+          MaxLate,     \* datagram-ticks of delay: a datagram in flight when time passes costs one
+          MaxAgentCrashes, \* agent crashes, in all
+          MaxSuspect   \* false suspicions (a timeout while the master is alive), in all
 
 L == INSTANCE AgentLogic
 M == INSTANCE MasterLogic WITH ExactMsgids <- FALSE
@@ -42,6 +52,11 @@ Endpoints == Agents \cup {MasterEp}
 TempIdx == CHOOSE f \in [Agents -> 1..Cardinality(Agents)] :
                \A x, y \in Agents : x # y => f[x] # f[y]
 TempOf(a) == 50000 + TempIdx[a]
+\* The temporary id an agent draws when it starts again after the c-th agent
+\* crash (agent/main.cpp draws one at random): one no agent has drawn before.
+\* (Drawing the same one again is docs/spec.md "Agent crash and restart": an
+\* agent stuck in PANIC; not in these models.)
+RestartTempOf(a, c) == 50000 + c * Cardinality(Agents) + TempIdx[a]
 Mission == CHOOSE b \in Behaviours : TRUE   \* what the operator runs
 
 VARIABLES
@@ -61,7 +76,8 @@ TypeOK ==
     /\ up \in BOOLEAN
     /\ M!MasterType(ms, Agents, Behaviours)
     /\ sess \in [Agents -> Nat]
-    /\ budget \in [loss : Nat, dup : Nat, crash : Nat, ops : Nat]
+    /\ budget \in [loss : Nat, dup : Nat, crash : Nat, ops : Nat, late : Nat, acrash : Nat,
+                  suspect : Nat]
     /\ lost \in [Agents -> BOOLEAN]
 
 Init ==
@@ -70,7 +86,8 @@ Init ==
     /\ up = TRUE
     /\ ms = M!InitMaster(Agents)
     /\ sess = [a \in Agents |-> 0]
-    /\ budget = [loss |-> MaxLoss, dup |-> MaxDup, crash |-> MaxCrashes, ops |-> MaxOps]
+    /\ budget = [loss |-> MaxLoss, dup |-> MaxDup, crash |-> MaxCrashes, ops |-> MaxOps,
+                  late |-> MaxLate, acrash |-> MaxAgentCrashes, suspect |-> MaxSuspect]
     /\ lost = [a \in Agents |-> FALSE]
 
 \* The msgid an agent's datagram carries.  Real msgids grow by one per
@@ -134,6 +151,40 @@ AgentTimeout(a) ==
     /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
     /\ UNCHANGED <<up, ms, sess, budget>>
 
+\* False suspicion: synced agent a's heartbeat timeout fires before it is due,
+\* whether or not the master is alive (HeartbeatLost's effect: WORKING ->
+\* PAUSED, ACTIVE or PAUSED -> PANIC).  The master must take it back.
+AgentSuspect(a) ==
+    LET r == L!HeartbeatLost(ag[a]) IN
+    /\ budget.suspect > 0
+    /\ ag[a].state \in L!Synced /\ ~L!TimeoutDue(ag[a])
+    /\ ag' = [ag EXCEPT ![a] = r.ag]
+    /\ net' = net \cup Emit(a, r.out, sess[a], r.ag)
+    /\ budget' = [budget EXCEPT !.suspect = @ - 1]
+    /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
+    /\ UNCHANGED <<up, ms, sess>>
+
+\* Agent a crashes (power cut, reset): the motors stop, it is down (OFF: it
+\* neither sends nor takes anything) until AgentRestart.
+AgentCrash(a) ==
+    /\ budget.acrash > 0
+    /\ ag[a].state # "OFF"
+    /\ ag' = [ag EXCEPT ![a] = L!Goto(L!Stopped(ag[a]), "OFF")]
+    /\ budget' = [budget EXCEPT !.acrash = @ - 1]
+    /\ UNCHANGED <<net, up, ms, sess, lost>>
+
+\* Agent a starts again as agent/main.cpp starts it: nothing of the lifecycle
+\* survives (the election's epoch and vote, on its SD card, are not in this
+\* spec): IDLE with a new temporary id and a new msgid counter, drawn at
+\* random -- above or below every msgid of its previous life (sess kept or
+\* reset).  It no longer was synced when the master crashed (lost).
+AgentRestart(a) ==
+    /\ ag[a].state = "OFF"
+    /\ ag' = [ag EXCEPT ![a] = L!InitAgent(RestartTempOf(a, MaxAgentCrashes - budget.acrash))]
+    /\ \E s \in {0, sess[a]} : sess' = [sess EXCEPT ![a] = s]
+    /\ lost' = [lost EXCEPT ![a] = FALSE]
+    /\ UNCHANGED <<net, up, ms, budget>>
+
 -----------------------------------------------------------------------------
 (* The master and its operator.                                             *)
 
@@ -193,10 +244,10 @@ Deliver(e, dup) ==
 
 DeliverAny == \E e \in net : Deliver(e, FALSE)
 
-\* One tick of time, once the network has drained and no timeout is due:
-\* every agent's timers advance (periodic AGENT/PING/PANIC go out, a running
-\* behaviour reports ACTION_OK), and the master's MasterTick (resends,
-\* failures, drops).
+\* One tick of time, once no timeout is due: every agent's timers advance
+\* (periodic AGENT/PING/PANIC go out, a running behaviour reports ACTION_OK),
+\* and the master's MasterTick (resends, failures, drops).  The datagrams
+\* still in flight stay, each one tick late (the late budget pays for it).
 Tick ==
     LET t == [a \in Agents |-> L!Tick(ag[a])]
         \* a running behaviour finishes one action per tick: ACTION_OK, unless
@@ -209,23 +260,25 @@ Tick ==
         live == {a \in Agents : ag[a].state # "OFF"}
         mt == M!MasterTick(ms)
     IN
-    /\ net = {}
+    /\ Cardinality(net) <= budget.late
     /\ \A a \in live : L!TickOk(ag[a])
     /\ ag' = [a \in Agents |-> IF a \in live THEN r[a].ag ELSE ag[a]]
     /\ ms' = IF up THEN mt.ms ELSE ms
-    /\ net' = UNION {Emit(a, r[a].out, sess[a], r[a].ag) : a \in live}
+    /\ net' = net \cup UNION {Emit(a, r[a].out, sess[a], r[a].ag) : a \in live}
               \cup (IF up THEN MEmit(mt.out) ELSE {})
-    /\ UNCHANGED <<up, sess, budget, lost>>
+    /\ budget' = [budget EXCEPT !.late = @ - Cardinality(net)]
+    /\ UNCHANGED <<up, sess, lost>>
 
 Next ==
     \/ \E e \in net : Deliver(e, FALSE) \/ Deliver(e, TRUE) \/ Lose(e)
     \/ \E a \in Agents : AgentTimeout(a) \/ Operate(a)
+    \/ \E a \in Agents : AgentSuspect(a) \/ AgentCrash(a) \/ AgentRestart(a)
     \/ MasterCrash \/ MasterRestart
     \/ Tick
 
 Fairness ==
     /\ WF_vars(DeliverAny)
-    /\ \A a \in Agents : WF_vars(AgentTimeout(a)) /\ SF_vars(Operate(a))
+    /\ \A a \in Agents : WF_vars(AgentTimeout(a)) /\ SF_vars(Operate(a)) /\ WF_vars(AgentRestart(a))
     /\ WF_vars(MasterRestart)
     /\ WF_vars(Tick)
 
@@ -246,10 +299,14 @@ UniqueIdsInv ==
                          => ag[a].id # ag[b].id
 \* The master's registry never holds one id twice.
 RegistryInv == \A x, y \in ms.reg : x.id = y.id => x = y
+\* (A crash -- any state to OFF, the acrash budget spent -- and a restart --
+\* OFF to IDLE -- are not the agent's transitions.)
 AllowedTransitionsProp ==
     [][\A a \in Agents : \/ ag[a].state = ag'[a].state
                          \/ \E t \in L!AllowedTransitions :
-                               t[1] = ag[a].state /\ t[2] = ag'[a].state]_vars
+                               t[1] = ag[a].state /\ t[2] = ag'[a].state
+                         \/ ag'[a].state = "OFF" /\ budget'.acrash < budget.acrash
+                         \/ ag[a].state = "OFF" /\ ag'[a].state = "IDLE"]_vars
 
 (* Liveness, under Fairness, once the budgets are spent.                    *)
 
@@ -262,6 +319,12 @@ CommandsTakeEffect == \A a \in Agents : <>[](ag[a].state = "WORKING")
 CrashLeadsToPanic == \A a \in Agents : lost[a] ~> ag[a].state = "PANIC"
 \* An agent in PANIC resyncs (once the master is back).
 Resync == \A a \in Agents : ag[a].state = "PANIC" ~> ag[a].state \in L!Synced
+\* The master and every agent agree in the end: the agent is synced and the
+\* master holds it, synced, under the same id, for good (an agent synced to
+\* nobody -- PONGed by a master whose MASTER it ignores -- fails it).
+EventuallyRegistered ==
+    \A a \in Agents : <>[](/\ ag[a].state \in L!Synced
+                          /\ \E x \in ms.reg : x.ep = a /\ x.id = ag[a].id /\ x.synced)
 
 \* Symmetry of the full model (safety only: TLC forbids it with liveness).
 Symmetry == Permutations(Agents)

@@ -25,7 +25,8 @@ CONSTANTS
                   \*   endpoint, PONG carries msgid 0 and draws none (Fleet.tla,
                   \*   keeps the state space finite; docs/spec.md)
     BUG           \* "none"; or one broken rule (NoPanicResync, NoReconcile,
-                  \*   StaleReconcile, NoBumpNextId, PendingResend, RetryRefused, ReuseIds)
+                  \*   StaleReconcile, NoBumpNextId, PendingResend, RetryRefused, ReuseIds,
+                  \*   PongUnsynced)
 
 ASSUME TDrop \in Nat \ {0} /\ MaxResends \in Nat /\ ExactMsgids \in BOOLEAN
 
@@ -198,7 +199,7 @@ MasterAnswer(ms, m) ==
                      r == StartNext(ms, y2)
                  IN [ms |-> Replace(r.ms, x, r.x), out |-> PendingOut(r.x)]
 
-\* PING(state) from a registered agent: heard, PONG at once (ref: the PING's
+\* PING(state) from a registered agent: heard, PONG at once if it is synced (ref: the PING's
 \* msgid).  Reconcile: a synced agent with nothing pending or queued whose
 \* reported state differs from the desired one gets the commands that
 \* restore it (Restore).  An agent paused by a lost heartbeat would never
@@ -213,15 +214,22 @@ MasterAnswer(ms, m) ==
 \* MasterTick (and MasterSync), not by a PING.
 \* A PING from an id the master does not know gets no answer, so an agent of
 \* a crashed master's session loses its heartbeat and resyncs through PANIC.
+\* Nor does a PING from an entry that is not synced (its MASTER unanswered):
+\* the agent holds itself synced to someone else -- a late PANIC of its
+\* earlier life made this master register it after a crash -- and ignores
+\* MASTER while synced; PONGs would keep it from ever losing its heartbeat,
+\* so it would never resync (TLC, fleet_late: BUG "PongUnsynced").  Without
+\* PONG it panics, and its PANIC gets the pending MASTER.
 MasterPing(ms, m, from) ==
     LET k == ById(ms, m.src) IN
     IF k = {} THEN [ms |-> ms, out |-> {}]
     ELSE LET x == Entry(k)
              st == m.args[1]
              y0 == [x EXCEPT !.quiet = 0, !.hi = Max(@, m.msgid)]
+             answer == x.synced \/ BUG = "PongUnsynced"
              pong == Send(from, x.id, IF ExactMsgids THEN Draw(ms, from) ELSE 0,
                           "PONG", m.msgid, <<>>)
-             ms1 == IF ExactMsgids THEN Bump(ms, from) ELSE ms
+             ms1 == IF ExactMsgids /\ answer THEN Bump(ms, from) ELSE ms
              fix == Restore(st, x.desired, x.beh)
              fresh == IF ExactMsgids THEN m.msgid > x.hi ELSE m.msgid >= x.hi
              rec == /\ x.synced /\ ~x.pending /\ x.queue = <<>>
@@ -231,7 +239,7 @@ MasterPing(ms, m, from) ==
                   ELSE [ms |-> ms1, x |-> y0]
              sent == IF rec \/ BUG = "PendingResend" THEN PendingOut(r.x) ELSE {}
          IN [ms |-> Replace(r.ms, x, r.x),
-             out |-> {pong} \cup sent]
+             out |-> (IF answer THEN {pong} ELSE {}) \cup sent]
 
 \* Reports are consumed (the operator sees them; no protocol state).
 MasterReport(ms, m) == [ms |-> ms, out |-> {}]

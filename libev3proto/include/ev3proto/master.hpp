@@ -717,7 +717,10 @@ class Master {
 
   /// MasterPing has an entry to act on: the sender is registered (others get no PONG).
   bool MasterPingOk(const Message& m) const { return reg_.contains(m.sender); }
-  /// Spec MasterPing: PONG at once to a registered agent (which is heard).
+  /// Spec MasterPing: PONG at once to a registered agent (which is heard) if it is synced. An entry
+  /// whose MASTER is unanswered gets none: the agent holds itself synced elsewhere (a late PANIC of
+  /// its earlier life registered it here after a crash) and ignores MASTER while synced; PONGs would
+  /// keep it from ever panicking and taking the pending MASTER (TLC fleet_late, BUG PongUnsynced).
   /// Reconcile: a synced agent with nothing pending or queued whose reported state is not the
   /// desired one gets the commands that restore it (Restore), after the PONG. Only a fresh PING
   /// (msgid above every msgid heard from the agent) reconciles: a stale one, sent before the agent's
@@ -735,7 +738,7 @@ class Master {
     }
     char num[10];
     const std::string_view p[1] = {number(m.msgid, num)};
-    send(from, e.id, MsgType::PONG, p, 1);
+    if (e.synced) send(from, e.id, MsgType::PONG, p, 1);
     if (st && fresh && e.synced && !e.pending && e.queue.empty() && e.desired_known) {
       Restore(*st, e);
       start_next(e);
