@@ -602,6 +602,13 @@ NoRelayCycleInv ==
 StaleMasterFencedInv ==
     \A r \in applied : r.e = r.seen /\ <<r.e, r.src>> \in elected
 
+\* A WORKING agent whose master is gone (its heartbeat no longer gets through:
+\* the master crashed, stepped down, or its relay dropped it) leaves WORKING
+\* (to PAUSED: Timeout).  Liveness, under MCElectionLive's fairness; an agent
+\* that never times out in WORKING fails it (FreezeOnLoss, MCElectionLive).
+MasterGoneLeavesWorkingProp ==
+    \A a \in Agents : (life[a] = "WORKING" /\ ~HeartbeatOK(a)) ~> life[a] # "WORKING"
+
 \* Lifecycle rules kept by the abstraction: a WORKING agent is supervised
 \* (it follows a master in its current epoch); a master does not work.
 LifecycleInv ==

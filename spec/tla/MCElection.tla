@@ -8,6 +8,8 @@
 (*                        timeouts, no pre-vote: double votes (make spec)  *)
 (*   MCElectionFull.cfg   3 agents, cuts, the PC master returning          *)
 (*                        (make spec-full)                                 *)
+(*   MCElectionRelay.cfg  2 agents, PC up, cuts PC-2 and PC-3, MaxMsgs 7:  *)
+(*                        relay cycles reachable (make spec)               *)
 (*   MCElectionSim.cfg    5 agents, everything, for -simulate              *)
 (*   MCElectionLive*.cfg  liveness under stabilisation (MCElectionLive)    *)
 (* The broken variants (BUG) have no cfg of their own: tools/spec.py runs  *)

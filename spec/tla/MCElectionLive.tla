@@ -49,6 +49,11 @@ StandOK(n) ==
 
 Stand(n) == StartElection(n) /\ StandOK(n)
 
+\* Timeout as Election has it; the broken variant FreezeOnLoss (the name of the
+\* same broken rule in AgentLogic) never times out in WORKING: it must fail
+\* MasterGoneLeavesWorkingProp (tools/spec.py refute, election_live_work).
+LiveTimeout(a) == Timeout(a) /\ (BUG = "FreezeOnLoss" => life[a] # "WORKING")
+
 \* The datagram is not a late copy of something its sender no longer means.
 Current(m) ==
     CASE m.t = "HB" -> life[m.src] = "MASTER" /\ epoch[m.src] = m.e
@@ -58,15 +63,25 @@ Current(m) ==
       [] m.t = "PREOK" -> life[m.src] \in {"PANIC", "CANDIDATE"} /\ epoch[m.src] <= m.e
       [] OTHER -> TRUE
 
+\* A command takes effect at an agent at most once per master and epoch: a copy
+\* of one already applied is what the agent's dedupe window drops (Election's
+\* commands carry no msgid).  Without it an endless stream of copies of a dead
+\* master's command keeps an agent that has lost it going WORKING -> PAUSED ->
+\* WORKING, never reaching PANIC (TLC, election_live_work).  Commands are an
+\* option of the masters (no fairness), so this only drops behaviours.
+LiveApply(a, m) ==
+    /\ ApplyCommand(a, m)
+    /\ \A r \in applied : ~(r.a = a /\ r.src = m.src /\ r.e = m.e)
+
 Deliver(a, m) ==
     /\ Current(m)
     /\ \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
        \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
        \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
-       \/ Forward(a, m) \/ ApplyCommand(a, m)
+       \/ Forward(a, m) \/ LiveApply(a, m)
 
 LiveNext ==
-    \/ \E a \in Agents : Timeout(a) \/ RequestRelay(a)
+    \/ \E a \in Agents : LiveTimeout(a) \/ RequestRelay(a)
     \/ \E n \in Nodes : Stand(n) \/ BecomeMaster(n) \/ Heartbeat(n) \/ Crash(n) \/ Restart(n)
     \/ \E s \in Nodes, a \in CmdAgents : SendCommand(s, a)
     \/ \E x, y \in Nodes : ({x, y} \in CutLinks /\ Cut(x, y)) \/ Heal(x, y)
@@ -77,10 +92,11 @@ LiveNext ==
 
 \* Weak fairness per node and kind of step (grouping all agents under one WF
 \* is too weak: one agent's steps would starve another's, and TLC finds such
-\* spurious loops at once).  Commands are off in these models.
+\* spurious loops at once).  Commands (SendCommand, ApplyCommand) are not fair: a
+\* model may send them (election_live_work), none has to.
 Fairness ==
     /\ \A a \in Agents :
-         /\ WF_vars(Timeout(a)) /\ WF_vars(RequestRelay(a))
+         /\ WF_vars(LiveTimeout(a)) /\ WF_vars(RequestRelay(a))
          /\ WF_vars(\E m \in net : Current(m) /\ OfferRelay(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ AcceptRelay(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ HandleAccept(a, m))
