@@ -52,11 +52,13 @@ Endpoints == Agents \cup {MasterEp}
 TempIdx == CHOOSE f \in [Agents -> 1..Cardinality(Agents)] :
                \A x, y \in Agents : x # y => f[x] # f[y]
 TempOf(a) == 50000 + TempIdx[a]
-\* The temporary id an agent draws when it starts again after the c-th agent
-\* crash (agent/main.cpp draws one at random): one no agent has drawn before.
-\* (Drawing the same one again is docs/spec.md "Agent crash and restart": an
-\* agent stuck in PANIC; not in these models.)
+\* Temporary ids an agent may draw when it starts again after the c-th agent
+\* crash (agent/main.cpp draws one at random): one no agent has drawn before,
+\* or the one it drew last time (a is the agent that crashed last) -- the
+\* same random draw again, which once left the agent in PANIC for ever
+\* (MasterLogic MasterSync, BUG "HeardByTemp").  RestartTempOf(a, 0) = TempOf(a).
 RestartTempOf(a, c) == 50000 + c * Cardinality(Agents) + TempIdx[a]
+RestartTemps(a, c) == {RestartTempOf(a, c - 1), RestartTempOf(a, c)}
 Mission == CHOOSE b \in Behaviours : TRUE   \* what the operator runs
 
 VARIABLES
@@ -175,12 +177,14 @@ AgentCrash(a) ==
 
 \* Agent a starts again as agent/main.cpp starts it: nothing of the lifecycle
 \* survives (the election's epoch and vote, on its SD card, are not in this
-\* spec): IDLE with a new temporary id and a new msgid counter, drawn at
-\* random -- above or below every msgid of its previous life (sess kept or
-\* reset).  It no longer was synced when the master crashed (lost).
+\* spec): IDLE with a temporary id and a new msgid counter, drawn at random --
+\* the temporary id fresh or its last one again (RestartTemps), the msgids
+\* above or below every msgid of its previous life (sess kept or reset).  It
+\* no longer was synced when the master crashed (lost).
 AgentRestart(a) ==
     /\ ag[a].state = "OFF"
-    /\ ag' = [ag EXCEPT ![a] = L!InitAgent(RestartTempOf(a, MaxAgentCrashes - budget.acrash))]
+    /\ \E t \in RestartTemps(a, MaxAgentCrashes - budget.acrash) :
+          ag' = [ag EXCEPT ![a] = L!InitAgent(t)]
     /\ \E s \in {0, sess[a]} : sess' = [sess EXCEPT ![a] = s]
     /\ lost' = [lost EXCEPT ![a] = FALSE]
     /\ UNCHANGED <<net, up, ms, budget>>

@@ -26,7 +26,7 @@ CONSTANTS
                   \*   keeps the state space finite; docs/spec.md)
     BUG           \* "none"; or one broken rule (NoPanicResync, NoReconcile,
                   \*   StaleReconcile, NoBumpNextId, PendingResend, RetryRefused, ReuseIds,
-                  \*   PongUnsynced)
+                  \*   PongUnsynced, HeardByTemp)
 
 ASSUME TDrop \in Nat \ {0} /\ MaxResends \in Nat /\ ExactMsgids \in BOOLEAN
 
@@ -132,7 +132,14 @@ Restore(st, d, beh) ==
 (* Handlers                                                                 *)
 
 \* AGENT or PANIC from announced id s.  A registered agent is heard and gets
-\* its pending datagram again; a PANIC from a synced entry's own id with a
+\* its pending datagram again -- a synced entry is heard only from its own id:
+\* an agent synced sends with that id, so AGENT or PANIC from the temporary
+\* id it announced is a late copy of its first datagrams, or the agent has
+\* restarted and drawn the same temporary id again; kept alive by it, the
+\* entry would never be dropped and the restarted agent, matched by that id
+\* and never re-synced, would stay in PANIC for ever (TLC, fleet_agent_restart:
+\* BUG "HeardByTemp"); unheard, the entry is dropped after TDrop and the agent
+\* registers anew.  A PANIC from a synced entry's own id with a
 \* msgid above every msgid heard from it (not a stale or duplicated copy)
 \* re-syncs it: a new MASTER naming that id, its queue kept (resent after
 \* the ACK).  An unknown agent gets an entry: its announced id if that is an
@@ -147,7 +154,10 @@ MasterSync(ms, m, from) ==
        THEN LET x == Entry(k)
                 resync == /\ m.type = "PANIC" /\ x.synced /\ s = x.id
                           /\ m.msgid > x.hi /\ BUG # "NoPanicResync"
-                y0 == [x EXCEPT !.quiet = 0, !.hi = Max(@, m.msgid)]
+                \* a synced entry is heard only from its own id (HeardByTemp: also from
+                \* the temporary id it announced)
+                heard == ~x.synced \/ s = x.id \/ BUG = "HeardByTemp"
+                y0 == [x EXCEPT !.quiet = IF heard THEN 0 ELSE @, !.hi = Max(@, m.msgid)]
                 y == IF resync
                      THEN [y0 EXCEPT !.synced = FALSE, !.ann = s, !.pending = TRUE,
                                      !.mid = Draw(ms, x.ep), !.resends = 0]

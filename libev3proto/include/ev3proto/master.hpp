@@ -624,8 +624,8 @@ class Master {
   bool MasterSyncOk(std::uint16_t s) const {
     return !reg_.known(s).empty() || is_assigned_id(s) || next_id_ <= kLastAssignedId;
   }
-  /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent is heard and gets its
-  /// pending datagram again; a PANIC from a synced entry's own id with a msgid above every msgid
+  /// Spec MasterSync: AGENT or PANIC from announced id s. A registered agent is heard (a synced one
+  /// only from its own id) and gets its pending datagram again; a PANIC from a synced entry's own id with a msgid above every msgid
   /// heard from it re-syncs it (new MASTER naming that id, queue kept). A new one gets an id (its
   /// own if s is an assignable id, else the next) and MASTER; an entry with the same peer is replaced.
   /// An adopted id raises next_id past it (max(next_id, s + 1)): no later agent gets an id in use.
@@ -635,7 +635,11 @@ class Master {
     if (!k.empty()) {
       for (std::uint16_t id : k) {
         RegistryEntry& e = *reg_.find(id);
-        e.heard = now_;
+        // A synced entry is heard only from its own id: AGENT / PANIC from the temporary id it
+        // announced is a late copy, or the agent restarted and drew that id again -- kept alive by
+        // it, the entry would never be dropped and the agent would stay in PANIC (TLC
+        // fleet_agent_restart, BUG HeardByTemp); unheard, it is dropped and the agent registers anew.
+        if (!e.synced || s == e.id) e.heard = now_;
         if (m.type == MsgType::PANIC && e.synced && s == e.id && m.msgid > e.last_msgid) {
           // The agent lost us while we still hold it (its PONGs were lost): sync it again, a new
           // MASTER; its queued commands follow once it ACKs, reconcile restores its desired state.
