@@ -192,7 +192,8 @@ def _agent_record(r: dict) -> dict:
     args = r.get("args", {})
     m = args.get("msg")
     return {"a": r["action"], "m": _msg(m) if m else dict(_NONE_MSG), "e": str(args.get("e", "")),
-            "p": str(args.get("p", "")), "n": int(args.get("ticks", 1)), "ch": _agent_changed(r.get("changed", {}))}
+            "p": str(args.get("p", "")), "n": int(args.get("ticks", 1)), "v": str(args.get("check", "")),
+            "ch": _agent_changed(r.get("changed", {}))}
 
 
 def temp_id_of(recs: list[dict]) -> int:
@@ -550,7 +551,7 @@ def _election_records(recs: list[dict]) -> tuple[list[dict], set[int]]:
                 m = _msg(text)
         return {"a": r["action"], "m": m, "em": em, "im": im, "cmd": str(args.get("cmd", "Ignore")),
                 "e": str(args.get("e", "")), "p": str(args.get("p", "")), "n": int(args.get("ticks", 1)),
-                "ch": _agent_changed(r.get("changed", {})), "ech": _el_changed(r.get("changed", {}))}
+                "v": str(args.get("check", "")), "ch": _agent_changed(r.get("changed", {})), "ech": _el_changed(r.get("changed", {}))}
     return [_record(recs, k, one) for k in range(len(recs))], fleet
 
 

@@ -11,7 +11,7 @@
 (***************************************************************************)
 EXTENDS Naturals, Sequences, Messages
 
-CONSTANTS Behaviours, UnknownBehaviour, ModelName, TSync, TPing, TLoss,
+CONSTANTS Behaviours, UnknownBehaviour, Refused, CheckReason, ModelName, TSync, TPing, TLoss,
           TPaused, Window, Steps, BUG,
           TempId,      \* the temporary id the agent draws at start
           AssignIds,   \* ids a master may assign it
@@ -81,7 +81,7 @@ NoTimeoutDue == ~L!TimeoutDue(ag)
 RecvMaster(m) == NoTimeoutDue /\ L!RecvMasterOk(ag, m) /\ Do("RecvMaster", <<m>>, L!RecvMaster(ag, m))
 \* Synced agent hears PONG: heartbeat.
 RecvPong(m) == NoTimeoutDue /\ L!RecvPongOk(ag, m) /\ Do("RecvPong", <<m>>, L!RecvPong(ag, m))
-\* Fresh BEHAVIOUR: ACK and load, or NOT with a reason.
+\* Fresh BEHAVIOUR: the robot's check on receipt, then ACK and load, or NOT with a reason.
 RecvBehaviour(m) == NoTimeoutDue /\ L!RecvBehaviourOk(ag, m) /\ Do("RecvBehaviour", <<m>>, L!RecvBehaviour(ag, m))
 \* Fresh START: run the behaviour from its start, or NOT.
 RecvStart(m) == NoTimeoutDue /\ L!RecvStartOk(ag, m) /\ Do("RecvStart", <<m>>, L!RecvStart(ag, m))
@@ -167,6 +167,9 @@ NoUnsupervisedMotionInv == L!Supervised(ag)
 ActedOnceInv == ~ag.dupActed
 \* A WORKING agent runs a behaviour it has loaded (START without one is refused).
 WorkingLoadedInv == ag.state = "WORKING" => ag.beh # L!NoBehaviour
+\* A loaded behaviour passed the robot's check on receipt: what the check refuses is never
+\* ACKed, so it never runs (and a refused request leaves the loaded one as it was).
+CheckedLoadedInv == ag.beh \notin Refused
 \* Only OFF is terminal: in every other state some step is enabled (an agent that
 \* freezes, e.g. never leaves WORKING when its master's heartbeat is lost, has none).
 OnlyOffTerminalInv == ag.state # "OFF" => ENABLED Next

@@ -11,8 +11,13 @@
 EXTENDS Naturals, Sequences, Messages
 
 CONSTANTS
-    Behaviours,        \* behaviours this robot can run
+    Behaviours,        \* behaviours this robot knows by name
     UnknownBehaviour,  \* a behaviour name it cannot run (stands for all others)
+    Refused,           \* requests of Behaviours the robot's check on receipt refuses: a custom
+                       \*   definition that does not parse or does not check, or needs a device
+                       \*   or an action the robot lacks (docs/behaviours.md)
+    CheckReason,       \* the reason that check gives (stands for "line 4 col 12: unknown action
+                       \*   'trun' (...)", "the robot has no gyro (...)": the robot's own words)
     ModelName,         \* robot model announced in AGENT (e.g. "A")
     TSync,             \* sync timeout: ticks in IDLE without a MASTER before PANIC
     TPing,             \* heartbeat: ticks between periodic AGENT / PING / PANIC sends
@@ -24,6 +29,8 @@ CONSTANTS
     BUG                \* "none" in every real model; names one broken rule otherwise
 
 ASSUME /\ UnknownBehaviour \notin Behaviours
+       /\ Refused \subseteq Behaviours
+       /\ CheckReason \notin {"unknown behaviour", "missing device", "no behaviour", "wrong state"}
        /\ TSync \in Nat \ {0}
        /\ TPing \in Nat \ {0}
        /\ TLoss \in Nat \ {0}
@@ -48,7 +55,7 @@ Warnings == {"OBSTACLE_DETECTED", "PROXIMITY_ALERT"}
 \* Why an action failed, as the robot says it in ACTION_ERR ("outB stalled at -913 of -2046
 \* counts"): any text; the protocol does nothing with it, so one stands for all.
 Failures == {"stalled"}
-Reasons  == {"unknown behaviour", "missing device", "no behaviour", "wrong state"}
+Reasons  == {"unknown behaviour", "missing device", "no behaviour", "wrong state", CheckReason}
 
 \* Names of all handlers; lastAction.name is one of these.
 RecvNames == {"RecvMaster", "RecvPong", "RecvBehaviour", "RecvStart", "RecvStop",
@@ -162,6 +169,10 @@ RecvPong(a, m) == [ag |-> [a EXCEPT !.silence = 0], out |-> <<>>]
 \* BEHAVIOUR(name, ...): ACK and load it if it can be run, else NOT.
 \* In WORKING the new behaviour replaces the running one and starts from its
 \* first action; in PAUSED it replaces it (RESUME/START then runs it).
+\* The robot's check (parse, arguments, the checker, on the robot's model and
+\* devices) runs on receipt, before the answer: a request it refuses gets NOT
+\* with the check's own reason and changes nothing else (the loaded behaviour,
+\* if any, stays loaded and running).
 RecvBehaviourOk(a, m) == FromMaster(a, m) /\ m.type = "BEHAVIOUR" /\ Fresh(a, m)
 RecvBehaviour(a, m) ==
     LET bh == m.args[1] IN
@@ -169,6 +180,7 @@ RecvBehaviour(a, m) ==
     ELSE IF bh \notin Behaviours /\ BUG # "AcceptUnknown"
          THEN Refuse(a, m, "unknown behaviour")
     ELSE IF ~a.devOk THEN Refuse(a, m, "missing device")
+    ELSE IF bh \in Refused /\ BUG # "NoCheckOnReceipt" THEN Refuse(a, m, CheckReason)
     ELSE LET b0 == [a EXCEPT !.beh = bh, !.step = 0, !.wait = "NONE"]
              b  == IF a.state = "WORKING" THEN [b0 EXCEPT !.motors = "ON"] ELSE b0
          IN Answer(a, m, b, Ack(a, m))

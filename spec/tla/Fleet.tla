@@ -42,7 +42,9 @@ CONSTANTS Behaviours, UnknownBehaviour, ModelName, TSync, TPing, TLoss,
           MaxAgentCrashes, \* agent crashes, in all
           MaxSuspect   \* false suspicions (a timeout while the master is alive), in all
 
-L == INSTANCE AgentLogic
+\* Every behaviour the operator runs passes the robots' check on receipt (its refusal is
+\* MCAgent's: Agent.tla).
+L == INSTANCE AgentLogic WITH Refused <- {}, CheckReason <- "refused by the check"
 M == INSTANCE MasterLogic WITH ExactMsgids <- FALSE
 
 MasterEp == 0                      \* endpoint (address) of the master

@@ -4,7 +4,10 @@
 (* diagram.  Bounds live here, not in Agent.tla.                           *)
 EXTENDS Agent
 
-MCBehaviours == {"explore"}
+\* "broken" stands for every request the robot's check refuses (a custom definition that does
+\* not parse or check, one needing a device or an action the robot lacks).
+MCBehaviours == {"explore", "broken"}
+MCRefused    == {"broken"}
 MCAssignIds  == {2}
 MCMsgIds     == {1, 2}
 MCEventPorts == {"in1"}

@@ -3,6 +3,7 @@
 EXTENDS AgentEnv
 
 MCBehaviours == {"explore"}
+MCRefused    == {}      \* the check on receipt: MCAgent
 MCAssignIds  == {2}
 MCMsgIds     == {1, 2}
 MCPeerSrcs   == {9, 50001}

@@ -11,6 +11,8 @@
 (*    e  |-> ActionInterrupted's warning, RobotEvent's event ("" otherwise),*)
 (*    p  |-> DeviceUnplugged's, DevicePlugged's, RobotEvent's port ("" else), *)
 (*    n  |-> Tick: the number of consecutive spec Ticks it stands for,     *)
+(*    v  |-> RecvBehaviour: the reason the robot's check on receipt        *)
+(*           refused the request with ("" if it accepted or was not asked),*)
 (*    ch |-> the variables the action changed, with their new values]      *)
 (* The record names the handler; the handler must be the one AgentLogic    *)
 (* dispatches to, every variable in ch must have that value after it and   *)
@@ -22,7 +24,13 @@ CONSTANTS
     Behaviours, ModelName, TSync, TPing, TLoss, TPaused, Window, Steps,  \* AgentLogic's
     TempId       \* the agent's temporary id (before a master assigns one)
 
-L == INSTANCE AgentLogic WITH UnknownBehaviour <- "?unknown", BUG <- "none"
+L == INSTANCE AgentLogic WITH UnknownBehaviour <- "?unknown", BUG <- "none", Refused <- {},
+                              CheckReason <- "?check"
+\* AgentLogic as the robot's check on receipt answered one BEHAVIOUR: v is the reason it refused the
+\* request with (the record's v), "" when it accepted it or was not asked.
+LV(v) == INSTANCE AgentLogic WITH UnknownBehaviour <- "?unknown", BUG <- "none",
+                                 Refused <- IF v = "" THEN {} ELSE Behaviours,
+                                 CheckReason <- IF v = "" THEN "?check" ELSE v
 
 \* AgentLogic's variables a record may list in ch (dupActed is never written).
 AgentVars == {"state", "led", "id", "beh", "step", "wait", "motors", "devOk", "silence", "clk", "win"}
@@ -36,11 +44,11 @@ Adv(a, k) == IF k = 0 THEN a
              ELSE [a EXCEPT !.clk = (a.clk + k) % TPing,
                             !.silence = IF a.state = "PANIC" THEN 0 ELSE a.silence + k]
 
-\* The receive handler named h.
-Recv(h, a, m) ==
+\* The receive handler named h (v: the verdict of the robot's check, for RecvBehaviour).
+Recv(h, a, m, v) ==
     CASE h = "RecvMaster"    -> L!RecvMaster(a, m)
       [] h = "RecvPong"      -> L!RecvPong(a, m)
-      [] h = "RecvBehaviour" -> L!RecvBehaviour(a, m)
+      [] h = "RecvBehaviour" -> LV(v)!RecvBehaviour(a, m)
       [] h = "RecvStart"     -> L!RecvStart(a, m)
       [] h = "RecvStop"      -> L!RecvStop(a, m)
       [] h = "RecvPause"     -> L!RecvPause(a, m)
@@ -97,7 +105,7 @@ AgentStep(r, s) ==
        IF L!TickOk(a) /\ L!TickOk(Adv(a, r.n - 1)) THEN IfFits(r, a, L!Tick(Adv(a, r.n - 1))) ELSE {}
     ELSE IF r.m.type # "NONE" THEN
        \* a datagram: the handler AgentLogic dispatches it to must be the record's
-       IF a.state # "OFF" /\ L!Handler(a, r.m) = r.a THEN IfFits(r, a, Recv(r.a, a, r.m)) ELSE {}
+       IF a.state # "OFF" /\ L!Handler(a, r.m) = r.a THEN IfFits(r, a, Recv(r.a, a, r.m, r.v)) ELSE {}
     ELSE IF IntOk(r, a) THEN IfFits(r, a, Internal(r, a))
     ELSE {}
 ===============================================================================

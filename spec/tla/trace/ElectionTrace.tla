@@ -62,7 +62,7 @@ Swap(x, c) == IF x = c THEN L!MasterId ELSE IF x = L!MasterId THEN c ELSE x
 SwapMsg(m, c) == [m EXCEPT !.src = Swap(@, c)]
 SwapAg(a, c) == [a EXCEPT !.win = [i \in 1..Len(a.win) |-> [a.win[i] EXCEPT !.src = Swap(@, c)]]]
 Handled(a, m, c) == L!Handler(SwapAg(a, c), SwapMsg(m, c))
-Received(h, a, m, c) == SwapAg(Recv(h, SwapAg(a, c), SwapMsg(m, c)).ag, c)
+Received(h, a, m, c, v) == SwapAg(Recv(h, SwapAg(a, c), SwapMsg(m, c), v).ag, c)
 \* A bare command or MASTER counts as epoch 1: past epoch 1 it is fenced (ignored, EPOCH_STALE).
 BareFenced(s, a, m) == s.epoch > 1 /\ L!Answered(m) /\ L!AddressedTo(a, m)
 \* The lifecycle after Election step s -> s2 of agent a: the state follows life; a WORKING agent paused
@@ -130,7 +130,7 @@ ElectionStep(r, s) ==
        \* (c seen as the master); a MASTER syncs a masterless agent in e, anything else passes the
        \* fence (Election's Obeys: c is the master it follows in e, its highest epoch).
        LET c == r.em.src
-           a2 == Received(r.cmd, ag, r.im, c)
+           a2 == Received(r.cmd, ag, r.im, c, r.v)
        IN IF ~(/\ ag.state # "OFF" /\ r.em.t = "CMD" /\ r.im.type # "NONE" /\ r.im.src = c
                /\ Handled(ag, r.im, c) = r.cmd) THEN {}
           ELSE IF r.im.type = "MASTER"
@@ -150,7 +150,7 @@ ElectionStep(r, s) ==
        IF ag.state = "OFF" THEN {}
        ELSE IF BareFenced(el, ag, r.m) THEN (IF r.a = "Ignore" THEN To(r, s, ag, el) ELSE {})
        ELSE IF Handled(ag, r.m, Cur(el)) # r.a THEN {}
-       ELSE LET a2 == Received(r.a, ag, r.m, Cur(el)) IN
+       ELSE LET a2 == Received(r.a, ag, r.m, Cur(el), r.v) IN
             To(r, s, a2, IF r.a = "RecvMaster" THEN Synced(el, Cur(el), 1, a2.state) ELSE Mirror(el, a2))
     ELSE IF ~IntOk(r, ag) THEN {}
     ELSE LET a2 == Internal(r, ag).ag IN
