@@ -70,8 +70,12 @@ class Driver {
     model_ = in["model"].str("A");
     beh_names_.clear();
     behs_.clear();
+    refusals_.clear();
     if (in["behaviours"].kind == Json::Kind::array) {
-      for (const Json& b : in["behaviours"].a) beh_names_.push_back(b["name"].str());
+      for (const Json& b : in["behaviours"].a) {
+        beh_names_.push_back(b["name"].str());
+        if (b.has("refuse")) refusals_[b["name"].str()] = b["refuse"].str();
+      }
       std::size_t i = 0;
       for (const Json& b : in["behaviours"].a)
         behs_.push_back({beh_names_[i++], static_cast<std::uint32_t>(b["devices"].num(0))});
@@ -80,6 +84,7 @@ class Driver {
       behs_.push_back({beh_names_[0], 0});
     }
     c.caps = {model_, behs_.data(), behs_.size(), static_cast<std::uint32_t>(in["devices"].num(1))};
+    c.check = check();
     if (in.has("temp_id")) draw_temp_ = in["temp_id"].num();
     if (in.has("first_msgid")) draw_msgid_ = in["first_msgid"].num();
     c.temp_id = static_cast<std::uint16_t>(draw_temp_);
@@ -237,6 +242,22 @@ class Driver {
     return s + "]";
   }
 
+  /// The robot's check on receipt (spec Refused, CheckReason): the behaviours configured with
+  /// "refuse" are refused with that reason, every other one passes.
+  ev3proto::BehaviourCheck check() {
+    ev3proto::BehaviourCheck c;
+    c.ctx = &refusals_;
+    c.fn = [](void* ctx, std::string_view name, const std::string_view*, std::size_t,
+              ev3proto::CheckReason& why) noexcept {
+      const auto& table = *static_cast<const std::map<std::string, std::string, std::less<>>*>(ctx);
+      const auto it = table.find(name);
+      if (it == table.end()) return true;
+      why.set(it->second);
+      return false;
+    };
+    return c;
+  }
+
   std::FILE* trace_ = nullptr;  // --trace FILE
   std::vector<std::string> actions_;  // this input's action objects
   AgentSink sink_;
@@ -245,6 +266,7 @@ class Driver {
   std::string model_ = "A";
   std::vector<std::string> beh_names_;
   std::vector<ev3proto::BehaviourSpec> behs_;
+  std::map<std::string, std::string, std::less<>> refusals_;  // behaviour -> the check's reason
   long long draw_temp_ = 50000, draw_msgid_ = 1;
   unsigned long long seq_ = 0;
 };

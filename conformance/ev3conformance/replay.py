@@ -58,7 +58,9 @@ def agent_config(c: dict) -> dict:
             "timers": {"sync": c["TSync"], "heartbeat": c["TPing"], "loss": c["TLoss"],
                        "paused": c["TPaused"]},
             "model": c["ModelName"],
-            "behaviours": [{"name": b, "devices": 1} for b in sorted(c["Behaviours"])],
+            # The robot's check on receipt (spec Refused): the driver refuses those with CheckReason.
+            "behaviours": [{"name": b, "devices": 1} | ({"refuse": c["CheckReason"]} if b in c.get("Refused", ()) else {})
+                           for b in sorted(c["Behaviours"])],
             "devices": 1, "window": c["Window"], "temp_id": c["TempId"], "first_msgid": 1, "now": 0}
 
 

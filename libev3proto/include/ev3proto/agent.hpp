@@ -32,6 +32,49 @@ struct BehaviourSpec {
   std::uint32_t devices = 0;  ///< Device bits it needs (see Capabilities::devices).
 };
 
+/// The robot's own reason for refusing a BEHAVIOUR request (its check on receipt), carried in NOT:
+/// "line 4 col 12: unknown action 'trun' (...)". Bounded (no heap): a longer reason keeps its first
+/// kMax - 3 bytes (never half a UTF-8 character) and ends with "...", so that the NOT, escaped, fits
+/// the agent's datagram.
+struct CheckReason {
+  static constexpr std::size_t kMax = 120; ///< bytes kept
+  char text[kMax] = {};
+  std::uint8_t len = 0;
+  /// The reason.
+  std::string_view view() const noexcept { return std::string_view(text, len); }
+  /// Replaces the reason with @p s (cut as above when longer than kMax).
+  void set(std::string_view s) noexcept {
+    std::size_t n = s.size();
+    const bool cut = n > kMax;
+    if (cut) {
+      n = kMax - 3;
+      while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0u) == 0x80u) --n;  // s[n] starts a character
+    }
+    if (n != 0) std::memcpy(text, s.data(), n);
+    if (cut) {
+      std::memcpy(text + n, "...", 3);
+      n += 3;
+    }
+    len = static_cast<std::uint8_t>(n);
+  }
+};
+
+/// The robot's check of a BEHAVIOUR request on receipt, before the agent answers (spec
+/// AgentLogic RecvBehaviour, Refused): the name and the params after it as they came; true to
+/// accept, false to refuse with the reason written in @p why. The robot program joins it to the
+/// robot runtime (robot_link.hpp: parse, arguments, checker on the robot's model). No I/O, no heap.
+struct BehaviourCheck {
+  using Fn = bool (*)(void* ctx, std::string_view name, const std::string_view* params, std::size_t count,
+                      CheckReason& why) noexcept;
+  Fn fn = nullptr;     ///< nullptr: every behaviour of the table passes (no robot behind the core)
+  void* ctx = nullptr; ///< passed to fn (the runtime); must outlive the agent
+  /// The verdict on @p name with @p params: true when there is no check or it accepts.
+  bool operator()(std::string_view name, const std::string_view* params, std::size_t count,
+                  CheckReason& why) const noexcept {
+    return fn == nullptr || fn(ctx, name, params, count, why);
+  }
+};
+
 /// What a robot can do, fixed at construction: its model, its behaviours, its devices.
 struct Capabilities {
   std::string_view model;                   ///< Model announced in AGENT ("A").
@@ -43,6 +86,7 @@ struct Capabilities {
 /// Construction parameters of an Agent.
 struct AgentConfig {
   Capabilities caps;             ///< Behaviours and devices (the table must outlive the agent).
+  BehaviourCheck check;          ///< The robot's check of a BEHAVIOUR on receipt (none: all pass).
   Timers timers;                 ///< Deadlines (timers.hpp); the agent uses sync, heartbeat, loss,
                                  ///< paused, relay_retry, backoff, backoff_step, candidate.
   std::uint16_t temp_id = 50000; ///< Temporary id drawn at random by the caller (50000..65535).
@@ -57,7 +101,10 @@ struct StoredAnswer {
   std::uint16_t src = 0;                      ///< Sender id the answer was sent with.
   std::uint32_t ref = 0;                      ///< The answered msgid.
   bool ack = true;                            ///< ACK (true) or NOT (false).
-  Refusal reason = Refusal::wrong_state;      ///< NOT's reason.
+  Refusal reason = Refusal::wrong_state;      ///< NOT's reason (unless the check refused).
+  CheckReason check;                          ///< The robot's check refused: NOT's reason.
+  /// NOT's reason as sent: the check's words, or the spelling of @c reason.
+  std::string_view reason_text() const noexcept { return check.len != 0 ? check.view() : to_string(reason); }
 };
 
 /// A datagram the agent wants sent. @c bytes points into the agent and stays valid until the next
@@ -131,6 +178,8 @@ struct AgentTraceRecord {
   std::string_view msg;         ///< Receive handlers: the datagram as received.
   std::string_view event;       ///< ActionInterrupted: the warning name; RobotEvent: the event's.
   std::string_view port;        ///< DeviceUnplugged, DevicePlugged, RobotEvent: the port.
+  std::string_view check;       ///< RecvBehaviour (also inside ApplyCommand): the reason the robot's
+                                ///< check refused the request with ("" if it accepted or was not asked).
   Millis ticks = 0;             ///< Tick: number of consecutive spec Ticks this record stands for.
   Millis now = 0;               ///< Time after the action.
   Action cmd = Action::Ignore;  ///< ApplyCommand: the receive handler that took the inner datagram.
@@ -535,6 +584,7 @@ class Agent {
       Run(v, m, inner, from);
     }
     record(v.action, before, bytes, {}, 0, v.inner);
+    refused_now_ = false;
     if (BecomeMasterOk()) traced(Action::BecomeMaster, [this] { BecomeMaster(); });
     h.action = v.action;
     h.why = v.why;
@@ -873,12 +923,14 @@ class Agent {
 
   /// Spec Answer(a, m, b, ans) after the handler changed the state: remember the answer, reset the
   /// silence, send it.
-  void Answer(const Message& m, bool ack, Refusal reason = Refusal::wrong_state) noexcept {
+  void Answer(const Message& m, bool ack, Refusal reason = Refusal::wrong_state,
+              const CheckReason* check = nullptr) noexcept {
     StoredAnswer a;
     a.src = id_;
     a.ref = m.msgid;
     a.ack = ack;
     a.reason = reason;
+    if (check != nullptr) a.check = *check;
     win_.insert(m.sender, m.msgid, a);
     ++win_rev_;
     hear();
@@ -893,7 +945,7 @@ class Agent {
       const std::string_view p[1] = {ref};
       emit_from(a.src, Dest::master, master_id(), MsgType::ACK, p, 1);
     } else {
-      const std::string_view p[2] = {ref, to_string(a.reason)};
+      const std::string_view p[2] = {ref, a.reason_text()};
       emit_from(a.src, Dest::master, master_id(), MsgType::NOT, p, 2);
     }
   }
@@ -925,11 +977,25 @@ class Agent {
   /// Spec RecvPong: the master is heard.
   void RecvPong(const Message&) noexcept { hear(); }
 
-  /// Spec RecvBehaviour: ACK and load it if it can be run, else NOT with the reason.
+  /// Spec RecvBehaviour: ACK and load it if it can be run, else NOT with the reason. The robot's
+  /// check (AgentConfig::check) runs on receipt, before the answer: a request it refuses gets NOT
+  /// with its reason and changes nothing else (spec Refused, CheckReason).
   void RecvBehaviour(const Message& m) noexcept {
     const BehaviourSpec* b = find_behaviour(m.param(0));
     if (b == nullptr || !fits(m)) return Refuse(m, Refusal::unknown_behaviour);
     if (!dev_ok() || (b->devices & ~plugged_) != 0) return Refuse(m, Refusal::missing_device);
+    {
+      std::string_view params[kMaxArgs];
+      const std::size_t n = m.param_count() - 1;
+      for (std::size_t i = 0; i < n; ++i) params[i] = m.param(i + 1);
+      CheckReason& why = refused_;
+      why = CheckReason{};
+      if (!cfg_.check(m.param(0), params, n, why)) {
+        if (why.len == 0) why.set("refused by the robot's check");
+        refused_now_ = true;  // the step's trace record carries the verdict
+        return Answer(m, false, Refusal::unknown_behaviour, &why);
+      }
+    }
     if (state_ == State::PAUSED) Stopped();  // the paused run is replaced (wait, motors as spec)
     load(m);
     step_ = 0;
@@ -1475,6 +1541,7 @@ class Agent {
       r.msg = msg;
       r.event = event;
       r.port = port;
+      if (refused_now_) r.check = refused_.view();
       r.ticks = ticks;
       r.now = now_;
       r.cmd = cmd;
@@ -1517,6 +1584,8 @@ class Agent {
   Durable durable_;               // durable() when durable_rev_ last changed
   std::uint32_t durable_rev_ = 0;
   Millis stand_at_ = kNever;      // the back-off's end (the stand timer, once a pre-vote quorum holds)
+  CheckReason refused_;           // the robot's check refused the BEHAVIOUR of this step with this
+  bool refused_now_ = false;      // ... (for its trace record; reset after it)
   Message rx_;                    // the datagram handle_datagram() decoded
   Message inner_;                 // the datagram inside a RELAY / EPOCH_CMD
 };

@@ -49,7 +49,7 @@ std::string window_json(const W& win) {
          ",\"ref\":" + std::to_string(a.ref);
     if (!a.ack) {
       s += ",\"reason\":";
-      json_string(s, to_string(a.reason));
+      json_string(s, a.reason_text());
     }
     s += "}}";
   });
@@ -81,6 +81,10 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
   if (!r.port.empty()) {
     json_key(s, "p", afirst);
     json_string(s, r.port);
+  }
+  if (!r.check.empty()) {
+    json_key(s, "check", afirst);
+    json_string(s, r.check);
   }
   if (r.action == Action::Tick) {
     json_key(s, "ticks", afirst);

@@ -11,6 +11,9 @@
 //   event obstacle|proximity|action_ok|action_failed [REASON...]|battery_low|unplug BITS PORT|plug BITS PORT
 //   event robot NAME PORT                        a robot event (RobotEvent: OBSTACLE_DETECTED, ...)
 //   event sensor PORT MODE VALUE...
+//   check NAME REASON...                         from now on the robot's check on receipt refuses
+//                                                BEHAVIOUR NAME with REASON (`check NAME ok`: accepts
+//                                                it again); without one every behaviour passes
 //   show                                         the election variables
 //   trace                                        print the NDJSON trace lines of this case
 // Outputs: each spec action the agent took, by name (`Ignore: REASON` when a datagram was not
@@ -20,6 +23,7 @@
 // datagram no action saw: `ignored: REASON`. Last: `deadline T` (or `deadline none`).
 #pragma once
 
+#include <map>
 #include <memory>
 #include <sstream>
 #include <string>
@@ -114,6 +118,12 @@ class AgentDriver {
       event(w);
     } else if (w[0] == "trace") {
       show_trace = true;
+    } else if (w[0] == "check" && w.size() >= 3) {
+      const std::string reason = line.substr(line.find(w[1], line.find("check") + 5) + w[1].size() + 1);
+      if (reason == "ok")
+        refusals_.erase(w[1]);
+      else
+        refusals_[w[1]] = reason;
     } else if (w[0] == "show") {
       lines_.push_back(show());
     } else {
@@ -190,6 +200,15 @@ class AgentDriver {
     }
     for (std::size_t i = 0; i < behs_.size(); ++i) behs_[i].name = names_[i];
     c.caps = Capabilities{model_, behs_.data(), behs_.size(), devices};
+    refusals_.clear();
+    c.check.ctx = &refusals_;
+    c.check.fn = [](void* ctx, std::string_view name, const std::string_view*, std::size_t, CheckReason& why) noexcept {
+      const auto& table = *static_cast<const std::map<std::string, std::string, std::less<>>*>(ctx);
+      const auto it = table.find(name);
+      if (it == table.end()) return true;
+      why.set(it->second);
+      return false;
+    };
     now_ = at;
     agent_ = std::make_unique<TracedAgent>(c, now_, &trace_);
     for (auto& l : drain()) lines_.push_back(std::move(l));
@@ -268,6 +287,7 @@ class AgentDriver {
   std::string model_;
   std::vector<std::string> names_;
   std::vector<BehaviourSpec> behs_;
+  std::map<std::string, std::string, std::less<>> refusals_;  // the robot's check: behaviour -> reason
   std::vector<std::string> lines_;
 };
 
