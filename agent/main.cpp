@@ -145,6 +145,7 @@ class Program {
     link_.emplace(robot::announced_devices(devices_.ev3dev_tree()));
     ev3proto::AgentConfig cfg;
     cfg.caps = {opt_.model, kModelABehaviours, std::size(kModelABehaviours), link_->announced()};
+    cfg.check = robot::behaviour_check(*rt_);
     cfg.timers = opt_.timers;
     const std::uint64_t r = random_u64();
     cfg.temp_id = static_cast<std::uint16_t>(ev3proto::kFirstTempId + r % 15536u);

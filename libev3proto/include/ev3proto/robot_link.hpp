@@ -23,6 +23,11 @@
 ///                    tells the master (EVENT DEVICE_DISCONNECTED) and refuses BEHAVIOUR ("missing
 ///                    device", the spec's devOk) until all are back. Before that there is no master
 ///                    to tell, and no BEHAVIOUR can come.
+///  the check         the agent core asks the runtime about every BEHAVIOUR before it answers
+///                    (behaviour_check(): AgentConfig::check -> Runtime::check_behaviour): a
+///                    request that does not parse or check, or needs a device or an action model A
+///                    lacks, gets NOT with the runtime's reason (`line 4 col 12: unknown action
+///                    'trun' (...)`); the START that follows an ACK runs what was checked.
 ///
 /// settle() runs both directions until neither has anything left: a call into the node can give
 /// a control for the runtime (action_interrupted pauses it), a call into the runtime a result for
@@ -42,6 +47,22 @@ namespace ev3proto::robot {
 /// device layer found ev3dev's device classes: a brick, or ev3-sim), none elsewhere (a PC without
 /// ev3dev: only behaviours that need no device, `wait`, can run).
 constexpr std::uint32_t announced_devices(bool ev3dev_tree) noexcept { return ev3dev_tree ? kModelADevices : 0; }
+
+/// The robot's check of a BEHAVIOUR on receipt, for the agent core (AgentConfig::check):
+/// Runtime::check_behaviour() of @p rt, its reason cut to CheckReason's bound. @p rt must outlive
+/// the node.
+inline BehaviourCheck behaviour_check(Runtime& rt) noexcept {
+  BehaviourCheck c;
+  c.ctx = &rt;
+  c.fn = [](void* ctx, std::string_view name, const std::string_view* params, std::size_t count,
+            CheckReason& why) noexcept {
+    Reason r;
+    const bool ok = static_cast<Runtime*>(ctx)->check_behaviour(name, params, count, r);
+    if (!ok) why.set(r.view());
+    return ok;
+  };
+  return c;
+}
 
 /// What the link handed on, for the program's log.
 struct LinkNote {

@@ -2,7 +2,7 @@
 // what the agent announces, the devices missing at start, a behaviour control reaching the runtime
 // and its result reaching the master, a bad argument failing, BATTERY_LOW reaching the master and
 // switching both off; the robot's events reaching the master as EVENT(name, port), and an obstacle
-// that interrupts the drive as ACTION_INTERR only.
+// that interrupts the drive as ACTION_INTERR only; the robot's check of a BEHAVIOUR on receipt.
 #include <gtest/gtest.h>
 
 #include <string>
@@ -186,6 +186,59 @@ TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
   out.clear();
   settle(710);
   EXPECT_TRUE(has(out, "ACTION_ERR")) << ::testing::PrintToString(out);
+}
+
+TEST(RobotLink, TheRobotChecksABehaviourOnReceiptAndNotRefusesItWithItsReason) {
+  static constexpr BehaviourSpec kCustom[] = {{"custom", 0}};
+  robot::Runtime rt(robot::RuntimeConfig{}, 0);
+  Node<>::Config cfg = Rig::make_config(false);
+  cfg.agent.caps = Capabilities{"A", kCustom, 1, 0};
+  cfg.agent.check = robot::behaviour_check(rt);
+  Node<> node(cfg, 0);
+  robot::RobotLink<Node<>> link(cfg.agent.caps.devices);
+  std::vector<std::string> out, controls;
+  auto settle = [&](Millis now) {
+    link.settle(
+        node, rt, now, [](const NodeEvent&) {}, [&] { for (robot::Write w; rt.poll_write(w);) {} },
+        [&](const robot::LinkNote& n) {
+          if (n.kind == robot::LinkNote::Kind::control) controls.push_back(std::string(to_string(n.control)));
+        });
+    NodeTransmit t;
+    while (node.poll_transmit(t)) out.push_back(ev3test::symbolic(t.bytes));
+  };
+  auto recv = [&](const std::string& d, Millis now) {
+    out.clear();
+    node.handle_datagram(d, 1, now);
+    settle(now);
+    return out;
+  };
+  recv("1:7:1:2:50001", 10);
+  // Does not parse: NOT with the parser's place and words; nothing reaches the runtime.
+  EXPECT_EQ(recv("1:7:2:7:custom:behaviour bad;state a = trun 90 -> end", 20),
+            std::vector<std::string>{"7->1 NOT #2 2 \"line 1 col 25: unknown action 'trun' (actions: run, drive, "
+                                     "turn, stop, pause, wait, repeat)\""});
+  // Needs a device model A lacks: NOT naming it.
+  EXPECT_EQ(recv("1:7:3:7:custom:behaviour g;state a = pause 1s -> a;when gyro > 90 -> end", 30),
+            std::vector<std::string>{"7->1 NOT #3 3 \"line 1 col 42: the robot has no gyro sensor (when gyro needs it)\""});
+  // A BEHAVIOUR argument out of the definition's params: refused too.
+  EXPECT_EQ(recv("1:7:4:7:custom:behaviour w;state a = wait 1s -> end:speed=3", 40),
+            std::vector<std::string>{"7->1 NOT #4 4 \"argument 'speed=3': unknown param 'speed' (behaviour w has no params)\""});
+  EXPECT_EQ(recv("1:7:5:8", 50), std::vector<std::string>{"7->1 NOT #5 5 \"no behaviour\""});
+  EXPECT_TRUE(controls.empty()) << ::testing::PrintToString(controls);
+  // Checks: ACK, and START runs what was checked (one ACTION_OK per finished action).
+  EXPECT_EQ(recv("1:7:6:7:custom:behaviour ok;state a = wait 100ms -> end", 60), std::vector<std::string>{"7->1 ACK #6 6"});
+  recv("1:7:7:8", 70);
+  EXPECT_EQ(controls, std::vector<std::string>{"start"});
+  std::vector<std::string> all;
+  for (Millis t = 80; t <= 300; t += 10) {
+    if (t >= rt.next_deadline()) rt.tick(t);
+    node.advance(t);
+    out.clear();
+    settle(t);
+    all.insert(all.end(), out.begin(), out.end());
+  }
+  EXPECT_TRUE(has(all, "ACTION_OK")) << ::testing::PrintToString(all);
+  EXPECT_FALSE(has(all, "ACTION_ERR")) << ::testing::PrintToString(all);
 }
 
 /// Model A plugged on its default ports (the runtime's DEVICE_CONNECTED events at @p now).

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from ev3net import HB, LOSS, PAUSED, Program, free_ports, read_status, wait_until
+from ev3net import HB, LOSS, PAUSED, Program, T, free_ports, read_status, wait_until
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
 from ev3sim_proc import Sim, Sims, cannot_run  # noqa: E402
@@ -285,6 +285,33 @@ def test_normal_events_reach_the_master_with_their_port(sim_factory, fleet, agen
     fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED in3", 4)
     out = fleet.master.stdout()
     assert out.count("EVENT OBSTACLE_DETECTED") == 1, out  # one press, one report
+
+
+def test_a_behaviour_the_robot_cannot_run_is_refused_on_receipt(sim_factory, start_agent, tm):
+    """The robot checks a BEHAVIOUR on receipt, before it answers (issue 16; spec RecvBehaviour,
+    Refused). Sent straight from a test master (no console check): a custom definition that does not
+    parse gets NOT with `line L col C: ...`, one with an unknown action NOT naming it, one needing
+    the gyro (model A has none) NOT naming the device, a built-in with a bad argument NOT naming the
+    argument. Nothing was loaded (START: "no behaviour") and nothing moved; a good definition is
+    ACKed and runs (its ACTION_OK)."""
+    sim = sim_factory(OPEN)
+    start_agent("--sysfs-root", str(sim.root()))
+    tm.sync(2)
+    why = tm.refused(2, "BEHAVIOUR", "custom", "behaviour x\nparam speed = 200\nstate a = run $speed ->\n").decode()
+    assert re.fullmatch(r"line 3 col \d+: .+", why), why
+    why = tm.refused(2, "BEHAVIOUR", "custom", "behaviour spin\nstate turning = trun 90 speed=200 -> turning\n")
+    assert why.decode().startswith("line 2 col 17: unknown action 'trun'"), why
+    why = tm.refused(2, "BEHAVIOUR", "custom", "behaviour g\nstate a = pause 1s -> a\nwhen gyro > 90 -> end\n")
+    assert why == b"line 3 col 6: the robot has no gyro sensor (when gyro needs it)", why
+    why = tm.refused(2, "BEHAVIOUR", "drive", "speed=fast")
+    assert b"speed=fast" in why, why
+    assert tm.refused(2, "START") == b"no behaviour"
+    assert stopped(sim)
+    tm.ack(2, "BEHAVIOUR", "custom", "behaviour w\nstate a = wait 200ms -> end\n")
+    mark = tm.mark()
+    tm.ack(2, "START")
+    tm.wait_for(lambda m: m.sender == 2 and m.type == T["ACTION_OK"], 3, "ACTION_OK of the checked custom", mark)
+    assert not [m for _, m, _ in tm.received(mark) if m.type == T["ACTION_ERR"]]
 
 
 def test_armel_agent_drives_the_simulated_robot(sim_factory, fleet):
