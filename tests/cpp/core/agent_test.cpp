@@ -352,6 +352,21 @@ TEST(Timers, DefaultsAndSpecMapping) {
   EXPECT_EQ(to_string(Timer::resend), "resend");
 }
 
+TEST(CheckReason, KeepsAShortReasonAndCutsALongOneAtACharacterWithDots) {
+  CheckReason r;
+  r.set("line 4 col 12: unknown action 'trun'");
+  EXPECT_EQ(r.view(), "line 4 col 12: unknown action 'trun'");
+  const std::string exact(CheckReason::kMax, 'x');
+  r.set(exact);
+  EXPECT_EQ(r.view(), exact);
+  // 116 ASCII bytes, then "é" (2 bytes) across the cut at 117: the whole character goes.
+  const std::string text = std::string(116, 'a') + "\xC3\xA9" + std::string(20, 'b');
+  r.set(text);
+  EXPECT_EQ(r.view(), std::string(116, 'a') + "...");
+  r.set("");
+  EXPECT_EQ(r.view(), "");
+}
+
 TEST(Names, ActionAndEnumSpellings) {
   EXPECT_EQ(to_string(Action::RecvDuplicate), "RecvDuplicate");
   EXPECT_EQ(to_string(Action::MasterTick), "MasterTick");
