@@ -33,6 +33,9 @@ VARIABLES
 vars == <<ms, out, lastAction>>
 
 TempOf(e) == 50000 + e
+\* The words of a robot's check on receipt refusing a BEHAVIOUR (AgentLogic CheckReason): any
+\* reason but the agent's fixed ones.
+CheckRefusal == "line 1 col 7: unknown action 'trun'"
 States == {"ACTIVE", "WORKING", "PAUSED"}
 \* Operator commands: those of OpTypes (BEHAVIOUR with each name).
 OpCmds == {M!Cmd("BEHAVIOUR", b) : b \in Behaviours}
@@ -51,7 +54,7 @@ EnvMsgs(e) ==
          {Msg(x.id, Broadcast, i, "PANIC", 0, <<>>) : i \in MsgIds}
     \cup {Msg(x.id, MasterId, i, "PING", 0, <<s>>) : s \in States, i \in MsgIds}
     \cup {Msg(x.id, MasterId, 1, "ACK", r, <<>>) : r \in {x.mid, 0}}
-    \cup {Msg(x.id, MasterId, 1, "NOT", x.mid, <<r>>) : r \in {"wrong state", "missing device"}}
+    \cup {Msg(x.id, MasterId, 1, "NOT", x.mid, <<r>>) : r \in {"wrong state", "missing device", CheckRefusal}}
     \cup {Msg(x.id, MasterId, 1, "ACTION_OK", 0, <<>>)}
        : x \in {y \in ms.reg : y.ep = e}}
   ELSE {Msg(TempOf(e), Broadcast, 1, "AGENT", 0, <<"A">>)}
@@ -128,13 +131,13 @@ ReconcileProp ==
               /\ x.id = m.src /\ x.synced /\ ~x.pending /\ x.queue = <<>>
               /\ m.msgid > x.hi /\ M!Restore(m.args[1], x.desired, x.beh) # <<>>)
        => \E o \in out' : o.m.type \in Commands]_vars
-\* A permanent refusal (NOT "unknown behaviour" / "missing device") of the pending command
+\* A permanent refusal (NOT "unknown behaviour" / "missing device" / the robot's check's reason) of the pending command
 \* ends reconciling: the desired state becomes UNKNOWN, so the refused command is not
 \* queued again on every PING.
 PermanentRefusalProp ==
     [][(lastAction'.name = "MasterAnswer"
         /\ LET m == lastAction'.args[1] IN
-           /\ m.type = "NOT" /\ m.args[1] \in M!PermanentRefusals
+           /\ m.type = "NOT" /\ M!PermanentRefusal(m.args[1])
            /\ \E x \in ms.reg : x.id = m.src /\ x.synced /\ x.pending /\ m.ref = x.mid)
        => \A y \in ms'.reg : y.id = lastAction'.args[1].src => y.desired = M!UnknownDesired]_vars
 =============================================================================

@@ -175,10 +175,14 @@ MasterSync(ms, m, from) ==
                                      ELSE Max(@, s + 1)],
                 out |-> PendingOut(y)]
 
-\* Refusals that retrying cannot cure: the robot lacks the behaviour or a
-\* device.  "wrong state" and "no behaviour" pass (the agent may resync or
-\* be paused in between), so reconciling goes on after them.
-PermanentRefusals == {"unknown behaviour", "missing device"}
+\* Refusals that retrying cannot cure: every reason but the transient ones,
+\* "wrong state" and "no behaviour" (the agent may resync or be paused in
+\* between, so reconciling goes on after them).  The permanent ones: the robot
+\* lacks the behaviour or a device ("unknown behaviour", "missing device"), or
+\* its check on receipt refused the request, in its own words ("line 4 col 12:
+\* unknown action 'trun' (...)": AgentLogic CheckReason).
+TransientRefusals == {"wrong state", "no behaviour"}
+PermanentRefusal(r) == r \notin TransientRefusals
 
 \* ACK or NOT carrying the pending msgid: the agent is heard; ACK of MASTER
 \* syncs it; an answer to a command ends it (ACK of BEHAVIOUR: beh); the next
@@ -204,7 +208,7 @@ MasterAnswer(ms, m) ==
                                    !.beh = IF m.type = "ACK" /\ Head(x.queue).type = "BEHAVIOUR"
                                            THEN Head(x.queue).name ELSE @,
                                    !.desired = IF m.type = "NOT" /\ BUG # "RetryRefused"
-                                                  /\ m.args[1] \in PermanentRefusals
+                                                  /\ PermanentRefusal(m.args[1])
                                                THEN UnknownDesired ELSE @]
                      r == StartNext(ms, y2)
                  IN [ms |-> Replace(r.ms, x, r.x), out |-> PendingOut(r.x)]

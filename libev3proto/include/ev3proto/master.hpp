@@ -708,10 +708,11 @@ class Master {
         push(OperatorEvent::Kind::acked, e.id, c.type, {});
       } else {
         push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)));
-        // Do not insist on a state the robot cannot reach (spec PermanentRefusals); a transient
-        // refusal ("wrong state", "no behaviour") leaves the desired state for reconcile.
+        // Do not insist on a state the robot cannot reach (spec PermanentRefusal: every reason but
+        // the transient ones, "wrong state" and "no behaviour", which leave the desired state for
+        // reconcile; a robot's check on receipt refuses in its own words).
         const std::string_view why = m.param(1);
-        if (why == to_string(Refusal::unknown_behaviour) || why == to_string(Refusal::missing_device))
+        if (why != to_string(Refusal::wrong_state) && why != to_string(Refusal::no_behaviour))
           e.desired_known = false;
       }
     }
