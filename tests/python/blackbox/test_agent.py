@@ -225,12 +225,11 @@ def test_wait_stop_discards_and_start_starts_over(active, tm):
     assert 0.5 <= t - t0 <= 1.0
 
 
-def test_wait_with_bad_seconds_reports_action_err(active, tm):
-    tm.ack(ID, "BEHAVIOUR", "wait", "seconds=soon")
-    mark = tm.mark()
-    tm.ack(ID, "START")
-    _, e, _ = tm.wait_for(lambda m: m.type == T["ACTION_ERR"], 2, "ACTION_ERR", mark)
-    assert e.params[0] == b"0"
+def test_wait_with_bad_seconds_is_refused_on_receipt_with_the_reason(active, tm):
+    # The robot checks a BEHAVIOUR before it answers: a bad argument is refused there, in its words,
+    # and nothing is loaded (it used to be ACKed and fail at START with ACTION_ERR).
+    assert tm.refused(ID, "BEHAVIOUR", "wait", "seconds=soon") == b"argument 'seconds=soon': 'soon' is not a value"
+    assert tm.refused(ID, "START") == b"no behaviour"
 
 
 # --- signals, LEDs, trace, command line ------------------------------------------------------------
