@@ -155,7 +155,7 @@ class Program {
     if (!load_state(cfg.election)) return 2;
     if (!ev3prog::load_script("ev3-agent", "--master-script", opt_.master_script, script_)) return 2;
     if (opt_.model != "A")
-      log_.log(kInfo, "model %s: using model A's capability table (wait, drive)", opt_.model.c_str());
+      log_.log(kInfo, "model %s: using model A's capability table and devices", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
     RobotNode::Config nc;
     nc.agent = cfg;

@@ -215,10 +215,12 @@ inline constexpr std::size_t kAgentTimerCount = 4;
 /// @tparam TxSlots datagrams that can wait in the output queue (the oldest is dropped when full).
 /// @tparam TxBytes largest datagram the agent can send.
 /// @tparam EventSlots events that can wait in the event queue (the oldest is dropped when full).
-/// @tparam ArgBytes bytes for the loaded behaviour's arguments.
+/// @tparam ArgBytes bytes for the loaded behaviour's arguments: by default as many as one datagram
+///         carries, so that any `custom` definition that travels can be kept (explore's is 679
+///         bytes in compact form; with 512 it was refused as "unknown behaviour").
 /// @tparam RelaySlots agents one relay serves at once (and pending offers); Election relays.
 template <typename Trace = NoTrace, std::size_t Window = 50, std::size_t TxSlots = 8,
-          std::size_t TxBytes = 512, std::size_t EventSlots = 16, std::size_t ArgBytes = 512,
+          std::size_t TxBytes = 512, std::size_t EventSlots = 16, std::size_t ArgBytes = kMaxDatagram,
           std::size_t RelaySlots = 4>
 class Agent {
  public:

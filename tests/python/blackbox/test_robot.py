@@ -448,3 +448,14 @@ def test_restart_after_action_err_starts_over(sim_factory, fleet, agent_exe, tmp
     # 44 cm, then 20 cm into its 1 m.
     backs = [int(n) for n in re.findall(r"agent 2: ACTION_ERR 1 out[BC] stalled at -(\d+) of -2046 counts", out)]
     assert len(backs) == 2 and abs(backs[0] - 900) < 60 and abs(backs[1] - 410) < 60, backs
+
+
+def test_the_shipped_explore_travels_whole_as_custom(sim_factory, fleet, agent_exe, tmp_path):
+    """behaviours/explore.bhv sent as `custom` (679 bytes in compact form, more than the 512 bytes of
+    arguments the agent kept before; it was refused as "unknown behaviour") is acknowledged and the
+    robot drives off."""
+    text = (Path(__file__).resolve().parents[3] / "behaviours" / "explore.bhv").read_text()
+    sim = sim_factory(OPEN)
+    start_custom(fleet, agent_exe, sim, tmp_path / "explore.bhv", text)
+    wait_until(lambda: driving(sim), 3, "the robot driving (explore's first state)")
+    assert "refused" not in fleet.master.stdout()
