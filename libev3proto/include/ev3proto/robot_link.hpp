@@ -27,7 +27,7 @@
 ///                    (behaviour_check(): AgentConfig::check -> Runtime::check_behaviour): a
 ///                    request that does not parse or check, or needs a device or an action model A
 ///                    lacks, gets NOT with the runtime's reason (`line 4 col 12: unknown action
-///                    'trun' (...)`); the START that follows an ACK runs what was checked.
+///                    'trun' (...)`); the START that follows an ACK runs that request (parsed again).
 ///
 /// settle() runs both directions until neither has anything left: a call into the node can give
 /// a control for the runtime (action_interrupted pauses it), a call into the runtime a result for

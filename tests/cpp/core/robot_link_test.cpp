@@ -225,9 +225,10 @@ TEST(RobotLink, TheRobotChecksABehaviourOnReceiptAndNotRefusesItWithItsReason) {
             std::vector<std::string>{"7->1 NOT #4 4 \"argument 'speed=3': unknown param 'speed' (behaviour w has no params)\""});
   EXPECT_EQ(recv("1:7:5:8", 50), std::vector<std::string>{"7->1 NOT #5 5 \"no behaviour\""});
   EXPECT_TRUE(controls.empty()) << ::testing::PrintToString(controls);
-  // Checks: ACK, and START runs what was checked (one ACTION_OK per finished action).
+  // Checks: ACK; a refused request after it keeps it; START runs it (one ACTION_OK per finished action).
   EXPECT_EQ(recv("1:7:6:7:custom:behaviour ok;state a = wait 100ms -> end", 60), std::vector<std::string>{"7->1 ACK #6 6"});
-  recv("1:7:7:8", 70);
+  EXPECT_EQ(recv("1:7:7:7:custom:behaviour bad;state a = trun 90 -> end", 65).size(), 1u);
+  recv("1:7:8:8", 70);
   EXPECT_EQ(controls, std::vector<std::string>{"start"});
   std::vector<std::string> all;
   for (Millis t = 80; t <= 300; t += 10) {

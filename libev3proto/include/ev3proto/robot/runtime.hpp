@@ -20,11 +20,11 @@
 /// before it answers BEHAVIOUR: robot_link.hpp): a built-in (behaviours/*.bhv: explore, exploit,
 /// drive, wait) or `custom` (the definition in the first argument) is parsed, BEHAVIOUR's key=value
 /// arguments applied, and checked on model A; a refusal's reason (`line 4 col 12: ...`) goes into
-/// the NOT. START / RESTART then runs the checked result (no second parse) through
-/// behaviour::Automaton: each state's plan on the ActionRunner, its results, the events that
-/// interrupt it and this tick's readings fed back (docs/behaviours.md "How a behaviour runs"). A
-/// start of a request that was not checked here (a core without the check) parses and checks it
-/// then, and fails the START (ACTION_ERR) with the reason if it cannot run.
+/// the NOT. START / RESTART parse and check the kept request again (one scratch Definition; a parse
+/// is cheap beside a behaviour's run) and run it through behaviour::Automaton: each state's plan on
+/// the ActionRunner, its results, the events that interrupt it and this tick's readings fed back
+/// (docs/behaviours.md "How a behaviour runs"). A request that cannot run (a core without the check)
+/// fails the START (ACTION_ERR) with the reason.
 #pragma once
 
 #include <cerrno>
@@ -374,14 +374,10 @@ class Runtime {
   }
 
   /// The robot's check of BEHAVIOUR @p name with @p args on receipt: parsed, arguments applied,
-  /// checked on model A. True when it may run (the result is kept for its START); otherwise false
-  /// with the reason in @p why. A refusal leaves the behaviour running or kept as it was.
+  /// checked on model A. True when it may run; otherwise false with the reason in @p why. It changes
+  /// nothing but the scratch Definition (the running behaviour is the automaton's own copy).
   bool check_behaviour(std::string_view name, const std::string_view* args, std::size_t n, Reason& why) noexcept {
-    const std::size_t slot = checked_ == 0 ? 1 : 0;  // never the slot of the request accepted last
-    if (!resolve(name, args, n, defs_[slot], why)) return false;
-    checked_ = static_cast<int>(slot);
-    checked_key_ = request_key(name, args, n);
-    return true;
+    return resolve(name, args, n, scratch_, why);
   }
 
   /// Runs @p plan now, outside any behaviour (tests and tools call it directly; a running behaviour is
@@ -643,39 +639,18 @@ class Runtime {
     return false;
   }
 
-  /// FNV-1a of a request (name, then each argument, each with its length): which request a
-  /// check_behaviour() result belongs to.
-  static std::uint64_t request_key(std::string_view name, const std::string_view* args, std::size_t n) noexcept {
-    std::uint64_t h = 14695981039346656037ull;
-    auto mix = [&h](std::string_view v) {
-      for (const char c : v) h = (h ^ static_cast<unsigned char>(c)) * 1099511628211ull;
-      for (std::size_t k = 0, len = v.size(); k < 4; ++k, len >>= 8) h = (h ^ (len & 0xFFu)) * 1099511628211ull;
-    };
-    mix(name);
-    for (std::size_t i = 0; i < n; ++i) mix(args[i]);
-    return h;
-  }
-
-  /// Loads behaviour @p name with @p args into the automaton: the result of its check on receipt
-  /// (check_behaviour()) when it is the request checked last, else parsed and checked now; false
-  /// with the reason.
+  /// Loads behaviour @p name with @p args into the automaton: parsed and checked again (as on
+  /// receipt) into the scratch Definition, which the automaton copies; false with the reason.
   bool load_behaviour(std::string_view name, const std::string_view* args, std::size_t n, Reason& why) noexcept {
     namespace bhv = behaviour;
-    std::size_t slot = 0;
-    if (checked_ >= 0 && checked_key_ == request_key(name, args, n)) {
-      slot = static_cast<std::size_t>(checked_);
-    } else {
-      slot = checked_ == 0 ? 1 : 0;
-      if (!resolve(name, args, n, defs_[slot], why)) return false;
-    }
-    const bhv::Definition& def = defs_[slot];
+    if (!resolve(name, args, n, scratch_, why)) return false;
     std::uint8_t ports[bhv::kSensorCount] = {};
     for (std::size_t i = 0; i < bhv::kSensorCount; ++i) {
       Role r{};
       const Dev d_ = role_of(static_cast<bhv::Sensor>(i), r) ? cfg_.ports.of(r) : Dev::outA;
       if (is_in_port(d_)) ports[i] = static_cast<std::uint8_t>(1u << Body::in_index(d_));
     }
-    auto_.load(def, ports);
+    auto_.load(scratch_, ports);
     return true;
   }
 
@@ -841,9 +816,7 @@ class Runtime {
   std::uint32_t plugged_ = 0;
   Millis next_tick_ = 0, next_battery_ = 0;
   Ring<ActionResult, 4> results_;
-  behaviour::Definition defs_[2];  ///< where behaviours are parsed and checked before they are loaded
-  int checked_ = -1;               ///< the slot of the request check_behaviour() accepted last (-1: none)
-  std::uint64_t checked_key_ = 0;  ///< its request_key()
+  behaviour::Definition scratch_;  ///< where a behaviour is parsed and checked (on receipt, at START)
   behaviour::Automaton auto_;
   bool behaviour_ = false;         ///< the automaton drives the runner (a behaviour was started)
 };
