@@ -23,27 +23,33 @@ std::string prepare_behaviour(ConsoleCommand& c) {
     if (!ev3io::read_lines(c.file, lines, err)) return err.empty() ? "cannot read " + c.file + ": no such file" : err;
     for (const std::string& l : lines) text += l + "\n";
   }
-  std::vector<std::string_view> params;
-  if (!c.file.empty()) params.push_back(text);
-  for (const std::string& a : c.command.args) params.emplace_back(a);
+  std::vector<std::string_view> args(c.command.args.begin(), c.command.args.end());
   const auto def = std::make_unique<Definition>();
   char buf[kMaxMessage * 2];
   Text why(buf, sizeof buf);
-  if (!resolve_request(c.command.name, params.data(), params.size(), kModelA, kModelA.devices, *def, why))
-    return "refused before sending: " + where + ": " + std::string(why.view());
-  if (c.file.empty()) return {};
-  // Sent in its compact form (no comments; ';' for a new line costs one byte, not three).
+  const std::string refused = "refused before sending: " + where + ": ";
+  if (c.file.empty()) {  // a built-in: travels by name, checked here as the robot checks it
+    if (!resolve_request(c.command.name, args.data(), args.size(), kModelA, kModelA.devices, *def, why))
+      return refused + std::string(why.view());
+    return {};
+  }
+  // A custom definition is parsed once: written in its compact form (no comments; ';' for a new line
+  // costs one byte, not three) before the arguments, which travel after it, are applied and checked.
   Diagnostic d;
-  if (!parse(text, *def, d)) return where + ": parsed once, not twice";  // resolve_request parsed it
+  if (!parse(text, *def, d)) {
+    write(why, d);
+    return refused + std::string(why.view());
+  }
   std::string compact_text(kMaxSource * 2, '\0');
   Text out(compact_text.data(), compact_text.size());
   compact(out, *def);
   compact_text.resize(out.size());
+  if (!apply_and_check(*def, args.data(), args.size(), kModelA, kModelA.devices, why))
+    return refused + std::string(why.view());
   char dgram[ev3proto::kMaxDatagram];
   if (custom_datagram_size(compact_text, dgram) == 0)
-    return "refused before sending: " + where + ": too long for one datagram (" +
-           std::to_string(compact_text.size()) + " bytes in compact form; a datagram holds " +
-           std::to_string(ev3proto::kMaxDatagram) + ")";
+    return refused + "too long for one datagram (" + std::to_string(compact_text.size()) +
+           " bytes in compact form; a datagram holds " + std::to_string(ev3proto::kMaxDatagram) + ")";
   c.command.args.insert(c.command.args.begin(), std::move(compact_text));
   return {};
 }

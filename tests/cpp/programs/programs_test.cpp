@@ -250,6 +250,7 @@ TEST(Console, CustomBehaviourFromAFileIsCheckedAndSentCompact) {
   EXPECT_EQ(sent.find('#'), std::string::npos) << sent;   // no comments on the wire
   EXPECT_EQ(sent.find('\n'), std::string::npos) << sent;  // one line
   EXPECT_NE(sent.find("behaviour spin"), std::string::npos) << sent;
+  EXPECT_NE(sent.find("param angle=90;"), std::string::npos) << sent;  // as written: the argument travels after it
 
   // A definition that does not parse is refused at the console, with the file and the place.
   write_file(path, "behaviour spin\nstate turning = trun 90 -> turning\n");

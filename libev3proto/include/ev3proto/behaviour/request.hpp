@@ -30,11 +30,34 @@ inline void write_known_names(Text& why) noexcept {
 }
 }  // namespace detail
 
+/// Applies BEHAVIOUR's `key=value` arguments @p args (@p count of them) to the parsed @p def and
+/// checks it for a robot of @p model whose plugged devices are @p devices. True when it may run;
+/// otherwise false with one line in @p why: the first problem ("argument 'speed=x': ...", "the
+/// robot has no colour sensor ..."), and how many more the checker found.
+inline bool apply_and_check(Definition& def, const std::string_view* args, std::size_t count, const Model& model,
+                            std::uint32_t devices, Text& why) noexcept {
+  Diagnostic d;
+  if (!apply_args(def, args, count, d)) {
+    write(why, d);
+    return false;
+  }
+  static_assert(kMaxFindings > 1);
+  Findings f;
+  if (!check(def, model, devices, f)) {
+    write(why, f.items[0]);
+    if (f.count > 1 || f.more) {
+      why << " (and " << std::int32_t{f.count - 1};
+      why << (f.more ? " or more" : "") << (f.count == 2 && !f.more ? " more problem)" : " more problems)");
+    }
+    return false;
+  }
+  return true;
+}
+
 /// Resolves BEHAVIOUR @p name with @p params (@p count of them) for a robot of @p model whose plugged
-/// devices are @p devices, into @p def: parsed, arguments applied, checked. True when it may run;
+/// devices are @p devices, into @p def: parsed, then apply_and_check(). True when it may run;
 /// otherwise false with one line in @p why: the first problem ("line 4 col 12: unknown action 'trun'
-/// (...)", "argument 'speed=x': ...", "the robot has no colour sensor ..."), and how many more
-/// the checker found.
+/// (...)", or apply_and_check()'s).
 inline bool resolve_request(std::string_view name, const std::string_view* params, std::size_t count,
                             const Model& model, std::uint32_t devices, Definition& def, Text& why) noexcept {
   std::string_view text;
@@ -54,21 +77,11 @@ inline bool resolve_request(std::string_view name, const std::string_view* param
     return false;
   }
   Diagnostic d;
-  if (!parse(text, def, d) || !apply_args(def, params, count, d)) {
+  if (!parse(text, def, d)) {
     write(why, d);
     return false;
   }
-  static_assert(kMaxFindings > 1);
-  Findings f;
-  if (!check(def, model, devices, f)) {
-    write(why, f.items[0]);
-    if (f.count > 1 || f.more) {
-      why << " (and " << std::int32_t{f.count - 1};
-      why << (f.more ? " or more" : "") << (f.count == 2 && !f.more ? " more problem)" : " more problems)");
-    }
-    return false;
-  }
-  return true;
+  return apply_and_check(def, params, count, model, devices, why);
 }
 
 /// The size of the BEHAVIOUR custom datagram carrying @p text, with the longest header (msgid
