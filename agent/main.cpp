@@ -144,7 +144,8 @@ class Program {
     rio_.scan(*rt_, start);
     link_.emplace(robot::announced_devices(devices_.ev3dev_tree()));
     ev3proto::AgentConfig cfg;
-    cfg.caps = {opt_.model, kModelABehaviours, std::size(kModelABehaviours), link_->announced()};
+    cfg.caps = {opt_.model, kModelABehaviours, std::size(kModelABehaviours), link_->announced(),
+                robot::kModelADeviceNames, std::size(robot::kModelADeviceNames)};
     cfg.check = robot::behaviour_check(*rt_);
     cfg.timers = opt_.timers;
     const std::uint64_t r = random_u64();

@@ -156,6 +156,12 @@ def _msg(text: str) -> dict:
             "args": tuple(args)}
 
 
+def _reason(text: str) -> str:
+    """A NOT reason as AgentLogic's Reasons: "missing device: the robot has no colour sensor (...)"
+    is the spec's "missing device" (the device's name stands for any)."""
+    return "missing device" if text.startswith("missing device: ") else text
+
+
 def _win(w: list) -> tuple:
     """The dedupe window as AgentLogic's WinEntry sequence."""
     out = []
@@ -163,7 +169,7 @@ def _win(w: list) -> tuple:
         a = e["ans"]
         out.append({"src": e["src"], "msgid": e["msgid"],
                     "ans": {"src": a["src"], "dst": 1, "type": a["type"], "ref": a["ref"],
-                            "args": (a["reason"],) if "reason" in a else ()}})
+                            "args": (_reason(a["reason"]),) if "reason" in a else ()}})
     return tuple(out)
 
 

@@ -55,6 +55,8 @@ Warnings == {"OBSTACLE_DETECTED", "PROXIMITY_ALERT"}
 \* Why an action failed, as the robot says it in ACTION_ERR ("outB stalled at -913 of -2046
 \* counts"): any text; the protocol does nothing with it, so one stands for all.
 Failures == {"stalled"}
+\* "missing device" stands for the robot's words naming the device ("missing device: the robot
+\* has no colour sensor (explore needs it)"): which device is missing changes nothing here.
 Reasons  == {"unknown behaviour", "missing device", "no behaviour", "wrong state", CheckReason}
 
 \* Names of all handlers; lastAction.name is one of these.

@@ -81,6 +81,10 @@ struct Capabilities {
   const BehaviourSpec* behaviours = nullptr; ///< Behaviours it implements.
   std::size_t behaviour_count = 0;          ///< Entries of @c behaviours.
   std::uint32_t devices = 0;                ///< Device bits of the model, all plugged at start.
+  /// The name of each device bit (index: the bit; "colour sensor"), for NOT "missing device: the
+  /// robot has no colour sensor (explore needs it)"; a bit without a name gets "missing device".
+  const std::string_view* device_names = nullptr;
+  std::size_t device_name_count = 0;        ///< Entries of @c device_names.
 };
 
 /// Construction parameters of an Agent.
@@ -102,7 +106,8 @@ struct StoredAnswer {
   std::uint32_t ref = 0;                      ///< The answered msgid.
   bool ack = true;                            ///< ACK (true) or NOT (false).
   Refusal reason = Refusal::wrong_state;      ///< NOT's reason (unless the check refused).
-  CheckReason check;                          ///< The robot's check refused: NOT's reason.
+  CheckReason check;                          ///< NOT's words when not @c reason's spelling: the
+                                              ///< robot's check's, or the missing device named.
   /// NOT's reason as sent: the check's words, or the spelling of @c reason.
   std::string_view reason_text() const noexcept { return check.len != 0 ? check.view() : to_string(reason); }
 };
@@ -939,6 +944,35 @@ class Agent {
     send_answer(a);
   }
   void Refuse(const Message& m, Refusal r) noexcept { Answer(m, false, r); }
+  /// NOT "missing device" for behaviour @p b (spec devOk), naming the first device missing that it
+  /// needs, else the first of the model's: "missing device: the robot has no colour sensor (explore
+  /// needs it)", "... (no behaviour runs until it is back)"; just "missing device" when unnamed.
+  void RefuseMissing(const Message& m, const BehaviourSpec& b) noexcept {
+    const std::uint32_t needed = b.devices & ~plugged_;
+    const std::uint32_t missing = needed != 0 ? needed : cfg_.caps.devices & ~plugged_;
+    std::size_t bit = 0;
+    while (bit < 32 && (missing & (1u << bit)) == 0) ++bit;
+    if (bit >= cfg_.caps.device_name_count) return Refuse(m, Refusal::missing_device);
+    char buf[CheckReason::kMax + 1];
+    std::size_t n = 0;
+    auto put = [&buf, &n](std::string_view t) {
+      for (const char c : t)
+        if (n < sizeof buf) buf[n++] = c;
+    };
+    put(to_string(Refusal::missing_device));
+    put(": the robot has no ");
+    put(cfg_.caps.device_names[bit]);
+    if (needed != 0) {
+      put(" (");
+      put(b.name);
+      put(" needs it)");
+    } else {
+      put(" (no behaviour runs until it is back)");
+    }
+    CheckReason why;
+    why.set(std::string_view(buf, n));
+    Answer(m, false, Refusal::missing_device, &why);
+  }
 
   void send_answer(const StoredAnswer& a) noexcept {
     char num[10];
@@ -985,7 +1019,7 @@ class Agent {
   void RecvBehaviour(const Message& m) noexcept {
     const BehaviourSpec* b = find_behaviour(m.param(0));
     if (b == nullptr || !fits(m)) return Refuse(m, Refusal::unknown_behaviour);
-    if (!dev_ok() || (b->devices & ~plugged_) != 0) return Refuse(m, Refusal::missing_device);
+    if (!dev_ok() || (b->devices & ~plugged_) != 0) return RefuseMissing(m, *b);
     {
       std::string_view params[kMaxArgs];
       const std::size_t n = m.param_count() - 1;

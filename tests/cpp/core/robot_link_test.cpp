@@ -28,7 +28,8 @@ struct Rig {
 
   static Node<>::Config make_config(bool ev3dev_tree) {
     Node<>::Config c;
-    c.agent.caps = Capabilities{"A", kBehs, 2, robot::announced_devices(ev3dev_tree)};
+    c.agent.caps = Capabilities{"A", kBehs, 2, robot::announced_devices(ev3dev_tree), robot::kModelADeviceNames,
+                                std::size(robot::kModelADeviceNames)};
     c.agent.temp_id = 50001;
     return c;
   }
@@ -92,8 +93,10 @@ TEST(RobotLink, DevicesMissingAtStartAreToldTheMasterOnceSynced) {
   EXPECT_TRUE(has(out, "ACK"));
   EXPECT_TRUE(has(out, "EVENT #")) << ::testing::PrintToString(out);
   EXPECT_TRUE(has(out, "DEVICE_DISCONNECTED"));
-  r.datagram("1:7:2:7:wait:seconds=1", 20);  // spec: no behaviour while a device is missing (devOk)
-  EXPECT_TRUE(has(r.sent(), "NOT #"));
+  // Spec: no behaviour while a device is missing (devOk); the NOT names the first one missing.
+  r.datagram("1:7:2:7:wait:seconds=1", 20);
+  EXPECT_EQ(r.sent(), std::vector<std::string>{
+                          "7->1 NOT #3 2 \"missing device: the robot has no left motor (no behaviour runs until it is back)\""});
 }
 
 TEST(RobotLink, WithoutDevicesWaitRunsToActionOkAndDriveIsRefused) {
@@ -101,8 +104,8 @@ TEST(RobotLink, WithoutDevicesWaitRunsToActionOkAndDriveIsRefused) {
   r.datagram("1:7:1:2:50001", 10);
   EXPECT_TRUE(r.notes.empty());
   r.sent();
-  r.datagram("1:7:2:7:drive:speed=100", 20);
-  EXPECT_TRUE(has(r.sent(), "NOT #"));
+  r.datagram("1:7:2:7:drive:speed=100", 20);  // needs devices the robot has not got: NOT names the first
+  EXPECT_EQ(r.sent(), std::vector<std::string>{"7->1 NOT #2 2 \"missing device: the robot has no left motor (drive needs it)\""});
   r.datagram("1:7:3:7:wait:seconds=0.5", 30);
   r.datagram("1:7:4:8", 40);  // START
   EXPECT_TRUE(has(r.notes, "control start wait"));

@@ -226,8 +226,9 @@ def press_tick(sim: Sim, press: float):
 def test_unplugged_motor_and_low_battery_reach_the_master(sim_factory, fleet, agent_exe):
     """The colour sensor missing at start: EVENT DEVICE_DISCONNECTED once synced, DEVICE_CONNECTED when
     plugged. A motor unplugged while driving: the drive stops, EVENT DEVICE_DISCONNECTED at the master,
-    BEHAVIOUR drive refused (missing device); plugged back: EVENT DEVICE_CONNECTED. Then the battery
-    drops below 6.2 V: EVENT BATTERY_LOW at the master, motors stopped, the agent exits 0."""
+    BEHAVIOUR drive refused naming the motor ("missing device: the robot has no right motor (drive needs
+    it)"); plugged back: EVENT DEVICE_CONNECTED. Then the battery drops below 6.2 V: EVENT BATTERY_LOW at
+    the master, motors stopped, the agent exits 0."""
     sim = sim_factory(OPEN)
     sim.ctl("unplug in3")  # the colour sensor is missing at start: the master hears it once synced
     fleet.start_master()
@@ -244,7 +245,7 @@ def test_unplugged_motor_and_low_battery_reach_the_master(sim_factory, fleet, ag
     wait_until(lambda: stopped(sim), 1, "the other motor stopped")
     wait_until(lambda: fleet.agent_state("ACTIVE"), 3, "back to ACTIVE (behaviour unloaded)")
     fleet.say("behaviour 2 drive speed=300")
-    fleet.heard(r"BEHAVIOUR refused \(NOT\): missing")
+    fleet.heard(r"BEHAVIOUR refused \(NOT\): missing device: the robot has no right motor \(drive needs it\)")
     sim.ctl("replug outC")
     fleet.heard(r"agent 2: EVENT DEVICE_CONNECTED outC", 4)
     sim.ctl("battery 5.9")

@@ -123,6 +123,24 @@ def test_the_property_rejects_a_wrong_trace(tmp_path):
     assert "could not be matched" in r.message
 
 
+def test_a_named_missing_device_is_the_specs_missing_device(tmp_path):
+    """ev3-agent names the missing device in NOT ("missing device: the robot has no touch sensor (wait
+    needs it)"); AgentLogic's "missing device" stands for those words (the driver, with no device names,
+    says just "missing device"). The driver's trace in the robot's words conforms; another reason does not."""
+    inputs = FIXED[:2] + [{"type": "event", "event": "device_unplugged", "devices": 1, "port": "in1"},
+                          recv(1, 7, 2, "BEHAVIOUR", args=("wait",)), {"type": "advance", "ms": 1}]
+    assert run_and_validate(AGENT, 50, inputs, tmp_path).ok
+    plain = (tmp_path / "agent.ndjson").read_text()
+    assert '"missing device"' in plain
+    consts = dict(CONSTS, Window=50)
+    for words, ok in (("missing device: the robot has no touch sensor (wait needs it)", True),
+                      ("unknown behaviour", False)):
+        t = tmp_path / "words.ndjson"
+        t.write_text(plain.replace('"missing device"', json.dumps(words)))
+        r = tracecheck.validate(t, consts, temp_id=TEMP, workdir=tmp_path / ("tlc-" + str(ok)))
+        assert r.ok == ok, (words, r.message)
+
+
 # --- the master: `ev3-master --driver --trace` against MasterLogic (exact msgids) ----------------
 
 MASTER = [str(BIN / "ev3-master"), "--driver"]

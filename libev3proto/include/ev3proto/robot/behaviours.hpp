@@ -34,7 +34,7 @@ inline constexpr ActionSupport kModelAActions[] = {
 };
 
 /// Model A's behaviours and the devices each needs plugged (the agent core refuses BEHAVIOUR with
-/// "missing device" otherwise): the built-ins of behaviours/*.bhv, each the devices its definition
+/// "missing device: the robot has no ... (NAME needs it)" otherwise): the built-ins of behaviours/*.bhv, each the devices its definition
 /// needs (behaviour::devices_needed; a test keeps the two equal), and `custom`, whose definition the
 /// runtime checks on receipt (Runtime::check_behaviour: NOT with its reason when it cannot run).
 inline constexpr BuiltinBehaviour kModelABehaviours[] = {

@@ -38,6 +38,10 @@ inline constexpr std::uint32_t kColour = role_bit(Role::colour);
 inline constexpr std::uint32_t kMotors = kMotorLeft | kMotorRight;
 /// Every device of model A.
 inline constexpr std::uint32_t kModelADevices = kMotors | kUltrasonic | kTouch | kColour;
+/// The name of each device bit of model A (index: the role), for the agent core's NOT "missing
+/// device: the robot has no colour sensor (explore needs it)" (Capabilities::device_names).
+inline constexpr std::string_view kModelADeviceNames[kRoleCount] = {"left motor", "right motor", "ultrasonic sensor",
+                                                                    "touch sensor", "colour sensor"};
 
 /// The driver a role's device must have.
 constexpr Driver driver_of(Role r) noexcept {
