@@ -70,9 +70,12 @@ VARIABLES
     ms,          \* the master's local state (MasterLogic)
     sess,        \* sess[a]: answers (ACK/NOT) agent a has sent (its msgid stamp, below)
     budget,      \* [loss, dup, crash, ops]: what the environment may still do
-    lost         \* lost[a]: history, agent a was synced when the master crashed
+    lost,        \* lost[a]: history, agent a was synced when the master crashed
+    life,        \* life[a]: history, agent a's restarts so far (its life: 0 until the first)
+    acted        \* history: a record [agent, life, src, mid, n] each time an agent acted on
+                 \*   a command or MASTER (CommandOnceInv)
 
-vars == <<ag, net, up, ms, sess, budget, lost>>
+vars == <<ag, net, up, ms, sess, budget, lost, life, acted>>
 
 TypeOK ==
     /\ \A a \in Agents : ag[a] \in L!AgentType
@@ -83,6 +86,8 @@ TypeOK ==
     /\ budget \in [loss : Nat, dup : Nat, crash : Nat, ops : Nat, late : Nat, acrash : Nat,
                   suspect : Nat]
     /\ lost \in [Agents -> BOOLEAN]
+    /\ life \in [Agents -> Nat]
+    /\ \A h \in acted : h.agent \in Agents /\ h.life \in Nat /\ h.mid \in Nat /\ h.n \in Nat
 
 Init ==
     /\ ag = [a \in Agents |-> L!InitAgent(TempOf(a))]
@@ -93,6 +98,8 @@ Init ==
     /\ budget = [loss |-> MaxLoss, dup |-> MaxDup, crash |-> MaxCrashes, ops |-> MaxOps,
                   late |-> MaxLate, acrash |-> MaxAgentCrashes, suspect |-> MaxSuspect]
     /\ lost = [a \in Agents |-> FALSE]
+    /\ life = [a \in Agents |-> 0]
+    /\ acted = {}
 
 \* The msgid an agent's datagram carries.  Real msgids grow by one per
 \* datagram (unbounded); the master only compares them ("above every msgid
@@ -125,10 +132,29 @@ MEmit(outs) == {[from |-> MasterEp, to |-> o.to, m |-> o.m] : o \in outs}
 Lose(e) == /\ budget.loss > 0
            /\ net' = net \ {e}
            /\ budget' = [budget EXCEPT !.loss = @ - 1]
-           /\ UNCHANGED <<ag, up, ms, sess, lost>>
+           /\ UNCHANGED <<ag, up, ms, sess, lost, life, acted>>
 
 -----------------------------------------------------------------------------
 (* Agents.                                                                  *)
+
+\* What the history records when agent a takes m: m is a command or MASTER
+\* (answered with ACK or NOT) and a acts on it -- runs its handler, not
+\* RecvDuplicate's stored answer nor Ignore.  The command is the datagram
+\* the master sent: its sender and msgid, at the agent that took it, in that
+\* agent's life.  The master's msgids are never reused (they survive its
+\* crashes: MasterLogic CrashMaster; master/main.cpp --state-file reserves
+\* them in blocks), and a resend carries the msgid of the first send, so
+\* equal (src, mid) at one agent means copies of one command, in any master
+\* session.  An agent that restarted is a new life: a copy reaching it again
+\* is not the same agent acting twice.  n counts the times: 1 the first.
+ActHandlers == {"RecvMaster", "RecvBehaviour", "RecvStart", "RecvStop", "RecvPause",
+                "RecvResume", "RecvStandby", "RecvContinue", "RecvRestart"}
+Acts(a, m) ==
+    LET n == Cardinality({h \in acted : h.agent = a /\ h.life = life[a]
+                                        /\ h.src = m.src /\ h.mid = m.msgid})
+    IN IF L!Handler(ag[a], m) \in ActHandlers /\ L!Answered(m)
+       THEN {[agent |-> a, life |-> life[a], src |-> m.src, mid |-> m.msgid, n |-> n + 1]}
+       ELSE {}
 
 \* Agent a receives datagram e (the copy stays in flight if duplicated).
 \* Timeouts are urgent (as in Agent.tla): while one of a's timeouts is due,
@@ -144,7 +170,8 @@ AgentRecv(a, e, dup) ==
     /\ sess' = [sess EXCEPT ![a] = s]
     /\ net' = (IF dup THEN net ELSE net \ {e}) \cup Emit(a, r.out, s, r.ag)
     /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
-    /\ UNCHANGED <<up, ms>>
+    /\ acted' = acted \cup Acts(a, e.m)
+    /\ UNCHANGED <<up, ms, life>>
 
 \* Agent a's timeout fires (SyncTimeout or HeartbeatLost).
 AgentTimeout(a) ==
@@ -153,7 +180,7 @@ AgentTimeout(a) ==
     /\ ag' = [ag EXCEPT ![a] = r.ag]
     /\ net' = net \cup Emit(a, r.out, sess[a], r.ag)
     /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
-    /\ UNCHANGED <<up, ms, sess, budget>>
+    /\ UNCHANGED <<up, ms, sess, budget, life, acted>>
 
 \* False suspicion: synced agent a's heartbeat timeout fires before it is due,
 \* whether or not the master is alive (HeartbeatLost's effect: WORKING ->
@@ -166,7 +193,7 @@ AgentSuspect(a) ==
     /\ net' = net \cup Emit(a, r.out, sess[a], r.ag)
     /\ budget' = [budget EXCEPT !.suspect = @ - 1]
     /\ lost' = [lost EXCEPT ![a] = lost[a] /\ r.ag.state # "PANIC"]
-    /\ UNCHANGED <<up, ms, sess>>
+    /\ UNCHANGED <<up, ms, sess, life, acted>>
 
 \* Agent a crashes (power cut, reset): the motors stop, it is down (OFF: it
 \* neither sends nor takes anything) until AgentRestart.
@@ -175,7 +202,7 @@ AgentCrash(a) ==
     /\ ag[a].state # "OFF"
     /\ ag' = [ag EXCEPT ![a] = L!Goto(L!Stopped(ag[a]), "OFF")]
     /\ budget' = [budget EXCEPT !.acrash = @ - 1]
-    /\ UNCHANGED <<net, up, ms, sess, lost>>
+    /\ UNCHANGED <<net, up, ms, sess, lost, life, acted>>
 
 \* Agent a starts again as agent/main.cpp starts it: nothing of the lifecycle
 \* survives (the election's epoch and vote, on its SD card, are not in this
@@ -189,7 +216,8 @@ AgentRestart(a) ==
           ag' = [ag EXCEPT ![a] = L!InitAgent(t)]
     /\ \E s \in {0, sess[a]} : sess' = [sess EXCEPT ![a] = s]
     /\ lost' = [lost EXCEPT ![a] = FALSE]
-    /\ UNCHANGED <<net, up, ms, budget>>
+    /\ life' = [life EXCEPT ![a] = @ + 1]
+    /\ UNCHANGED <<net, up, ms, budget, acted>>
 
 -----------------------------------------------------------------------------
 (* The master and its operator.                                             *)
@@ -203,7 +231,7 @@ MasterRecv(e, dup) ==
           ELSE LET r == M!Receive(ms, e.m, e.from)
                IN /\ ms' = r.ms
                   /\ net' = rest \cup MEmit(r.out)
-    /\ UNCHANGED <<ag, up, sess, lost>>
+    /\ UNCHANGED <<ag, up, sess, lost, life, acted>>
 
 \* The operator's mission: every registered agent runs Mission.  It gives
 \* agent a's entry the next command when nothing is queued or pending:
@@ -222,7 +250,7 @@ Operate(a) ==
              /\ ms' = r.ms
              /\ net' = net \cup MEmit(r.out)
     /\ budget' = [budget EXCEPT !.ops = @ - 1]
-    /\ UNCHANGED <<ag, up, sess, lost>>
+    /\ UNCHANGED <<ag, up, sess, lost, life, acted>>
 
 \* The master crashes: registry gone; nextId and msgid survive.
 MasterCrash ==
@@ -231,13 +259,13 @@ MasterCrash ==
     /\ ms' = M!CrashMaster(ms)
     /\ budget' = [budget EXCEPT !.crash = @ - 1]
     /\ lost' = [a \in Agents |-> ag[a].state \in L!Synced]
-    /\ UNCHANGED <<ag, net, sess>>
+    /\ UNCHANGED <<ag, net, sess, life, acted>>
 
 \* The master restarts with an empty registry.
 MasterRestart ==
     /\ ~up
     /\ up' = TRUE
-    /\ UNCHANGED <<ag, net, ms, sess, budget, lost>>
+    /\ UNCHANGED <<ag, net, ms, sess, budget, lost, life, acted>>
 
 -----------------------------------------------------------------------------
 (* Delivery and time.                                                       *)
@@ -273,7 +301,7 @@ Tick ==
     /\ net' = net \cup UNION {Emit(a, r[a].out, sess[a], r[a].ag) : a \in live}
               \cup (IF up THEN MEmit(mt.out) ELSE {})
     /\ budget' = [budget EXCEPT !.late = @ - Cardinality(net)]
-    /\ UNCHANGED <<up, sess, lost>>
+    /\ UNCHANGED <<up, sess, lost, life, acted>>
 
 Next ==
     \/ \E e \in net : Deliver(e, FALSE) \/ Deliver(e, TRUE) \/ Lose(e)
@@ -297,8 +325,15 @@ FairSpec == Spec /\ Fairness
 LedInv == \A a \in Agents : L!LedMatches(ag[a])
 BehaviourOnlyInWorkingInv == \A a \in Agents : L!MotionOnlyWorking(ag[a])
 NoUnsupervisedMotionInv == \A a \in Agents : L!Supervised(ag[a])
-\* However many copies arrive, no agent acts on a command twice.
+\* However many copies arrive, no agent acts on a command twice -- as the agent
+\* itself sees it: never while its window remembers the command (dupActed).
 ActedOnceInv == \A a \in Agents : ~ag[a].dupActed
+\* What happened (the history acted, not the agent's window): no command or
+\* MASTER datagram the master sent -- one (src, msgid), with all its copies
+\* and resends -- is acted on twice by one agent in one life, however late
+\* or often it arrives (after its entry left the FIFO window, after a
+\* resync, after a crash of the master).
+CommandOnceInv == \A h \in acted : h.n = 1
 \* Two synced agents never hold the same id.
 UniqueIdsInv ==
     \A a, b \in Agents : a # b /\ ag[a].state \in L!Synced /\ ag[b].state \in L!Synced

@@ -27,7 +27,7 @@ VARIABLES
     lastFault,   \* the value of ticks at the last fault (history)
     gap          \* this behaviour's gap between faults, drawn in SimInit (0: none)
 
-FleetVars == <<ag, net, up, ms, sess, budget, lost>>
+FleetVars == <<ag, net, up, ms, sess, budget, lost, life, acted>>
 simVars == <<FleetVars, act, ticks, lastFault, gap>>
 
 \* Faults (a loss, a duplicate, a master crash) at least gap ticks apart.  A
