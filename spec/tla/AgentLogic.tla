@@ -139,12 +139,15 @@ Nak(a, m, r) == Out(a.id, MasterId, "NOT", m.msgid, <<r>>)
 
 \* Act on a fresh command: new local state b (window not yet updated),
 \* answer ans; remember (src, msgid) -> ans, FIFO eviction; hearing the master
-\* resets the silence counter.
+\* resets the silence counter.  (BUG "ForgetAnswers": the window remembers
+\* nothing, so every copy is fresh; dupActed, which asks the window, never
+\* notices: Fleet's CommandOnceInv does, in fleet_small.)
 Answer(a, m, b, ans) ==
     LET w == Append(a.win, [src |-> m.src, msgid |-> m.msgid, ans |-> ans])
     IN [ ag  |-> [b EXCEPT !.win = IF Len(w) > Window THEN Tail(w) ELSE w,
                            !.silence = 0,
-                           !.dupActed = a.dupActed \/ Seen(a, m)],
+                           !.dupActed = a.dupActed \/ Seen(a, m),
+                           !.win = IF BUG = "ForgetAnswers" THEN a.win ELSE @],
          out |-> <<ans>> ]
 Refuse(a, m, r) == Answer(a, m, a, Nak(a, m, r))
 
