@@ -4,8 +4,10 @@
 (* (issue 4).  See docs/election.md for the prose.                         *)
 (*                                                                         *)
 (* Nodes: the PC master (id 1, PC) and the agents.  The fleet is the       *)
-(* membership the PC published with epoch 1 (here: all of Agents); a      *)
-(* quorum is a strict majority of it.  Every master acts in an epoch; an   *)
+(* membership the master of an epoch published with it (LEADER), one per   *)
+(* epoch, changed only by the PC one agent at a time (section Membership,  *)
+(* issue 13); a quorum is a strict majority of the list a node knows.      *)
+(* Every master acts in an epoch; an                                        *)
 (* agent grants one vote per epoch (votedFor, kept on the SD card, like    *)
 (* Raft's), follows only the highest epoch it has seen, and obeys commands *)
 (* only from the master it follows in that epoch.  The thesis' spirit is   *)
@@ -42,19 +44,24 @@ CONSTANTS
     SpuriousTimeout, \* TRUE: a heartbeat may time out although the master lives
     CmdAgents,       \* the agents masters send commands to (model checking)
     PreVote,         \* TRUE: an agent stands only with a majority of pre-votes
+    Joiners,         \* agents the PC registers after the start: no membership known at first
+    MaxChanges,      \* bound on the PC's membership changes (an agent added or dropped)
     BUG              \* "None" or the name of a broken variant
 
 PC == 1
 Nodes == {PC} \cup Agents
 NoNode == 0
 Quorum(S) == 2 * Cardinality(S) > Cardinality(Agents)
+\* A strict majority of membership L (issue 13): an empty membership has none.
+QuorumOf(S, L) == L # {} /\ 2 * Cardinality(S \cap L) > Cardinality(L)
+InitMembers == Agents \ Joiners
 
 Followers == {"ACTIVE", "WORKING", "PAUSED"}
 Lives == Followers \cup {"PANIC", "CANDIDATE", "MASTER", "DOWN"}
 MsgTypes == {"ELECT", "VOTE", "HB", "STALE", "RREQ", "ROFFER", "RACCEPT", "RDROP", "CMD",
              "RELAY", "PREOK"}
 Msgs == [t : MsgTypes, src : Nodes, dst : Nodes \cup {NoNode}, e : 0..MaxEpoch,
-         x : Nodes \cup {NoNode}]
+         x : Nodes \cup {NoNode}, k : 0..MaxEpoch, mem : SUBSET Agents]
 
 VARIABLES
     life,       \* life[n]: lifecycle state (the PC: CANDIDATE, MASTER or DOWN)
@@ -73,10 +80,16 @@ VARIABLES
     lost,       \* datagrams lost so far
     elected,    \* history: <<e, n>> when n became master in epoch e
     applied,    \* history: [a, src, e, seen] when a command took effect
+    members,    \* members[n]: the membership n counts quorums against (the PC: of its epoch)
+    mepoch,     \* mepoch[n]: the epoch of the master that published members[n] (0: none known)
+    floor,      \* floor[a]: no list older than this epoch is current (persistent)
+    want,       \* the PC's registry: the membership it wants (agents added and dropped)
+    changes,    \* membership changes so far
     lastAction  \* the last action and its arguments
 
+mvars == <<members, mepoch, floor, want, changes>>
 vars == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
-          down, faults, lost, elected, applied, lastAction>>
+          down, faults, lost, elected, applied, members, mepoch, floor, want, changes, lastAction>>
 
 TypeOK ==
     /\ life \in [Nodes -> Lives]
@@ -95,10 +108,19 @@ TypeOK ==
     /\ lost \in 0..MaxLoss
     /\ elected \subseteq (1..MaxEpoch) \X Nodes
     /\ applied \subseteq [a : Agents, src : Nodes, e : 0..MaxEpoch, seen : 0..MaxEpoch]
+    /\ members \in [Nodes -> SUBSET Agents]
+    /\ mepoch \in [Nodes -> 0..MaxEpoch]
+    /\ floor \in [Agents -> 0..MaxEpoch]
+    /\ want \subseteq Agents
+    /\ changes \in 0..MaxChanges
 
 -----------------------------------------------------------------------------
 Linked(x, y) == {x, y} \notin down
-M(t, s, d, e, x) == [t |-> t, src |-> s, dst |-> d, e |-> e, x |-> x]
+M(t, s, d, e, x) == [t |-> t, src |-> s, dst |-> d, e |-> e, x |-> x, k |-> 0, mem |-> {}]
+\* A datagram that carries a membership epoch k (ELECT, RELAY_REQ: the list the sender knows) or
+\* a membership L (LEADER, from its master or copied by a peer).
+MK(t, s, d, e, k) == [M(t, s, d, e, NoNode) EXCEPT !.k = k]
+MH(s, d, e, x, L) == [M("HB", s, d, e, x) EXCEPT !.mem = L]
 Drops(a) == {M("RDROP", a, r, epoch[a], NoNode) : r \in relays[a]}
 
 -----------------------------------------------------------------------------
@@ -118,7 +140,8 @@ Loc(n) == [life |-> life[n], epoch |-> epoch[n], votes |-> votes[n],
            votedFor |-> Own(votedFor, n, NoNode), leader |-> Own(leader, n, NoNode),
            following |-> Own(following, n, 0), via |-> Own(via, n, NoNode),
            relays |-> Own(relays, n, {}), offered |-> Own(offered, n, {}),
-           prevotes |-> Own(prevotes, n, {})]
+           prevotes |-> Own(prevotes, n, {}),
+           members |-> members[n], mepoch |-> mepoch[n], floor |-> Own(floor, n, 0)]
 Put(f, n, x) == IF n \in Agents THEN [f EXCEPT ![n] = x] ELSE f
 SetLoc(n, s) ==
     /\ life' = [life EXCEPT ![n] = s.life]
@@ -131,6 +154,26 @@ SetLoc(n, s) ==
     /\ relays' = Put(relays, n, s.relays)
     /\ offered' = Put(offered, n, s.offered)
     /\ prevotes' = Put(prevotes, n, s.prevotes)
+    /\ members' = [members EXCEPT ![n] = s.members]
+    /\ mepoch' = [mepoch EXCEPT ![n] = s.mepoch]
+    /\ floor' = Put(floor, n, s.floor)
+    /\ UNCHANGED <<want, changes>>
+
+\* Membership (issue 13).  A node's record may lack the membership fields (the
+\* single-agent trace checks, whose quorums count against the trace's fleet,
+\* Agents): Get reads a field with a default, Fleet(s) is the membership.
+Get(r, f, d) == IF f \in DOMAIN r THEN r[f] ELSE d
+Fleet(s) == Get(s, "members", Agents)
+Max2(x, y) == IF x > y THEN x ELSE y
+\* A node's record after it learned that a membership of epoch e exists.
+Raised(s, e) == IF "floor" \in DOMAIN s THEN [s EXCEPT !.floor = Max2(@, e)] ELSE s
+\* ... and after it learned that membership L is the one of epoch e.
+Learned(s, L, e) ==
+    IF "members" \in DOMAIN s THEN Raised([s EXCEPT !.members = L, !.mepoch = e], e) ELSE s
+\* BUG "DynamicMembership" is the rule before issue 13 (the code's): the PC
+\* changes its list in place, LEADER carries the current one, each agent
+\* counts quorums against the list it last heard; no floor.
+Fixed == BUG # "DynamicMembership"
 
 \* The lifecycle state after n learns of a newer epoch than the one it acts in.
 SteppedDown(n, s) ==
@@ -155,6 +198,11 @@ Init ==
     /\ lost = 0
     /\ elected = {<<1, PC>>}
     /\ applied = {}
+    /\ members = [n \in Nodes |-> IF n = PC \/ n \in InitMembers THEN InitMembers ELSE {}]
+    /\ mepoch = [n \in Nodes |-> IF n = PC \/ n \in InitMembers THEN 1 ELSE 0]
+    /\ floor = [a \in Agents |-> IF a \in InitMembers THEN 1 ELSE 0]
+    /\ want = InitMembers
+    /\ changes = 0
     /\ lastAction = <<"Init">>
 
 -----------------------------------------------------------------------------
@@ -194,14 +242,16 @@ Timeout(a) ==
 \* An agent a in PANIC broadcasts a relay request (RELAY_REQ) with its epoch.
 \* The request is also a pre-vote: a peer with a master offers a relay, a
 \* peer without one answers PREVOTE_OK (GrantPreVote).  A candidate whose
-\* election stalled asks again before it stands in the next epoch.
+\* election stalled asks again before it stands in the next epoch.  The
+\* request carries the epoch of the membership a knows (0: none), so that a
+\* peer that knows a newer one tells it (ShareMembers).
 RequestRelayOk(s) == s.life \in {"PANIC", "CANDIDATE"}
 RequestRelay(a) ==
     /\ RequestRelayOk(Loc(a))
-    /\ M("RREQ", a, NoNode, epoch[a], NoNode) \notin net
-    /\ net' = net \cup {M("RREQ", a, NoNode, epoch[a], NoNode)}
+    /\ MK("RREQ", a, NoNode, epoch[a], mepoch[a]) \notin net
+    /\ net' = net \cup {MK("RREQ", a, NoNode, epoch[a], mepoch[a])}
     /\ lastAction' = <<"RequestRelay", a>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
 
 \* A peer p that follows a master over a direct link receives a's request
@@ -284,7 +334,7 @@ GrantPreVote(v, m) ==
     /\ M("PREOK", v, m.src, m.e, NoNode) \notin net
     /\ net' = net \cup {M("PREOK", v, m.src, m.e, NoNode)}
     /\ lastAction' = <<"GrantPreVote", v, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
 
 \* Agent a, still without a master in the epoch it asked in, counts a
@@ -310,7 +360,8 @@ HandlePreVote(a, m) ==
 \* without pre-vote (it always may take the fleet back).
 StartElectionOk(n, s) ==
     /\ s.life \in IF n = PC THEN {"CANDIDATE"} ELSE {"PANIC", "CANDIDATE"}
-    /\ IF n = PC \/ ~PreVote THEN TRUE ELSE Quorum(s.prevotes \cup {n})
+    /\ IF n = PC \/ ~PreVote THEN TRUE ELSE QuorumOf(s.prevotes \cup {n}, Fleet(s))
+    /\ n # PC => Get(s, "mepoch", 0) >= Get(s, "floor", 0)
     /\ s.epoch < MaxEpoch
 StartElectionNext(n, s) ==
     [s EXCEPT !.epoch = @ + 1, !.votedFor = IF n = PC THEN @ ELSE n,
@@ -319,7 +370,7 @@ StartElectionNext(n, s) ==
 StartElection(n) ==
     /\ StartElectionOk(n, Loc(n))
     /\ SetLoc(n, StartElectionNext(n, Loc(n)))
-    /\ net' = net \cup {M("ELECT", n, NoNode, epoch[n] + 1, NoNode)}
+    /\ net' = net \cup {MK("ELECT", n, NoNode, epoch[n] + 1, mepoch[n])}
     /\ lastAction' = <<"StartElection", n, epoch[n] + 1>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
@@ -335,6 +386,10 @@ StartElection(n) ==
 ElectGrant(s, m, sc, sv) ==
     /\ m.e > s.epoch \/ s.votedFor \in {NoNode, m.src} \/ BUG = "DoubleVote"
     /\ sc <= sv
+    /\ m.src = PC \/ ~Fixed \/ Get(m, "k", 0) >= Get(s, "floor", 0)
+\* A vote for the PC (its ELECT carries the epoch k of its membership): no
+\* membership older than k is current any more (the PC may be replacing it).
+Voted(s, m, grant) == IF grant /\ m.src = PC /\ Fixed THEN Raised(s, Get(m, "k", 0)) ELSE s
 HandleElectOk(v, s, m, sc, sv) ==
     /\ m.t = "ELECT" /\ m.src # v /\ s.life # "DOWN"
     /\ \/ m.e < s.epoch
@@ -344,10 +399,10 @@ HandleElectNext(v, s, m, sc, sv) ==
     LET grant == ElectGrant(s, m, sc, sv) IN
     CASE m.e < s.epoch -> s
       [] m.e > s.epoch ->
-           [s EXCEPT !.epoch = m.e, !.votedFor = IF grant THEN m.src ELSE NoNode,
-                     !.life = SteppedDown(v, s), !.leader = NoNode, !.following = 0,
-                     !.via = NoNode, !.relays = {}, !.offered = {}, !.prevotes = {}]
-      [] OTHER -> [s EXCEPT !.votedFor = IF grant THEN m.src ELSE @]
+           Voted([s EXCEPT !.epoch = m.e, !.votedFor = IF grant THEN m.src ELSE NoNode,
+                           !.life = SteppedDown(v, s), !.leader = NoNode, !.following = 0,
+                           !.via = NoNode, !.relays = {}, !.offered = {}, !.prevotes = {}], m, grant)
+      [] OTHER -> Voted([s EXCEPT !.votedFor = IF grant THEN m.src ELSE @], m, grant)
 HandleElect(v, m) ==
     LET c == m.src
         sc == Score[c]
@@ -379,25 +434,35 @@ HandleVote(n, m) ==
 
 \* A candidate with the votes of a majority of the fleet becomes master of
 \* its epoch and announces itself (LEADER, also its heartbeat).
+\* A new master publishes the membership it counted against; the PC
+\* publishes it changed by one agent towards its registry (want), never to
+\* an empty one: so the PC's membership is empty only if it always was (a
+\* fresh start), nobody knows a membership, and the PC needs no vote.
+OneStep(L, w) ==
+    LET S == ({L \cup {a} : a \in w \ L} \cup {L \ {a} : a \in L \ w}) \ {{}}
+    IN IF S = {} THEN {L} ELSE S
 BecomeMasterOk(s) ==
     /\ s.life = "CANDIDATE"
-    /\ IF BUG = "MinorityQuorum" THEN s.votes # {} ELSE Quorum(s.votes)
+    /\ IF BUG = "MinorityQuorum" THEN s.votes # {} ELSE QuorumOf(s.votes, Fleet(s))
 BecomeMasterNext(s) == [s EXCEPT !.life = "MASTER"]
 BecomeMaster(n) ==
-    /\ BecomeMasterOk(Loc(n))
-    /\ SetLoc(n, BecomeMasterNext(Loc(n)))
+    LET s == Loc(n) IN
+    /\ \/ BecomeMasterOk(s)
+       \/ n = PC /\ Fixed /\ s.life = "CANDIDATE" /\ members[PC] = {}
+    /\ \E L \in IF n # PC THEN {members[n]} ELSE IF Fixed THEN OneStep(members[PC], want) ELSE {want} :
+         /\ SetLoc(n, Learned(BecomeMasterNext(s), L, epoch[n]))
+         /\ net' = net \cup {MH(n, NoNode, epoch[n], NoNode, L)}
     /\ elected' = elected \cup {<<epoch[n], n>>}
-    /\ net' = net \cup {M("HB", n, NoNode, epoch[n], NoNode)}
     /\ lastAction' = <<"BecomeMaster", n, epoch[n]>>
     /\ UNCHANGED <<down, faults, lost, applied>>
 
 \* A master re-sends its heartbeat (LEADER) when the last one was lost.
 Heartbeat(n) ==
     /\ life[n] = "MASTER"
-    /\ M("HB", n, NoNode, epoch[n], NoNode) \notin net
-    /\ net' = net \cup {M("HB", n, NoNode, epoch[n], NoNode)}
+    /\ MH(n, NoNode, epoch[n], NoNode, members[n]) \notin net
+    /\ net' = net \cup {MH(n, NoNode, epoch[n], NoNode, members[n])}
     /\ lastAction' = <<"Heartbeat", n>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
 
 \* Agent v hears the heartbeat of master s in epoch e over a direct link.
@@ -408,10 +473,11 @@ Heartbeat(n) ==
 \*    master changes is PAUSED until the new master resumes it.
 Stale(s, m) == m.e < s.epoch /\ BUG # "NoEpochCheck"
 MasterChange(s, m) == s.leader # m.src \/ s.following # m.e
+NewMembers(s, m) == "members" \in DOMAIN s /\ (s.members # m.mem \/ s.mepoch # m.e)
 HandleHeartbeatOk(v, s, m) ==
-    /\ m.t = "HB" /\ m.src # v /\ s.life # "DOWN"
+    /\ m.t = "HB" /\ m.dst = NoNode /\ m.src # v /\ s.life # "DOWN"
     /\ ~Stale(s, m) =>
-         /\ MasterChange(s, m) \/ s.via # NoNode \/ s.life \notin Followers
+         /\ MasterChange(s, m) \/ s.via # NoNode \/ s.life \notin Followers \/ NewMembers(s, m)
          /\ s.life = "MASTER" => m.e > s.epoch
 HandleHeartbeatNext(s, m) ==
     IF Stale(s, m) THEN s
@@ -421,7 +487,8 @@ HandleHeartbeatNext(s, m) ==
                             !.epoch = IF m.e > s.epoch THEN m.e ELSE @,
                             !.votedFor = IF m.e > s.epoch THEN NoNode ELSE @,
                             !.leader = m.src, !.following = m.e, !.via = NoNode, !.prevotes = {}]
-         IN IF MasterChange(s, m) THEN [t EXCEPT !.relays = {}, !.offered = {}] ELSE t
+             u == Learned(t, Get(m, "mem", {}), m.e)
+         IN IF MasterChange(s, m) THEN [u EXCEPT !.relays = {}, !.offered = {}] ELSE u
 HandleHeartbeat(v, m) ==
     /\ HandleHeartbeatOk(v, Loc(v), m) /\ Linked(m.src, v)
     /\ IF Stale(Loc(v), m)
@@ -437,7 +504,7 @@ HandleHeartbeat(v, m) ==
 \* again), a follower of an older master stops following it.
 HandleStaleOk(n, s, m) == m.t = "STALE" /\ m.dst = n /\ s.life # "DOWN" /\ m.e > s.epoch
 HandleStaleNext(n, s, m) ==
-    LET t == [s EXCEPT !.epoch = m.e, !.life = SteppedDown(n, s)] IN
+    LET t == [s EXCEPT !.epoch = m.e, !.life = SteppedDown(n, s), !.votes = {}] IN
     IF n = PC THEN t
     ELSE [t EXCEPT !.votedFor = NoNode, !.prevotes = {}, !.leader = NoNode, !.following = 0,
                    !.via = NoNode, !.relays = {}, !.offered = {}]
@@ -448,6 +515,80 @@ HandleStale(n, m) ==
     /\ net' = IF n = PC THEN net ELSE net \cup Drops(n)
     /\ lastAction' = <<"HandleStale", n, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
+
+-----------------------------------------------------------------------------
+(* Membership (issue 13).  Every master publishes one membership for its    *)
+(* whole epoch (LEADER); an agent keeps the last one it learned and the     *)
+(* epoch of the master that published it (mepoch), and counts quorums       *)
+(* against it.  Only the PC changes the membership, and only by winning a   *)
+(* new epoch with a majority of its old one (Reconfigure); a vote for the   *)
+(* PC raises the voter's floor to that epoch: it grants no candidate whose  *)
+(* membership is older (ElectGrant), and stands only with one at least as   *)
+(* new (StartElectionOk).  A membership is learned from the master's LEADER *)
+(* or from a peer: an agent that knows a newer one than a RELAY_REQ says    *)
+(* its sender knows answers with a copy of its LEADER, LEADER(epoch, 0,     *)
+(* members...) to the asker (0: no master claimed).                        *)
+
+\* Peer p, not master, receives a's RELAY_REQ, and knows a newer membership
+\* than a does: it sends a the copy.
+ShareMembersOk(p, s, m) ==
+    /\ BUG # "NoShare"
+    /\ m.t = "RREQ" /\ m.src # p
+    /\ s.life \notin {"MASTER", "DOWN"}
+    /\ Get(s, "mepoch", 0) > m.k
+ShareMembers(p, m) ==
+    /\ ShareMembersOk(p, Loc(p), m) /\ Linked(m.src, p)
+    /\ MH(p, m.src, mepoch[p], NoNode, members[p]) \notin net
+    /\ net' = net \cup {MH(p, m.src, mepoch[p], NoNode, members[p])}
+    /\ lastAction' = <<"ShareMembers", p, m>>
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   down, faults, lost, elected, applied>>
+
+\* Agent a receives a copy of a LEADER of epoch e newer than the membership it
+\* knows: it learns the membership; an epoch newer than its own is adopted as
+\* from EPOCH_STALE (a master or candidate steps down; no master followed).
+LearnMembersOk(a, s, m) ==
+    /\ m.t = "HB" /\ m.dst = a /\ s.life # "DOWN"
+    /\ m.e > Get(s, "mepoch", 0)
+LearnMembersNext(a, s, m) ==
+    Learned(IF m.e > s.epoch THEN HandleStaleNext(a, s, m) ELSE s, m.mem, m.e)
+LearnMembers(a, m) ==
+    /\ m.t = "HB" /\ m.dst = a   \* first: the copy is a's
+    /\ LearnMembersOk(a, Loc(a), m) /\ Linked(m.src, a)
+    /\ SetLoc(a, LearnMembersNext(a, Loc(a), m))
+    /\ net' = IF m.e > epoch[a] THEN net \cup Drops(a) ELSE net
+    /\ lastAction' = <<"LearnMembers", a, m>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
+
+\* The PC (MASTER) registers agent a (AddMember) or declares it lost and
+\* drops it (DropMember): its registry (want) changes.  With the bug the
+\* membership it publishes changes with it, in the same epoch.
+AddMember(a) ==
+    /\ life[PC] = "MASTER" /\ a \notin want /\ changes < MaxChanges
+    /\ want' = want \cup {a}
+    /\ changes' = changes + 1
+    /\ members' = IF Fixed THEN members ELSE [members EXCEPT ![PC] = want']
+    /\ lastAction' = <<"AddMember", a>>
+    /\ UNCHANGED <<mepoch, floor, life, epoch, votedFor, votes, leader, following, via, relays,
+                   offered, prevotes, net, down, faults, lost, elected, applied>>
+DropMember(a) ==
+    /\ life[PC] = "MASTER" /\ a \in want /\ changes < MaxChanges
+    /\ want' = want \ {a}
+    /\ changes' = changes + 1
+    /\ members' = IF Fixed THEN members ELSE [members EXCEPT ![PC] = want']
+    /\ lastAction' = <<"DropMember", a>>
+    /\ UNCHANGED <<mepoch, floor, life, epoch, votedFor, votes, leader, following, via, relays,
+                   offered, prevotes, net, down, faults, lost, elected, applied>>
+
+\* The PC (MASTER) whose registry differs from the membership of its epoch
+\* stands in the next epoch (StartElection) to publish it (BecomeMaster).
+ReconfigureOk(s, w) == Fixed /\ s.life = "MASTER" /\ OneStep(Fleet(s), w) # {Fleet(s)}
+Reconfigure ==
+    /\ ReconfigureOk(Loc(PC), want)
+    /\ life' = [life EXCEPT ![PC] = "CANDIDATE"]
+    /\ lastAction' = <<"Reconfigure">>
+    /\ UNCHANGED <<mvars, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+                   net, down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Commands, fenced by epoch.                                              *)
@@ -464,7 +605,7 @@ SendCommand(s, a) ==
             /\ M("RELAY", s, p, epoch[s], a) \notin net
             /\ net' = net \cup {M("RELAY", s, p, epoch[s], a)}
     /\ lastAction' = <<"SendCommand", s, a>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
 
 \* Relay p forwards the inner datagram of a RELAY to the agent it relays
@@ -475,7 +616,7 @@ Forward(p, m) ==
     /\ M("CMD", m.src, m.x, m.e, p) \notin net
     /\ net' = net \cup {M("CMD", m.src, m.x, m.e, p)}
     /\ lastAction' = <<"Forward", p, m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
 
 \* Agent a receives a command of master s in epoch e (directly, or from its
@@ -498,7 +639,8 @@ ApplyCommand(a, m) ==
 -----------------------------------------------------------------------------
 (* Faults.                                                                 *)
 
-\* Node n crashes: it loses everything but epoch and votedFor (on disk).
+\* Node n crashes: it loses everything but epoch, votedFor and the membership
+\* it knows (members, mepoch, floor: on disk).
 Crash(n) ==
     /\ n = PC => PCCrash
     /\ n # PC => Crashes
@@ -506,6 +648,7 @@ Crash(n) ==
     /\ life' = [life EXCEPT ![n] = "DOWN"]
     /\ faults' = faults + 1
     /\ votes' = [votes EXCEPT ![n] = {}]
+    /\ UNCHANGED <<members, mepoch, floor, want, changes>>  \* on disk (the PC: its state file)
     /\ IF n = PC
        THEN UNCHANGED <<votedFor, leader, following, via, relays, offered, prevotes>>
        ELSE /\ prevotes' = [prevotes EXCEPT ![n] = {}]
@@ -526,7 +669,7 @@ Restart(n) ==
     /\ n = PC => PCReturns
     /\ life' = [life EXCEPT ![n] = IF n = PC THEN "CANDIDATE" ELSE "PANIC"]
     /\ lastAction' = <<"Restart", n>>
-    /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
+    /\ UNCHANGED <<mvars, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
                    down, faults, lost, elected, applied>>
 
 \* The link between x and y breaks (partition) or comes back.
@@ -535,14 +678,14 @@ Cut(x, y) ==
     /\ down' = down \cup {{x, y}}
     /\ faults' = faults + 1
     /\ lastAction' = <<"Cut", x, y>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    net, lost, elected, applied>>
 
 Heal(x, y) ==
     /\ {x, y} \in down
     /\ down' = down \ {{x, y}}
     /\ lastAction' = <<"Heal", x, y>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    net, faults, lost, elected, applied>>
 
 \* The network loses datagram m.
@@ -551,12 +694,13 @@ Lose(m) ==
     /\ net' = net \ {m}
     /\ lost' = lost + 1
     /\ lastAction' = <<"Lose", m>>
-    /\ UNCHANGED <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+    /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, elected, applied>>
 
 -----------------------------------------------------------------------------
 Next ==
-    \/ \E a \in Agents : Timeout(a) \/ RequestRelay(a)
+    \/ \E a \in Agents : Timeout(a) \/ RequestRelay(a) \/ AddMember(a) \/ DropMember(a)
+    \/ Reconfigure
     \/ \E n \in Nodes : StartElection(n) \/ BecomeMaster(n) \/ Heartbeat(n)
                         \/ Crash(n) \/ Restart(n)
     \/ \E s \in Nodes, a \in CmdAgents : SendCommand(s, a)
@@ -569,6 +713,7 @@ Next ==
               \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
               \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
               \/ Forward(a, m) \/ ApplyCommand(a, m)
+              \/ ShareMembers(a, m) \/ LearnMembers(a, m)
 
 Spec == Init /\ [][Next]_vars
 

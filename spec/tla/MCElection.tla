@@ -6,6 +6,8 @@
 (*                        round, loss and duplication, commands (make spec)*)
 (*   MCElectionVote.cfg   3 agents, master and agent crashes, spurious     *)
 (*                        timeouts, no pre-vote: double votes (make spec)  *)
+(*   MCElectionMember.cfg 2 agents, one joining late, the PC changing the *)
+(*                        membership, then crashing (make spec, issue 13)  *)
 (*   MCElectionFull.cfg   3 agents, cuts, the PC master returning          *)
 (*                        (make spec-full)                                 *)
 (*   MCElectionRelay.cfg  2 agents, PC up, cuts PC-2 and PC-3, MaxMsgs 7:  *)
@@ -50,5 +52,6 @@ VoteBound ==
 \* led to it, kept for traces and the conformance replay).  No invariant reads it, so
 \* two states that differ only in it have the same successors and the same verdicts.
 StateView == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+               members, mepoch, floor, want, changes,
                net, down, faults, lost, elected, applied>>
 =============================================================================

@@ -55,8 +55,9 @@ Stand(n) == StartElection(n) /\ StandOK(n)
 LiveTimeout(a) == Timeout(a) /\ (BUG = "FreezeOnLoss" => life[a] # "WORKING")
 
 \* The datagram is not a late copy of something its sender no longer means.
+\* A LEADER copy (ShareMembers) is always current: it only teaches a membership.
 Current(m) ==
-    CASE m.t = "HB" -> life[m.src] = "MASTER" /\ epoch[m.src] = m.e
+    CASE m.t = "HB" -> m.dst # NoNode \/ (life[m.src] = "MASTER" /\ epoch[m.src] = m.e)
       [] m.t = "ROFFER" -> /\ life[m.src] \in Followers /\ via[m.src] = NoNode
                            /\ leader[m.src] = m.x /\ following[m.src] = m.e
       [] m.t = "RDROP" -> m.dst \notin relays[m.src]
@@ -73,15 +74,24 @@ LiveApply(a, m) ==
     /\ ApplyCommand(a, m)
     /\ \A r \in applied : ~(r.a = a /\ r.src = m.src /\ r.e = m.e)
 
+\* A LEADER of a master that has died since is delivered to an agent that
+\* does not know the membership it lists yet (it was in flight when the
+\* master died; the agent follows it, times out, and knows the membership):
+\* once per agent, so no endless stream of a dead master's heartbeats.
+Teaches(a, m) == m.t = "HB" /\ m.dst = NoNode /\ m.e > mepoch[a]
+CurrentFor(a, m) == Current(m) \/ Teaches(a, m)
+
 Deliver(a, m) ==
-    /\ Current(m)
+    /\ CurrentFor(a, m)
     /\ \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
        \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
        \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
        \/ Forward(a, m) \/ LiveApply(a, m)
+       \/ ShareMembers(a, m) \/ LearnMembers(a, m)
 
 LiveNext ==
-    \/ \E a \in Agents : LiveTimeout(a) \/ RequestRelay(a)
+    \/ \E a \in Agents : LiveTimeout(a) \/ RequestRelay(a) \/ AddMember(a) \/ DropMember(a)
+    \/ Reconfigure
     \/ \E n \in Nodes : Stand(n) \/ BecomeMaster(n) \/ Heartbeat(n) \/ Crash(n) \/ Restart(n)
     \/ \E s \in Nodes, a \in CmdAgents : SendCommand(s, a)
     \/ \E x, y \in Nodes : ({x, y} \in CutLinks /\ Cut(x, y)) \/ Heal(x, y)
@@ -104,11 +114,14 @@ Fairness ==
          /\ WF_vars(\E m \in net : Current(m) /\ GrantPreVote(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ HandlePreVote(a, m))
          /\ WF_vars(\E m \in net : Current(m) /\ HandleElect(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ HandleHeartbeat(a, m))
+         /\ WF_vars(\E m \in net : CurrentFor(a, m) /\ HandleHeartbeat(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ ShareMembers(a, m))
+         /\ WF_vars(\E m \in net : Current(m) /\ LearnMembers(a, m))
     /\ \A n \in Nodes :
          /\ WF_vars(Stand(n)) /\ WF_vars(BecomeMaster(n)) /\ WF_vars(Heartbeat(n))
          /\ WF_vars(\E m \in net : HandleVote(n, m))
          /\ WF_vars(\E m \in net : HandleStale(n, m))
+    /\ WF_vars(Reconfigure)
 
 LiveSpec == Init /\ [][LiveNext]_vars /\ Fairness
 

@@ -17,5 +17,6 @@ INSTANCE Election WITH Score <- [n \in {} |-> 0], MaxEpoch <- MaxTLCInt,
        MaxLoss <- 0, SpuriousTimeout <- FALSE, CmdAgents <- {}, PreVote <- TRUE, BUG <- "None",
        life <- {}, epoch <- {}, votedFor <- {}, votes <- {}, leader <- {}, following <- {},
        via <- {}, relays <- {}, offered <- {}, prevotes <- {}, net <- {}, down <- {}, faults <- 0,
-       lost <- 0, elected <- {}, applied <- {}, lastAction <- <<>>
+       lost <- 0, elected <- {}, applied <- {}, members <- {}, mepoch <- {}, floor <- {},
+       want <- {}, changes <- 0, Joiners <- {}, MaxChanges <- 0, lastAction <- <<>>
 ================================================================================

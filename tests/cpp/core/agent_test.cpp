@@ -138,7 +138,12 @@ TEST(ActionNames, EverySpecActionOfANodeIsACppAction) {
   ASSERT_NE(at, std::string::npos);
   const std::string next = text.substr(at, text.find("\nSpec ==", at) - at);
   const std::regex call(R"re(([A-Z][A-Za-z]*)\()re");
-  const std::set<std::string> environment = {"Crash", "Restart", "Cut", "Heal", "Lose", "Timeout", "SendCommand"};
+  // AddMember / DropMember: the PC's registry changing (RecvAgent, MasterTick's drop).
+  const std::set<std::string> environment = {"Crash", "Restart", "Cut", "Heal", "Lose", "Timeout", "SendCommand",
+                                             "AddMember", "DropMember"};
+  // Issue 13 (docs/election.md section 6): the membership rule is in the spec first; these rules
+  // have no handler in the cores yet. Each must leave this list when its Action is added.
+  const std::set<std::string> not_in_cores_yet = {"ShareMembers", "LearnMembers"};
   std::size_t election = 0;
   for (std::sregex_iterator it(next.begin(), next.end(), call), e; it != e; ++it) {
     if (environment.count((*it)[1]) != 0) continue;
@@ -146,7 +151,15 @@ TEST(ActionNames, EverySpecActionOfANodeIsACppAction) {
     ++election;
   }
   EXPECT_GE(election, 14u);
-  for (const auto& n : spec) EXPECT_EQ(cpp.count(n), 1u) << "spec action " << n << " has no Action";
+  for (const auto& n : not_in_cores_yet) {
+    EXPECT_EQ(spec.count(n), 1u) << n << " is no spec action any more: drop it from not_in_cores_yet";
+    EXPECT_EQ(cpp.count(n), 0u) << n << " is a C++ Action now: drop it from not_in_cores_yet";
+  }
+  for (const auto& n : spec) {
+    if (not_in_cores_yet.count(n) == 0) {
+      EXPECT_EQ(cpp.count(n), 1u) << "spec action " << n << " has no Action";
+    }
+  }
 }
 
 constexpr BehaviourSpec kBehs[] = {{"explore", 1u}, {"wander", 0u}};
