@@ -934,9 +934,11 @@ class Master {
     return m.receiver == self_ && e && *e > epoch_;
   }
   /// Spec HandleStale: a newer epoch exists: the PC stands again (CANDIDATE), an elected agent's
-  /// master steps down.
+  /// master steps down. Votes of the older epoch do not count in the newer one (issue 13: TLC
+  /// found the PC winning the newer epoch with them).
   void HandleStale(const Message& m, Peer) {
     epoch_ = *m.param_u32(0);
+    votes_.clear();
     if (self_ == kMasterId)
       become_candidate();
     else
