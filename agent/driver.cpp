@@ -61,8 +61,8 @@ class Driver {
     const Json& el = in["election"];
     c.election.enabled = el["enabled"].boolean(false);
     if (el.has("score")) c.election.score = static_cast<std::uint32_t>(el["score"].num(0));
-    c.election.epoch = static_cast<std::uint32_t>(el["epoch"].num(1));
-    c.election.voted_for = static_cast<std::uint16_t>(el["voted_for"].num(0));
+    c.election.durable.epoch = static_cast<std::uint32_t>(el["epoch"].num(1));
+    c.election.durable.voted_for = static_cast<std::uint16_t>(el["voted_for"].num(0));
     if (!c.timers.valid()) {
       err = "timers: paused must be greater than loss";
       return false;

@@ -179,7 +179,7 @@ class Program {
              opt_.model.c_str(), cfg.temp_id, bc.c_str());
     if (opt_.election)
       log_.log(kInfo, "election on: score %u, epoch %u, voted for %u, state %s", node_->agent().score(),
-               cfg.election.epoch, cfg.election.voted_for,
+               cfg.election.durable.epoch, cfg.election.durable.voted_for,
                state_path_.empty() ? "in memory only (no --state-dir)" : state_path_.c_str());
     log_.log(kInfo, "state IDLE");
     log_.flush();
@@ -445,7 +445,9 @@ class Program {
   }
 
   // ------------------------------------------------------------------ relay and election
-  /// The election state file: DIR/ev3-agent.state (epoch, voted_for); none without --state-dir.
+  /// The election state file: DIR/ev3-agent.state (epoch, voted_for, and the membership the agent
+  /// knows: members, members_epoch, floor; a file written before issue 13 has none of the three: no
+  /// membership known); none without --state-dir.
   bool load_state(ev3proto::ElectionConfig& e) {
     if (opt_.state_dir.empty()) return true;
     state_path_ = opt_.state_dir + "/ev3-agent.state";
@@ -462,18 +464,44 @@ class Program {
                    state_path_.c_str());
       return false;
     }
-    e.epoch = static_cast<std::uint32_t>(epoch);
-    e.voted_for = static_cast<std::uint16_t>(voted);
+    ev3proto::Durable& d = e.durable;
+    d.epoch = static_cast<std::uint32_t>(epoch);
+    d.voted_for = static_cast<std::uint16_t>(voted);
+    const bool any = kv.count("members") + kv.count("members_epoch") + kv.count("floor") != 0;
+    if (!any) return true;  // written before the membership was kept: none known
+    std::uint64_t mepoch = 0, floor = 0;
+    std::vector<std::uint16_t> members;
+    const char* bad = nullptr;
+    if (!ev3io::to_uint(kv["members_epoch"], 0, epoch, mepoch))
+      bad = "members_epoch (a number 0..epoch)";
+    else if (!ev3io::to_uint(kv["floor"], 0, epoch, floor))
+      bad = "floor (a number 0..epoch)";
+    else if (!ev3io::parse_id_list(kv["members"], members) || members.size() > ev3proto::kMaxMembership)
+      bad = "members (at most 30 distinct agent ids 2..49999, comma-separated)";
+    else if (mepoch == 0 && !members.empty())
+      bad = "members_epoch (members without the epoch that published them)";
+    if (bad != nullptr) {
+      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: bad %s\n", state_path_.c_str(), bad);
+      return false;
+    }
+    d.mepoch = static_cast<std::uint32_t>(mepoch);
+    d.floor = static_cast<std::uint32_t>(floor);
+    for (std::uint16_t m : members) d.members[d.member_count++] = m;
     return true;
   }
 
-  /// Writes the election state (epoch, voted_for) the node reported changed.
+  /// Writes the election state (epoch, voted_for, the membership) the node reported changed.
   void save_state(const ev3proto::Durable& d) {
-    log_.log(kDebug, "durable: epoch %u, voted for %u", d.epoch, d.voted_for);
+    const std::string members = ev3io::format_id_list(std::vector<std::uint16_t>(d.members, d.members + d.member_count));
+    log_.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
+             members.c_str(), d.mepoch, d.floor);
     if (state_path_.empty()) return;
     std::string err;
     if (!ev3io::write_state_file(state_path_, {{"epoch", std::to_string(d.epoch)},
-                                               {"voted_for", std::to_string(d.voted_for)}}, err))
+                                               {"voted_for", std::to_string(d.voted_for)},
+                                               {"members", members},
+                                               {"members_epoch", std::to_string(d.mepoch)},
+                                               {"floor", std::to_string(d.floor)}}, err))
       log_.log(kError, "%s", err.c_str());
   }
 

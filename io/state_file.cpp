@@ -1,5 +1,9 @@
 #include "ev3io/state_file.hpp"
 
+#include <algorithm>
+
+#include "ev3io/cli.hpp"
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -82,6 +86,33 @@ bool read_state_file(const std::string& path, std::map<std::string, std::string>
     kv[l.substr(0, eq)] = l.substr(eq + 1);
   }
   return true;
+}
+
+bool parse_id_list(const std::string& s, std::vector<std::uint16_t>& out) {
+  out.clear();
+  for (std::size_t pos = 0; pos < s.size();) {
+    std::size_t comma = s.find(',', pos);
+    if (comma == std::string::npos) comma = s.size();
+    std::uint64_t id = 0;
+    if (!to_uint(std::string_view(s).substr(pos, comma - pos), 2, 49999, id) ||
+        std::find(out.begin(), out.end(), static_cast<std::uint16_t>(id)) != out.end()) {
+      out.clear();
+      return false;
+    }
+    out.push_back(static_cast<std::uint16_t>(id));
+    pos = comma + 1;
+    if (comma + 1 == s.size()) {  // a trailing comma
+      out.clear();
+      return false;
+    }
+  }
+  return true;
+}
+
+std::string format_id_list(const std::vector<std::uint16_t>& ids) {
+  std::string s;
+  for (std::uint16_t id : ids) s += (s.empty() ? "" : ",") + std::to_string(id);
+  return s;
 }
 
 }  // namespace ev3io

@@ -4,6 +4,7 @@
 ///        fsync, rename, fsync of the directory) so a crash leaves the old or the new file.
 #pragma once
 
+#include <cstdint>
 #include <map>
 #include <string>
 #include <vector>
@@ -16,6 +17,13 @@ bool write_state_file(const std::string& path, const std::map<std::string, std::
 /// Reads @p path into @p kv. False when it does not exist or cannot be read (@p err says which;
 /// empty when it does not exist).
 bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err);
+
+/// Parses a membership as the state files keep it: agent ids 2..49999 separated by commas, each at
+/// most once ("" is the empty list). False (and @p out cleared) when an entry is not one.
+bool parse_id_list(const std::string& s, std::vector<std::uint16_t>& out);
+
+/// The other way round: "7,8,9" ("" for none).
+std::string format_id_list(const std::vector<std::uint16_t>& ids);
 
 /// Appends the lines of text file @p path (without their newlines) to @p lines: stdio, no iostreams
 /// (the EV3 binary carries none). False when it does not exist or cannot be read (@p err says

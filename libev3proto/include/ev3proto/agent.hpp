@@ -514,8 +514,12 @@ class Agent {
   std::size_t prevote_count() const noexcept { return el_.prevotes.size(); }
   /// The i-th pre-vote's sender.
   std::uint16_t prevote(std::size_t i) const noexcept { return el_.prevotes[i]; }
-  /// The fleet membership last published by the followed master (LEADER), quorums count against it.
+  /// The fleet membership last learned (LEADER, or a peer's copy), quorums count against it.
   std::size_t member_count() const noexcept { return el_.members.size(); }
+  /// The epoch of the master that published it (Election mepoch; 0: none known).
+  std::uint32_t members_epoch() const noexcept { return el_.mepoch; }
+  /// No membership older than this epoch is current (Election floor).
+  std::uint32_t members_floor() const noexcept { return el_.floor; }
   /// The i-th member id.
   std::uint16_t member(std::size_t i) const noexcept { return el_.members[i]; }
   /// The score this agent announces when it stands (ElectionConfig::score, or computed: 16 x the
@@ -592,6 +596,12 @@ class Agent {
     }
     record(v.action, before, bytes, {}, 0, v.inner);
     refused_now_ = false;
+    if (v.action != Action::ShareMembers && !v.stale && el_.ShareMembersOk(m, lifecycle())) {
+      // Election ShareMembers, besides OfferRelay / GrantPreVote on the same RELAY_REQ: a second step.
+      const AgentVars b = vars();
+      ShareMembers(m, from);
+      record(Action::ShareMembers, b, bytes, {}, 0);
+    }
     if (BecomeMasterOk()) traced(Action::BecomeMaster, [this] { BecomeMaster(); });
     h.action = v.action;
     h.why = v.why;
@@ -666,6 +676,8 @@ class Agent {
       case Action::HandleVote: HandleVote(m); break;
       case Action::HandleHeartbeat: HandleHeartbeat(m, from); break;
       case Action::HandleStale: HandleStale(m); break;
+      case Action::ShareMembers: ShareMembers(m, from); break;
+      case Action::LearnMembers: LearnMembers(m); break;
       case Action::ApplyCommand: ApplyCommand(v.inner, *inner, from, m.sender, *m.param_u32(0)); break;
       default: Receive(v.action, m, from, master_id(), 1); break;
     }
@@ -1181,13 +1193,35 @@ class Agent {
   bool RequestRelayOk() const noexcept {
     return el_.RequestRelayOk(state_) && timers_.due(AgentTimer::relay, now_);
   }
-  /// Spec RequestRelay: RELAY_REQ(epoch, score) broadcast, again after relay_retry. It is also the
-  /// pre-vote request: peers without a master answer PREVOTE_OK.
+  /// Spec RequestRelay: RELAY_REQ(epoch, score, mepoch) broadcast, again after relay_retry. It is
+  /// also the pre-vote request (peers without a master answer PREVOTE_OK) and says which membership
+  /// we know (a peer that knows a newer one sends us a copy: ShareMembers).
   void RequestRelay() noexcept {
     timers_.set(AgentTimer::relay, now_ + cfg_.timers[Timer::relay_retry]);
-    char num[10], sc[10];
-    const std::string_view p[2] = {number(el_.epoch, num), number(score(), sc)};
-    emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 2);
+    char num[10], sc[10], me[10];
+    const std::string_view p[3] = {number(el_.epoch, num), number(score(), sc), number(el_.mepoch, me)};
+    emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 3);
+  }
+
+  /// Spec ShareMembers: a copy of the LEADER that published our membership, LEADER(mepoch, 0,
+  /// members...) to the asker (leader 0: no master is claimed); nothing else changes.
+  void ShareMembers(const Message& m, Peer from) noexcept {
+    char e[10], ids[kMaxMembers][10];
+    std::string_view p[kMaxParams];
+    p[0] = number(el_.mepoch, e);
+    p[1] = "0";
+    for (std::size_t i = 0; i < el_.members.size(); ++i) p[2 + i] = number(el_.members[i], ids[i]);
+    emit_to(from, m.sender, MsgType::LEADER, p, 2 + el_.members.size());
+  }
+
+  /// Spec LearnMembers (a newer epoch was adopted by the prelude, as from EPOCH_STALE): the copy's
+  /// membership is the one of its epoch; without a master we may now stand with it.
+  void LearnMembers(const Message& m) noexcept {
+    el_.Learned(m, *m.param_u32(0));
+    durable_changed();
+    if (state_ == State::PANIC && el_.role == Role::none && stand_at_ == kNever && el_.members.size() > 0)
+      stand_at_ = now_ + backoff();
+    arm_stand();
   }
 
   /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else changes.
@@ -1244,21 +1278,25 @@ class Agent {
   bool StartElectionOk() const noexcept {
     return el_.StartElectionOk(lifecycle()) && timers_.due(AgentTimer::stand, now_);
   }
-  /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, 0) broadcast.
+  /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, mepoch) broadcast.
   void StartElection() noexcept {
     become_candidate();
-    char e[10], sc[10];
-    const std::string_view p[3] = {number(el_.epoch, e), number(score(), sc), "0"};
+    char e[10], sc[10], me[10];
+    const std::string_view p[3] = {number(el_.epoch, e), number(score(), sc), number(el_.mepoch, me)};
     emit(Dest::broadcast, kBroadcastId, MsgType::ELECT, p, 3);
   }
 
   /// Spec HandleElect (a newer epoch was adopted by the prelude): grant the one vote of the epoch
-  /// to a candidate not stronger than us (VOTE), and give it time to win before standing ourselves.
+  /// to a candidate not stronger than us whose membership is not older than our floor (VOTE), and
+  /// give it time to win before standing ourselves. A vote for the PC raises the floor to the epoch
+  /// of its membership (Election Voted): it may be replacing it.
   void HandleElect(const Message& m, Peer from) noexcept {
     const std::uint32_t e = *m.param_u32(0);
-    const bool grant = el_.ElectGrant(m.sender, e, *m.param_u32(1), score());
+    const std::uint32_t k = m.param_u32(2).value_or(0);
+    const bool grant = el_.ElectGrant(m.sender, e, *m.param_u32(1), score(), k);
     if (grant) {
       el_.voted_for = m.sender;
+      if (m.sender == kMasterId) el_.Raised(k);
       if (state_ == State::PANIC && el_.role == Role::none) {
         stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
         arm_stand();
@@ -1277,10 +1315,14 @@ class Agent {
 
   /// Spec BecomeMaster's enabling condition: a candidate with votes of a strict majority.
   bool BecomeMasterOk() const noexcept { return el_.BecomeMasterOk(); }
-  /// Spec BecomeMaster: master of its epoch; first LEADER(epoch, id, members) broadcast; a Master
-  /// core runs for it from now on (node.hpp).
+  /// Spec BecomeMaster: master of its epoch with the membership it counted against (now of this
+  /// epoch: mepoch, floor); first LEADER(epoch, id, members) broadcast; a Master core runs for it
+  /// from now on (node.hpp).
   void BecomeMaster() noexcept {
     become_master();
+    el_.mepoch = el_.epoch;
+    el_.Raised(el_.epoch);
+    durable_changed();
     char e[10], me[10], ids[kMaxMembers][10];
     std::string_view p[kMaxParams];
     p[0] = number(el_.epoch, e);
@@ -1306,11 +1348,8 @@ class Agent {
       reset_clk();
     }
     become_follower(m.sender, e, 0, from);
-    el_.members.clear();
-    for (std::size_t i = 2; i < m.param_count() && el_.members.size() < kMaxMembers; ++i) {
-      const auto id = m.param_u16(i);
-      if (id && is_assigned_id(*id)) el_.members.add(*id);
-    }
+    el_.Learned(m, e);
+    durable_changed();
   }
 
   /// Spec HandleStale: the newer epoch is all it brings; the prelude adopted it (stepping down).
@@ -1357,8 +1396,11 @@ class Agent {
     timers_.set(AgentTimer::lifecycle, lifecycle_timer(state_, t) ? heard_ + cfg_.timers[t] : kNever);
   }
   /// Stand timer: the back-off's end, armed once the pre-votes make a quorum (without them the
-  /// next event is a relay request's retry or a PREVOTE_OK arriving, not the back-off's end).
-  void arm_stand() noexcept { timers_.set(AgentTimer::stand, el_.PreVoteQuorum(id_) ? stand_at_ : kNever); }
+  /// next event is a relay request's retry or a PREVOTE_OK arriving, not the back-off's end), and
+  /// the membership known is not older than the floor (else the next event is learning a newer one).
+  void arm_stand() noexcept {
+    timers_.set(AgentTimer::stand, el_.PreVoteQuorum(id_) && el_.mepoch >= el_.floor ? stand_at_ : kNever);
+  }
   Millis clk_origin() const noexcept {
     return timers_.get(AgentTimer::periodic) - cfg_.timers[Timer::heartbeat];
   }

@@ -128,10 +128,12 @@ enum class Action : std::uint8_t {
   GrantPreVote, HandlePreVote,
   // Master-side extensions the spec abstracts (docs/core.md): the route and the handover.
   MasterRoute, MasterHandover,
+  // Membership (Election.tla section Membership, issue 13): agent side, then the PC's.
+  ShareMembers, LearnMembers, Reconfigure,
 };
 
 /// Number of actions.
-inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::MasterHandover) + 1;
+inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::Reconfigure) + 1;
 
 /// The spec's name of an action ("RecvStart").
 constexpr std::string_view to_string(Action a) noexcept {
@@ -143,7 +145,8 @@ constexpr std::string_view to_string(Action a) noexcept {
       "MasterSync", "MasterAnswer", "MasterPing", "MasterTick", "MasterCommand", "MasterReport",
       "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
       "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
-      "Forward", "ApplyCommand", "GrantPreVote", "HandlePreVote", "MasterRoute", "MasterHandover"};
+      "Forward", "ApplyCommand", "GrantPreVote", "HandlePreVote", "MasterRoute", "MasterHandover",
+      "ShareMembers", "LearnMembers", "Reconfigure"};
   const auto i = static_cast<std::size_t>(a);
   return i < kActionCount ? kNames[i] : std::string_view{};
 }
@@ -233,6 +236,7 @@ inline constexpr Transition kElectionTransitions[] = {
     {State::WORKING, State::PAUSED, Action::HandleHeartbeat},
     {State::WORKING, State::PAUSED, Action::HandleElect},
     {State::WORKING, State::PAUSED, Action::HandleStale},
+    {State::WORKING, State::PAUSED, Action::LearnMembers},
     {State::ACTIVE, State::PANIC, Action::RelayDropped},
     {State::WORKING, State::PANIC, Action::RelayDropped},
     {State::PAUSED, State::PANIC, Action::RelayDropped},

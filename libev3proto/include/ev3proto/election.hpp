@@ -22,27 +22,39 @@ namespace ev3proto {
 /// "Compute the score from the capabilities" (ElectionConfig::score).
 inline constexpr std::uint32_t kAutoScore = ~std::uint32_t{0};
 
-/// Relay and election (spec/tla/Election.tla). Off by default: the agent is then exactly the
-/// AgentLogic.tla agent (one master, epoch 1). epoch and voted_for are Election's persistent
-/// variables: pass back what durable() said last (SD card) after a restart.
-struct ElectionConfig {
-  bool enabled = false;             ///< Relay and election on.
-  std::uint32_t epoch = 1;          ///< Highest epoch seen (persisted).
-  std::uint16_t voted_for = 0;      ///< Vote in that epoch, 0 = none (persisted).
-  std::uint32_t score = kAutoScore; ///< Election Score (lower = weaker, stands first, wins).
-};
+/// Most fleet members a membership holds (LEADER carries at most 30 besides epoch and leader).
+inline constexpr std::size_t kMaxMembership = kMaxParams - 2;
 
-/// What the firmware must keep on stable storage (Election's epoch and votedFor): write it before
-/// sending the datagrams polled after the call that changed it.
+/// What the firmware must keep on stable storage (Election's epoch and votedFor, and the
+/// membership the agent knows: members, mepoch, floor; issue 13): write it before sending the
+/// datagrams polled after the call that changed it.
 struct Durable {
   std::uint32_t epoch = 1;     ///< Highest epoch seen.
   std::uint16_t voted_for = 0; ///< Whom the agent voted for in that epoch (0 = nobody).
-  /// Same epoch and vote.
+  std::uint32_t mepoch = 0;    ///< Epoch of the master that published the membership (0: none known).
+  std::uint32_t floor = 0;     ///< No membership older than this epoch is current (Election floor).
+  std::uint8_t member_count = 0;                  ///< Members in use.
+  std::uint16_t members[kMaxMembership] = {};     ///< The membership quorums count against.
+  /// Same epoch, vote and membership.
   friend constexpr bool operator==(const Durable& a, const Durable& b) noexcept {
-    return a.epoch == b.epoch && a.voted_for == b.voted_for;
+    if (a.epoch != b.epoch || a.voted_for != b.voted_for || a.mepoch != b.mepoch || a.floor != b.floor ||
+        a.member_count != b.member_count)
+      return false;
+    for (std::size_t i = 0; i < a.member_count; ++i)
+      if (a.members[i] != b.members[i]) return false;
+    return true;
   }
   /// Not the same.
   friend constexpr bool operator!=(const Durable& a, const Durable& b) noexcept { return !(a == b); }
+};
+
+/// Relay and election (spec/tla/Election.tla). Off by default: the agent is then exactly the
+/// AgentLogic.tla agent (one master, epoch 1). `durable` holds Election's persistent variables
+/// (epoch, votedFor, the membership): pass back what durable() said last (SD card) after a restart.
+struct ElectionConfig {
+  bool enabled = false;             ///< Relay and election on.
+  Durable durable;                  ///< Restored from stable storage (a fresh agent: the defaults).
+  std::uint32_t score = kAutoScore; ///< Election Score (lower = weaker, stands first, wins).
 };
 
 /// Which handler takes a datagram and what the Step prelude must do first, decided before any state
@@ -172,9 +184,14 @@ struct Lifecycle {
 template <std::size_t RelaySlots, std::size_t MaxMembers>
 class AgentElection {
  public:
-  /// From the configuration (epoch 0 counts as 1).
+  /// From the configuration (epoch 0 counts as 1): the restored epoch, vote and membership.
   explicit AgentElection(const ElectionConfig& c) noexcept
-      : enabled(c.enabled), epoch(c.epoch == 0 ? 1 : c.epoch), voted_for(c.voted_for) {}
+      : enabled(c.enabled), epoch(c.durable.epoch == 0 ? 1 : c.durable.epoch), voted_for(c.durable.voted_for),
+        mepoch(c.durable.mepoch), floor(c.durable.floor) {
+    for (std::size_t i = 0; i < c.durable.member_count && i < kMaxMembership; ++i)
+      if (is_assigned_id(c.durable.members[i]) && !members.contains(c.durable.members[i]))
+        members.add(c.durable.members[i]);
+  }
 
   // ------------------------------------------------------------ Election's variables of the agent
   bool enabled;                    ///< Relay and election on.
@@ -188,15 +205,40 @@ class AgentElection {
   PeerTable<RelaySlots> offered;   ///< offered
   IdSet<MaxMembers> votes;         ///< votes (as a candidate)
   IdSet<MaxMembers> prevotes;      ///< prevotes (for standing in epoch + 1; always of this epoch)
-  IdSet<MaxMembers> members;       ///< The membership the followed master last published (LEADER).
+  IdSet<MaxMembers> members;       ///< members: the membership last learned (LEADER or a peer's copy).
+  std::uint32_t mepoch = 0;        ///< mepoch: the epoch of the master that published it (0: none).
+  std::uint32_t floor = 0;         ///< floor: no membership older than this epoch is current.
   std::uint32_t master_epoch = 0;  ///< The epoch this agent last became master of (0 = never).
 
   /// Changes whenever relays, offered, votes or prevotes may have changed (trace records).
   std::uint32_t sets_rev() const noexcept {
     return relays.rev() + offered.rev() + votes.rev() + prevotes.rev();
   }
-  /// The epoch and vote to keep on stable storage.
-  Durable durable() const noexcept { return Durable{epoch, voted_for}; }
+  /// The epoch, vote and membership to keep on stable storage.
+  Durable durable() const noexcept {
+    Durable d;
+    d.epoch = epoch;
+    d.voted_for = voted_for;
+    d.mepoch = mepoch;
+    d.floor = floor;
+    for (std::size_t i = 0; i < members.size() && i < kMaxMembership; ++i) d.members[d.member_count++] = members[i];
+    return d;
+  }
+  /// Election Learned(s, L, e): membership @p m (LEADER's params from the third on) is the one of
+  /// epoch @p e; the floor rises to @p e (Raised).
+  void Learned(const Message& m, std::uint32_t e) noexcept {
+    members.clear();
+    for (std::size_t i = 2; i < m.param_count() && members.size() < MaxMembers; ++i) {
+      const auto id = m.param_u16(i);
+      if (id && is_assigned_id(*id) && !members.contains(*id)) members.add(*id);
+    }
+    mepoch = e;
+    Raised(e);
+  }
+  /// Election Raised(s, e): the floor rises to @p e.
+  void Raised(std::uint32_t e) noexcept {
+    if (e > floor) floor = e;
+  }
 
   // ------------------------------------------------------------ Election's predicates
 
@@ -204,20 +246,28 @@ class AgentElection {
   bool Following(State s) const noexcept { return is_synced(s) && leader != 0; }
   /// Follows a master of its current epoch over a direct link (may offer and relay: one hop).
   bool DirectFollower(State s) const noexcept { return Following(s) && following == epoch && via == 0; }
-  /// Election Quorum(prevotes \cup {me}) against the membership it knows.
-  bool PreVoteQuorum(std::uint16_t me) const noexcept {
-    return members.size() > 0 &&
-           2 * (prevotes.size() + (members.contains(me) ? 1u : 0u)) > members.size();
+  /// Election QuorumOf(S, members): the ids of @p s that are members, and @p me if it is one, are a
+  /// strict majority of the membership (an empty one has none).
+  template <std::size_t K>
+  bool QuorumOf(const IdSet<K>& s, std::uint16_t me) const noexcept {
+    std::size_t n = members.contains(me) ? 1u : 0u;
+    for (std::size_t i = 0; i < s.size(); ++i)
+      if (s[i] != me && members.contains(s[i])) ++n;
+    return members.size() > 0 && 2 * n > members.size();
   }
+  /// Election QuorumOf(prevotes \cup {me}, members).
+  bool PreVoteQuorum(std::uint16_t me) const noexcept { return QuorumOf(prevotes, me); }
   /// Election Obeys: the command's sender is the master followed in epoch @p e, the highest seen.
   bool Obeys(std::uint16_t sender, std::uint32_t e) const noexcept {
     return leader == sender && following == e && e == epoch;
   }
   /// Election ElectGrant: not voted in the epoch yet (or for this candidate: its ELECT again,
-  /// docs/core.md deviation 2), and the candidate is not stronger than us.
-  bool ElectGrant(std::uint16_t candidate, std::uint32_t e, std::uint32_t its_score,
-                  std::uint32_t my_score) const noexcept {
-    return (e > epoch || voted_for == 0 || voted_for == candidate) && its_score <= my_score;
+  /// docs/core.md deviation 2), the candidate is not stronger than us, and an agent candidate's
+  /// membership (of epoch @p k, ELECT's members_epoch) is not older than our floor.
+  bool ElectGrant(std::uint16_t candidate, std::uint32_t e, std::uint32_t its_score, std::uint32_t my_score,
+                  std::uint32_t k) const noexcept {
+    return (e > epoch || voted_for == 0 || voted_for == candidate) && its_score <= my_score &&
+           (candidate == kMasterId || k >= floor);
   }
 
   // ------------------------------------------------------------ enabling conditions (XOk)
@@ -279,10 +329,11 @@ class AgentElection {
     return ToMe(m, me) && via != 0 && m.sender == via && is_synced(me.state);
   }
   /// Election StartElectionOk (the back-off timer is the agent's): PANIC or a candidate, an assigned
-  /// id, a known membership, pre-votes of a majority of it (itself included), an epoch left.
+  /// id, a known membership not older than the floor, pre-votes of a majority of it (itself
+  /// included), an epoch left.
   bool StartElectionOk(const Lifecycle& me) const noexcept {
     return enabled && me.state == State::PANIC && role != Role::master && is_assigned_id(me.id) &&
-           epoch < 0xFFFFFFFFu && PreVoteQuorum(me.id);
+           epoch < 0xFFFFFFFFu && mepoch >= floor && PreVoteQuorum(me.id);
   }
   /// Election HandleElectOk (the CASE arms that change something): an older epoch (EPOCH_STALE);
   /// otherwise not a healthy follower (unless the PC stands), and a newer epoch or a vote to grant.
@@ -293,7 +344,7 @@ class AgentElection {
       return false;
     if (*e < epoch) return true;                            // EPOCH_STALE
     if (me.hears_master && m.sender != kMasterId) return false;  // a healthy follower
-    return *e > epoch || ElectGrant(m.sender, *e, *sc, me.score);
+    return *e > epoch || ElectGrant(m.sender, *e, *sc, me.score, m.param_u32(2).value_or(0));
   }
   /// Election HandleVoteOk: a candidate's vote of its epoch, from a member not counted yet.
   bool HandleVoteOk(const Message& m, const Lifecycle& me) const noexcept {
@@ -302,10 +353,9 @@ class AgentElection {
     return ToMe(m, me) && role == Role::candidate && e && c && *e == epoch && *c == me.id &&
            !votes.contains(m.sender) && members.contains(m.sender);
   }
-  /// Election BecomeMasterOk: a candidate with votes of a strict majority of the membership.
-  bool BecomeMasterOk() const noexcept {
-    return role == Role::candidate && members.size() > 0 && 2 * votes.size() > members.size();
-  }
+  /// Election BecomeMasterOk: a candidate with votes of a strict majority of the membership
+  /// (QuorumOf: its own vote is among the votes when it is a member).
+  bool BecomeMasterOk() const noexcept { return role == Role::candidate && QuorumOf(votes, 0); }
   /// Election HandleHeartbeatOk: a master's LEADER (not an IDLE agent's business); an older one is
   /// answered EPOCH_STALE; a master takes only a newer one.
   bool HandleHeartbeatOk(const Message& m, const Lifecycle& me) const noexcept {
@@ -316,6 +366,21 @@ class AgentElection {
       return false;
     if (*e < epoch) return true;  // EPOCH_STALE
     return role != Role::master || *e > epoch;
+  }
+  /// Election ShareMembersOk: a peer's RELAY_REQ says it knows a membership older than ours (its
+  /// members_epoch, 0 when absent), and we are not master: we send it a copy of our LEADER.
+  bool ShareMembersOk(const Message& m, const Lifecycle& me) const noexcept {
+    return enabled && m.type == MsgType::RELAY_REQ && m.receiver == kBroadcastId && is_assigned_id(m.sender) &&
+           m.sender != me.id && is_assigned_id(me.id) && me.state != State::IDLE && role != Role::master &&
+           mepoch > m.param_u32(2).value_or(0);
+  }
+  /// Election LearnMembersOk: a copy of a LEADER (leader 0: no master claimed) to us, of a newer
+  /// membership than ours.
+  bool LearnMembersOk(const Message& m, const Lifecycle& me) const noexcept {
+    const auto e = m.param_u32(0);
+    const auto l = m.param_u16(1);
+    return ToMe(m, me) && me.state != State::IDLE && is_assigned_id(m.sender) && e && l && *l == 0 &&
+           *e > mepoch;
   }
   /// Election HandleStaleOk: a newer epoch than ours.
   bool HandleStaleOk(const Message& m, const Lifecycle& me) const noexcept {
@@ -329,9 +394,10 @@ class AgentElection {
   Verdict Choose(const Message& m, const Message* inner, const Lifecycle& me) const noexcept {
     const std::uint32_t e = m.param_u32(0).value_or(0);
     switch (m.type) {
-      case MsgType::RELAY_REQ:
+      case MsgType::RELAY_REQ:  // ShareMembers may follow the first two (a record of its own)
         if (OfferRelayOk(m, me)) return Take(Action::OfferRelay);
         if (GrantPreVoteOk(m, me)) return Take(Action::GrantPreVote);
+        if (ShareMembersOk(m, me)) return Take(Action::ShareMembers);
         break;
       case MsgType::PREVOTE_OK:
         if (HandlePreVoteOk(m, me)) return Take(Action::HandlePreVote);
@@ -356,6 +422,11 @@ class AgentElection {
         break;
       case MsgType::LEADER:
         if (HandleHeartbeatOk(m, me)) return Take(Action::HandleHeartbeat, e);
+        if (LearnMembersOk(m, me)) {  // never answered EPOCH_STALE: the copy's epoch may be older
+          Verdict v = Take(Action::LearnMembers);
+          if (e > epoch) v.epoch = e;
+          return v;
+        }
         break;
       case MsgType::EPOCH_STALE:
         if (HandleStaleOk(m, me)) return Take(Action::HandleStale, e);

@@ -187,8 +187,15 @@ class AgentDriver {
       else if (k == "candidate") c.timers.set(Timer::candidate, std::stoull(v));
       else if (k == "election") c.election.enabled = v == "1";
       else if (k == "score") c.election.score = static_cast<std::uint32_t>(std::stoul(v));
-      else if (k == "epoch") c.election.epoch = static_cast<std::uint32_t>(std::stoul(v));
-      else if (k == "voted") c.election.voted_for = static_cast<std::uint16_t>(std::stoul(v));
+      else if (k == "epoch") c.election.durable.epoch = static_cast<std::uint32_t>(std::stoul(v));
+      else if (k == "voted") c.election.durable.voted_for = static_cast<std::uint16_t>(std::stoul(v));
+      else if (k == "mepoch") c.election.durable.mepoch = static_cast<std::uint32_t>(std::stoul(v));
+      else if (k == "floor") c.election.durable.floor = static_cast<std::uint32_t>(std::stoul(v));
+      else if (k == "members") {  // the membership restored from the SD card: members=7,8,9
+        std::istringstream ids(v);
+        for (std::string id; std::getline(ids, id, ',') && c.election.durable.member_count < kMaxMembership;)
+          c.election.durable.members[c.election.durable.member_count++] = static_cast<std::uint16_t>(std::stoul(id));
+      }
       else lines_.push_back("error: bad agent option " + w[i]);
     }
     model_ = model;
@@ -253,6 +260,7 @@ class AgentDriver {
            " votes=" + list(a.vote_count(), [&](std::size_t i) { return a.vote(i); }) +
            " prevotes=" + list(a.prevote_count(), [&](std::size_t i) { return a.prevote(i); }) +
            " members=" + list(a.member_count(), [&](std::size_t i) { return a.member(i); }) +
+           " mepoch=" + std::to_string(a.members_epoch()) + " floor=" + std::to_string(a.members_floor()) +
            " master_epoch=" + std::to_string(a.master_epoch());
   }
 

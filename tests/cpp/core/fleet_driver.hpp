@@ -467,7 +467,7 @@ class FleetDriver {
         return l;
       }
       case NodeEvent::Kind::durable:
-        return "durable epoch=" + std::to_string(e.durable.epoch) + " votedFor=" + std::to_string(e.durable.voted_for);
+        return "durable epoch=" + std::to_string(e.durable.epoch) + " votedFor=" + std::to_string(e.durable.voted_for) + " mepoch=" + std::to_string(e.durable.mepoch) + " floor=" + std::to_string(e.durable.floor);
       case NodeEvent::Kind::role: return "role " + std::string(to_string(e.role)) + " epoch=" + std::to_string(e.epoch);
       case NodeEvent::Kind::leader:
         return "leader " + std::to_string(e.leader) + " epoch=" + std::to_string(e.epoch) + " via=" + std::to_string(e.via);

@@ -28,7 +28,11 @@ std::vector<std::string> events(Node<>& n) {
   NodeEvent e;
   while (n.poll_event(e)) {
     std::string l(to_string(e.kind));
-    if (e.kind == NodeEvent::Kind::durable) l += " " + std::to_string(e.durable.epoch) + "/" + std::to_string(e.durable.voted_for);
+    if (e.kind == NodeEvent::Kind::durable) {
+      l += " " + std::to_string(e.durable.epoch) + "/" + std::to_string(e.durable.voted_for) + " [";
+      for (std::size_t i = 0; i < e.durable.member_count; ++i) l += (i ? "," : "") + std::to_string(e.durable.members[i]);
+      l += "]@" + std::to_string(e.durable.mepoch) + " floor " + std::to_string(e.durable.floor);
+    }
     if (e.kind == NodeEvent::Kind::role) l += " " + std::string(to_string(e.role)) + " " + std::to_string(e.epoch);
     if (e.kind == NodeEvent::Kind::leader) l += " " + std::to_string(e.leader) + "@" + std::to_string(e.epoch);
     if (e.kind == NodeEvent::Kind::master_started || e.kind == NodeEvent::Kind::master_stopped)
@@ -73,7 +77,7 @@ TEST(NodeHandled, StaleEpochIsAnsweredAndSaid) {
   EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "leader 1@1"}));
   n.handle_datagram("2:0:1:29:3:2:2:7", 2, 2);  // LEADER of epoch 3 from agent 2: follow it
   sent(n);
-  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 3/0", "leader 2@3"}));
+  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 3/0 [2,7]@3 floor 3", "leader 2@3"}));
   const NodeHandled h = n.handle_datagram("1:7:2:8", 1, 3);  // the PC's bare START: epoch 1
   EXPECT_EQ(h.why(), Ignored::stale_epoch);
   EXPECT_EQ(sent(n), (std::vector<std::string>{"7->1 EPOCH_STALE #2 3"}));
@@ -96,8 +100,11 @@ TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
   win(n);
   // Drained once at the end: the agent core's events of all the calls, then the node's.
   const std::vector<std::string> ev = events(n);
-  EXPECT_EQ(ev, (std::vector<std::string>{"state", "led", "state", "led", "leader 1@1", "leader 0@0",
-                                          "durable 2/7", "role candidate 2", "role master 2", "master_started 2"}));
+  // The membership is durable too: learned from the PC's LEADER (epoch 1), then, once master, of
+  // its own epoch (mepoch and floor 2).
+  EXPECT_EQ(ev, (std::vector<std::string>{"state", "led", "state", "led", "leader 1@1", "durable 1/0 [7,8,9]@1 floor 1",
+                                          "leader 0@0", "durable 2/7 [7,8,9]@1 floor 1", "role candidate 2",
+                                          "durable 2/7 [7,8,9]@2 floor 2", "role master 2", "master_started 2"}));
   ASSERT_NE(n.master(), nullptr);
   EXPECT_EQ(n.master()->epoch(), 2u);
   EXPECT_EQ(n.master()->self_id(), 7u);
@@ -124,7 +131,7 @@ TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
   // A newer master (the PC in epoch 3): the agent core follows it, the Master core hands its fleet
   // over and is dropped.
   n.handle_datagram("1:0:50:29:3:1:7:8:9", 1, 7700);
-  EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "durable 3/0", "role none 3", "leader 1@3",
+  EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "durable 3/0 [7,8,9]@3 floor 3", "role none 3", "leader 1@3",
                                                  "master_stopped 2 handed_over"}));
   EXPECT_EQ(n.master(), nullptr);
   EXPECT_FALSE(n.command(8, Command::simple(MsgType::STOP), 7701));
@@ -137,9 +144,14 @@ TEST(Node, DurableComesBeforeTheVoteItGuards) {
   n.advance(4000);  // PANIC
   events(n);
   sent(n);
-  n.handle_datagram("8:0:9:27:2:1:0", 8, 4001);  // ELECT(2) of a weaker candidate
-  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 2/8"}));
-  EXPECT_EQ(sent(n), (std::vector<std::string>{"7->8 VOTE #7 2 8"}));
+  // ELECT(2) of a weaker candidate that knows no membership (members_epoch 0, below our floor 1):
+  // the epoch is adopted, the vote refused (issue 13).
+  n.handle_datagram("8:0:9:27:2:1:0", 8, 4001);
+  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 2/0 [7,8,9]@1 floor 1"}));
+  EXPECT_EQ(sent(n), (std::vector<std::string>{}));
+  n.handle_datagram("9:0:9:27:3:1:1", 9, 4001);  // ELECT(3) of one that knows the list of epoch 1
+  EXPECT_EQ(events(n), (std::vector<std::string>{"durable 3/9 [7,8,9]@1 floor 1"}));
+  EXPECT_EQ(sent(n), (std::vector<std::string>{"7->9 VOTE #7 3 9"}));
 }
 
 }  // namespace
