@@ -326,14 +326,23 @@ class Program {
     cfg.next_id = static_cast<std::uint16_t>(id);
     cfg.next_msgid = static_cast<std::uint32_t>(msgid);
     cfg.epoch = static_cast<std::uint32_t>(epoch);
-    std::string members = kv["members"];
-    for (std::size_t pos = 0; pos < members.size();) {
-      std::size_t comma = members.find(',', pos);
-      if (comma == std::string::npos) comma = members.size();
-      std::uint64_t m = 0;
-      if (ev3io::to_uint(members.substr(pos, comma - pos), 2, 65535, m)) cfg.members.push_back(static_cast<std::uint16_t>(m));
-      pos = comma + 1;
+    // The membership of the epoch members_epoch (issue 13): what LEADER carried, what votes count
+    // against. A list without its epoch (a file of an older version) is refused: the floor of the
+    // agents' votes rests on it.
+    const std::string members = kv["members"];
+    std::uint64_t mepoch = 0;
+    const char* bad = nullptr;
+    if (!ev3io::parse_id_list(members, cfg.members) || cfg.members.size() > ev3proto::kMaxParams - 2)
+      bad = "members (at most 30 distinct agent ids 2..49999, comma-separated)";
+    else if (!members.empty() && kv.count("members_epoch") == 0)
+      bad = "members_epoch (missing: the epoch that published members)";
+    else if (kv.count("members_epoch") != 0 && !ev3io::to_uint(kv["members_epoch"], members.empty() ? 0 : 1, epoch, mepoch))
+      bad = "members_epoch (a number 1..epoch)";
+    if (bad != nullptr) {
+      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged: bad %s\n", opt_.state_file.c_str(), bad);
+      return false;
     }
+    cfg.members_epoch = static_cast<std::uint32_t>(mepoch);
     cfg.candidate = cfg.election;
     note = "restarted from " + opt_.state_file + ": next id " + std::to_string(id) + ", msgid " +
            std::to_string(msgid) + ", epoch " + std::to_string(epoch) + ", members " + (members.empty() ? "none" : members) +
@@ -341,15 +350,15 @@ class Program {
     return true;
   }
 
-  /// Writes the state file when next id, epoch or members changed or the msgid block is used up.
+  /// Writes the state file when next id, epoch or the membership of the epoch (published(), with its
+  /// epoch; not the fleet wanted, members()) changed or the msgid block is used up.
   void save_state(bool force) {
     if (opt_.state_file.empty()) return;
     const bool same = master_->next_id() == saved_id_ && master_->epoch() == saved_epoch_ &&
                       master_->next_msgid() + kMsgidBlock / 2 < msgid_limit_;
     if (!force && same && master_->members_rev() == saved_rev_) return;  // no walk per datagram
     saved_rev_ = master_->members_rev();
-    std::string members;
-    for (std::uint16_t m : master_->members()) members += (members.empty() ? "" : ",") + std::to_string(m);
+    const std::string members = ev3io::format_id_list(master_->published()) + "@" + std::to_string(master_->published_epoch());
     if (!force && same && members == saved_members_) return;
     msgid_limit_ = master_->next_msgid() + kMsgidBlock;
     saved_id_ = master_->next_id();
@@ -359,7 +368,9 @@ class Program {
     if (!ev3io::write_state_file(opt_.state_file, {{"next_id", std::to_string(saved_id_)},
                                                    {"next_msgid", std::to_string(msgid_limit_)},
                                                    {"epoch", std::to_string(saved_epoch_)},
-                                                   {"members", members}}, err) && !state_warned_) {
+                                                   {"members", ev3io::format_id_list(master_->published())},
+                                                   {"members_epoch", std::to_string(master_->published_epoch())}},
+                                 err) && !state_warned_) {
       log_.log(kError, "%s", err.c_str());
       state_warned_ = true;
     }
@@ -373,9 +384,9 @@ class Program {
       seen_role_ = r;
       seen_epoch_ = master_->epoch();
       std::string members;
-      for (std::uint16_t m : master_->members()) members += " " + std::to_string(m);
+      for (std::uint16_t m : master_->published()) members += " " + std::to_string(m);
       say("election: " + std::string(to_string(r)) + " of epoch " + std::to_string(seen_epoch_) + " (members" +
-          (members.empty() ? " none" : members) + ")");
+          (members.empty() ? " none" : members) + " of epoch " + std::to_string(master_->published_epoch()) + ")");
     }
     if (master_->handed_over() && !seen_handover_) {
       seen_handover_ = true;

@@ -441,14 +441,18 @@ HandleVote(n, m) ==
 OneStep(L, w) ==
     LET S == ({L \cup {a} : a \in w \ L} \cup {L \ {a} : a \in L \ w}) \ {{}}
     IN IF S = {} THEN {L} ELSE S
+\* A candidate has stood in an epoch newer than the one of its membership (StartElection since
+\* the PC's Reconfigure): without it the PC, whose votes of its epoch are still counted, would
+\* publish a second membership in the epoch it has published one in already.
 BecomeMasterOk(s) ==
     /\ s.life = "CANDIDATE"
+    /\ s.epoch > Get(s, "mepoch", 0)
     /\ IF BUG = "MinorityQuorum" THEN s.votes # {} ELSE QuorumOf(s.votes, Fleet(s))
 BecomeMasterNext(s) == [s EXCEPT !.life = "MASTER"]
 BecomeMaster(n) ==
     LET s == Loc(n) IN
     /\ \/ BecomeMasterOk(s)
-       \/ n = PC /\ Fixed /\ s.life = "CANDIDATE" /\ members[PC] = {}
+       \/ n = PC /\ Fixed /\ s.life = "CANDIDATE" /\ s.epoch > mepoch[PC] /\ members[PC] = {}
     /\ \E L \in IF n # PC THEN {members[n]} ELSE IF Fixed THEN OneStep(members[PC], want) ELSE {want} :
          /\ SetLoc(n, Learned(BecomeMasterNext(s), L, epoch[n]))
          /\ net' = net \cup {MH(n, NoNode, epoch[n], NoNode, L)}

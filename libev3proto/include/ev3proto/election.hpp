@@ -353,9 +353,10 @@ class AgentElection {
     return ToMe(m, me) && role == Role::candidate && e && c && *e == epoch && *c == me.id &&
            !votes.contains(m.sender) && members.contains(m.sender);
   }
-  /// Election BecomeMasterOk: a candidate with votes of a strict majority of the membership
-  /// (QuorumOf: its own vote is among the votes when it is a member).
-  bool BecomeMasterOk() const noexcept { return role == Role::candidate && QuorumOf(votes, 0); }
+  /// Election BecomeMasterOk: a candidate of an epoch newer than its membership's (no membership
+  /// of this epoch is published yet) with votes of a strict majority of the membership (QuorumOf:
+  /// its own vote is among the votes when it is a member).
+  bool BecomeMasterOk() const noexcept { return role == Role::candidate && epoch > mepoch && QuorumOf(votes, 0); }
   /// Election HandleHeartbeatOk: a master's LEADER (not an IDLE agent's business); an older one is
   /// answered EPOCH_STALE; a master takes only a newer one.
   bool HandleHeartbeatOk(const Message& m, const Lifecycle& me) const noexcept {

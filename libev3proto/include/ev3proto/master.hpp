@@ -39,7 +39,9 @@ struct MasterConfig {
   bool election = false;          ///< LEADER heartbeats, epochs, EPOCH_CMD, relay routes, step-down.
   std::uint32_t epoch = 1;        ///< The epoch (persisted; an elected agent: the epoch it won).
   std::uint16_t self_id = kMasterId; ///< The master's id: 1 (PC) or the elected agent's id.
-  std::vector<std::uint16_t> members; ///< The fleet quorums count against (persisted / LEADER).
+  std::vector<std::uint16_t> members; ///< The membership of epoch members_epoch (persisted): LEADER
+                                      ///< carries it, votes count against it (Election members[PC]).
+  std::uint32_t members_epoch = 0; ///< The epoch that published it (persisted; 0: `epoch`).
   bool candidate = false;         ///< Start as a candidate (the PC back after a crash: Restart(PC)).
   /// Ignore a copy of a (sender, msgid) already taken (MasterReceipt: duplicate), in a window of
   /// the last 4096. Off by default: MasterLogic has no window, every copy goes through its handler
@@ -59,6 +61,7 @@ struct MasterConfig {
     c.epoch = epoch;
     c.self_id = self;
     c.members = std::move(members);
+    c.members_epoch = epoch;  // the list it counted its votes against is the one of its epoch
     return c;
   }
 };
@@ -399,7 +402,8 @@ class Master {
   Master(const MasterConfig& config, Millis now, Trace* trace = nullptr)
       : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now),
         drops_(config.timers[Timer::drop]), resends_(config.timers[Timer::resend]), copies_(config.drop_copies), epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
-        members_(config.members.begin(), config.members.end()) {
+        members_(config.members.begin(), config.members.end()),
+        mepoch_(config.members_epoch != 0 ? config.members_epoch : epoch_) {
     if (!cfg_.election) return;  // Fleet.tla's master: MASTER for good, no LEADER
     if (config.candidate) {
       become_candidate();  // Restart(PC): stands at once
@@ -414,7 +418,21 @@ class Master {
   /// Time moves to @p now: every deadline due up to then is acted on at its own time, one spec
   /// step each (Heartbeat, StartElection, or MasterTick of the entries due then).
   void advance(Millis now) {
-    for (Millis t = next_deadline(); t <= now && t != kNever; t = next_deadline()) {
+    for (;;) {
+      if (BecomeMasterOk()) {  // the PC's first step needs no vote: it wins as it stands
+        Snapshot b = snap();
+        BecomeMaster();
+        record(Action::BecomeMaster, b, {});
+        continue;
+      }
+      if (ReconfigureOk()) {
+        Snapshot r = snap();
+        Reconfigure();
+        record(Action::Reconfigure, r, {});
+        continue;
+      }
+      const Millis t = next_deadline();
+      if (t > now || t == kNever) break;
       Snapshot s = snap();  // before time moves: MasterTick's record shows quiet growing
       if (t > now_) now_ = t;
       if (HeartbeatOk(now_)) {
@@ -515,15 +533,21 @@ class Master {
   std::uint32_t epoch() const noexcept { return epoch_; }
   /// The master's id (1, or the elected agent's).
   std::uint16_t self_id() const noexcept { return self_; }
-  /// The fleet membership (persist it): the configured members and every agent registered since.
+  /// The fleet the master wants (Election want, the PC's registry): the membership of its epoch,
+  /// the members handed over, and every agent registered and synced since. The PC changes the
+  /// membership it publishes towards it one agent per epoch (Reconfigure); it never shrinks (an
+  /// agent declared lost stays a member: the fleet needs a majority without it).
   std::vector<std::uint16_t> members() const {
-    std::set<std::uint16_t> m = members_;
-    for (const auto& kv : reg_.map())
-      if (kv.second.synced) m.insert(kv.first);
+    std::set<std::uint16_t> m = want();
     return std::vector<std::uint16_t>(m.begin(), m.end());
   }
-  /// Changes whenever members() may have changed (a program persisting the membership compares
-  /// this instead of building members() after every datagram).
+  /// The membership of the master's epoch (persist it with published_epoch()): LEADER carries it,
+  /// votes count against it (Election members[PC]).
+  std::vector<std::uint16_t> published() const { return std::vector<std::uint16_t>(members_.begin(), members_.end()); }
+  /// The epoch that published it (Election mepoch[PC]).
+  std::uint32_t published_epoch() const noexcept { return mepoch_; }
+  /// Changes whenever members() or published() may have changed (a program persisting the
+  /// membership compares this instead of building it after every datagram).
   std::uint64_t members_rev() const noexcept { return members_rev_; }
   /// True once this (elected agent's) master handed its registry over (HANDOVER sent).
   bool handed_over() const noexcept { return handed_over_; }
@@ -540,6 +564,11 @@ class Master {
       Snapshot b = snap();
       BecomeMaster();
       record(Action::BecomeMaster, b, {});
+    }
+    if (ReconfigureOk()) {  // an agent synced (or handed over): stand to publish the next step
+      Snapshot c = snap();
+      Reconfigure();
+      record(Action::Reconfigure, c, {});
     }
     return r;
   }
@@ -838,11 +867,12 @@ class Master {
 
   /// Heartbeat is due at @p now (MASTER).
   bool HeartbeatOk(Millis now) const noexcept { return role_ == MasterRole::master && hb_at_ <= now; }
-  /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat.
+  /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat: the membership
+  /// of the epoch, fixed for the whole epoch (issue 13).
   void Heartbeat() {
     hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
     std::vector<std::string> p{std::to_string(epoch_), std::to_string(self_)};
-    for (std::uint16_t id : members()) {
+    for (std::uint16_t id : members_) {
       if (p.size() == kMaxParams) break;
       p.push_back(std::to_string(id));
     }
@@ -853,13 +883,13 @@ class Master {
   bool StartElectionOk(Millis now) const noexcept {
     return role_ == MasterRole::candidate && cand_at_ <= now;
   }
-  /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, records) broadcast; again
-  /// after the candidate timeout without a majority.
+  /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, epoch of its membership)
+  /// broadcast (a voter's floor rises to it); again after the candidate timeout without a majority.
   void StartElection() {
     ++epoch_;
     votes_.clear();
     cand_at_ = now_ + cfg_.timers[Timer::candidate];
-    broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", "0"});
+    broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", std::to_string(mepoch_)});
   }
 
   /// A candidate's VOTE for us in our epoch, from a member not counted yet.
@@ -872,15 +902,45 @@ class Master {
   /// Spec HandleVote: one more vote.
   void HandleVote(const Message& m, Peer) { votes_.insert(m.sender); }
 
-  /// A candidate holds the votes of a strict majority of the membership.
+  /// A candidate that has stood since it published its membership (epoch newer than the list's:
+  /// after Reconfigure the votes of its epoch still count until StartElection) holds the votes of a
+  /// strict majority of it (votes count only from members); with none (a fresh PC: nobody can know
+  /// a list) no vote is needed.
   bool BecomeMasterOk() const {
-    return role_ == MasterRole::candidate && 2 * votes_.size() > members_.size();
+    return role_ == MasterRole::candidate && epoch_ > mepoch_ &&
+           (members_.empty() || 2 * votes_.size() > members_.size());
   }
-  /// Spec BecomeMaster: master of the epoch, LEADER at once.
+  /// Spec BecomeMaster: master of the epoch; the PC's membership moves one step (OneStep) towards
+  /// members(), an elected agent's stays the one it counted against; LEADER at once.
   void BecomeMaster() {
     become_master();
+    if (self_ == kMasterId) members_ = OneStep(members_, want());
+    mepoch_ = epoch_;
+    ++members_rev_;
     Heartbeat();
   }
+  /// Election OneStep(L, w): L with one agent of w added (the lowest id), else one agent not in w
+  /// removed, never down to none; L when it is w.
+  static std::set<std::uint16_t> OneStep(std::set<std::uint16_t> l, const std::set<std::uint16_t>& w) {
+    for (std::uint16_t id : w)
+      if (l.count(id) == 0) {
+        l.insert(id);
+        return l;
+      }
+    for (std::uint16_t id : l)
+      if (w.count(id) == 0 && l.size() > 1) {
+        l.erase(id);
+        return l;
+      }
+    return l;
+  }
+  /// Election Reconfigure's guard: the PC as MASTER whose wanted fleet differs from the membership
+  /// of its epoch. An elected agent's master never changes its membership (node.hpp).
+  bool ReconfigureOk() const {
+    return cfg_.election && self_ == kMasterId && role_ == MasterRole::master && OneStep(members_, want()) != members_;
+  }
+  /// Spec Reconfigure: the PC stands in the next epoch to publish the next step.
+  void Reconfigure() { become_candidate(); }
 
   /// ELECT of a newer epoch, to an elected agent's master (the PC learns epochs from EPOCH_STALE).
   bool HandleElectOk(const Message& m) const {
@@ -918,7 +978,7 @@ class Master {
     }
     if (!handed_over_) {
       std::vector<std::string> p{std::to_string(epoch_)};
-      for (std::uint16_t id : members()) {
+      for (std::uint16_t id : want()) {
         if (p.size() == kMaxParams) break;
         p.push_back(std::to_string(id));
       }
@@ -950,7 +1010,7 @@ class Master {
     const auto e = m.param_u32(0);
     const auto a = m.param_u16(1);
     return role_ == MasterRole::master && m.receiver == self_ && e && *e == epoch_ && a &&
-           (reg_.contains(*a) || members_.count(*a) != 0);
+           (reg_.contains(*a) || known(*a));
   }
   /// RELAY_ROUTE(epoch, agent) from relay p (Election abstracts it: the master reads the table):
   /// the agent is reached through p from now on (a member not registered yet is adopted).
@@ -967,12 +1027,23 @@ class Master {
     const auto e = m.param_u32(0);
     return role_ == MasterRole::master && m.receiver == self_ && e && *e <= epoch_;
   }
-  /// HANDOVER(epoch, id...) from the elected agent we replace: its fleet joins our membership.
+  /// HANDOVER(epoch, id...) from the elected agent we replace: its fleet joins the fleet we want
+  /// (members(); the membership follows one step per epoch, Reconfigure).
   void MasterHandover(const Message& m, Peer) {
     for (std::size_t i = 1; i < m.param_count(); ++i)
       if (const auto id = m.param_u16(i)) {
-        if (is_assigned_id(*id) && *id != self_ && members_.insert(*id).second) ++members_rev_;
+        if (is_assigned_id(*id) && *id != self_ && handed_.insert(*id).second) ++members_rev_;
       }
+  }
+  /// A member of our membership, or handed over to us.
+  bool known(std::uint16_t id) const { return members_.count(id) != 0 || handed_.count(id) != 0; }
+  /// Election want: the membership, the members handed over, the agents registered and synced.
+  std::set<std::uint16_t> want() const {
+    std::set<std::uint16_t> m = members_;
+    m.insert(handed_.begin(), handed_.end());
+    for (const auto& kv : reg_.map())
+      if (kv.second.synced) m.insert(kv.first);
+    return m;
   }
 
   /// Election.tla's rules for the datagrams they take, as a table: the type, the action, its guard
@@ -1012,11 +1083,11 @@ class Master {
   void note_route(const Message& m, Peer from, std::uint16_t via) {
     RegistryEntry* found = reg_.find(m.sender);
     if (found == nullptr) {
-      if (m.type != MsgType::PING || members_.count(m.sender) == 0) return;
+      if (m.type != MsgType::PING || !known(m.sender)) return;
       found = &adopt(m.sender, from);
     }
     RegistryEntry& e = *found;
-    if (m.type == MsgType::PING && !e.synced && members_.count(m.sender) != 0) {
+    if (m.type == MsgType::PING && !e.synced && known(m.sender)) {
       // A member we were syncing (its PANIC reached us) pings: it follows our LEADER already.
       set_synced(e, true);
       e.pending = false;
@@ -1277,7 +1348,9 @@ class Master {
   MasterRole role_ = MasterRole::master;
   std::uint32_t epoch_;
   std::uint16_t self_;
-  std::set<std::uint16_t> members_;
+  std::set<std::uint16_t> members_;  // members[PC]: the membership of epoch mepoch_
+  std::uint32_t mepoch_;
+  std::set<std::uint16_t> handed_;   // ids handed over (HANDOVER), wanted as members
   std::uint64_t members_rev_ = 0;
   std::set<std::uint16_t> votes_;
   Millis hb_at_ = kNever, cand_at_ = kNever;

@@ -88,6 +88,7 @@ class MasterDriver {
           else if (k == "at") now_ = std::stoull(v);
           else if (k == "election") c.election = v == "1";
           else if (k == "epoch") c.epoch = static_cast<std::uint32_t>(std::stoul(v));
+          else if (k == "members_epoch") c.members_epoch = static_cast<std::uint32_t>(std::stoul(v));
           else if (k == "self") c.self_id = static_cast<std::uint16_t>(std::stoul(v));
           else if (k == "candidate") c.candidate = v == "1";
           else if (k == "heartbeat") c.timers.set(Timer::leader_heartbeat, std::stoull(v));
@@ -136,6 +137,9 @@ class MasterDriver {
         std::string l = "show life=" + std::string(to_string(master_->role())) + " epoch=" +
                         std::to_string(master_->epoch()) + " members=";
         for (auto id : master_->members()) l += std::to_string(id) + ",";
+        l += " published=";
+        for (auto id : master_->published()) l += std::to_string(id) + ",";
+        l += "@" + std::to_string(master_->published_epoch());
         l += " reg=";
         for (const auto& kv : master_->registry())
           l += std::to_string(kv.first) + (kv.second.via ? "via" + std::to_string(kv.second.via) : "") + ",";

@@ -23,6 +23,16 @@ namespace ev3sim {
 
 class ElectionFleet;
 
+/// The PC's trace sink: each BecomeMaster goes into the history as it happens (the PC may win an
+/// epoch and stand for the next, Reconfigure, within one call: its role afterwards misses it).
+struct PcWins {
+  static constexpr bool enabled = true;
+  std::function<void(std::uint32_t)> won;
+  void record(const MasterTraceRecord& r) {
+    if (r.action == Action::BecomeMaster && won) won(r.epoch_after);
+  }
+};
+
 /// Agent trace sink: every command that takes effect is checked against the history of elections.
 struct FenceCheck {
   static constexpr bool enabled = true;
@@ -56,7 +66,8 @@ class ElectionFleet {
     MasterConfig c;
     c.timers = timers_;
     c.election = true;
-    pc_ = std::make_unique<Master<>>(c, net_.now());
+    pc_wins_.won = [this](std::uint32_t e) { note_master(e, kMasterId); };
+    pc_ = std::make_unique<Pc>(c, net_.now(), &pc_wins_);
     elected_[1] = kMasterId;
   }
 
@@ -68,12 +79,13 @@ class ElectionFleet {
     pc_store_.next_id = pc_->next_id();
     pc_store_.next_msgid = pc_->next_msgid();
     pc_store_.epoch = pc_->epoch();
-    pc_store_.members = pc_->members();
+    pc_store_.members = pc_->published();  // its state file: the membership of its epoch
+    pc_store_.members_epoch = pc_->published_epoch();
     pc_store_.candidate = true;
     pc_.reset();
   }
   /// The PC comes back as a candidate (Election Restart(PC)).
-  void restart_pc() { pc_ = std::make_unique<Master<>>(pc_store_, net_.now()); }
+  void restart_pc() { pc_ = std::make_unique<Pc>(pc_store_, net_.now(), &pc_wins_); }
 
   void cut(Peer a, Peer b) { down_.insert({std::min(a, b), std::max(a, b)}); }
   void heal(Peer a, Peer b) { down_.erase({std::min(a, b), std::max(a, b)}); }
@@ -95,7 +107,7 @@ class ElectionFleet {
   std::size_t size() const { return nodes_.size(); }
   const SimAgent& agent(std::size_t i) { return nodes_[i]->node->agent(); }
   const Master<>* agent_master(std::size_t i) { return nodes_[i]->node->master(); }
-  Master<>* pc() { return pc_.get(); }
+  Master<PcWins>* pc() { return pc_.get(); }
   const Timers& timers() const { return timers_; }
   /// History: the master of each epoch (Election elected).
   const std::map<std::uint32_t, std::uint16_t>& elected() const { return elected_; }
@@ -189,7 +201,8 @@ class ElectionFleet {
       drain_master(*pc_, kPcPeer);
     }
   }
-  void drain_master(Master<>& m, Peer self) {
+  template <typename M>
+  void drain_master(M& m, Peer self) {
     MasterTransmit mt;
     while (m.poll_transmit(mt)) {
       if (mt.dest == Dest::broadcast) broadcast(self, mt.bytes);
@@ -202,7 +215,9 @@ class ElectionFleet {
   SimNet net_;
   Timers timers_;
   std::vector<std::unique_ptr<Robot>> nodes_;
-  std::unique_ptr<Master<>> pc_;
+  using Pc = Master<PcWins>;
+  PcWins pc_wins_;
+  std::unique_ptr<Pc> pc_;
   MasterConfig pc_store_;
   std::set<std::pair<Peer, Peer>> down_;
   std::map<std::uint32_t, std::uint16_t> elected_;
