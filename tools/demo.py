@@ -15,12 +15,13 @@ Phases (each a function):
                 switched to `exploit colour=red` and stays on the patch (checked with ev3-sim)
   3. master     the master is killed (SIGKILL); the agents fall back (WORKING -> PAUSED -> PANIC,
                 ACTIVE -> PANIC), read from their NDJSON traces
-  4. election   the weakest agent (lowest --score: #1) stands first and wins epoch 2; #2 follows it
+  4. election   the weakest agent (lowest --score: #1) stands first and wins epoch 5 (the PC published
+                the membership one agent per epoch while the three synced: epochs 2-4); #2 follows it
                 directly; #3, which cannot hear #1, asks for a relay (RELAY_REQ), #2 offers
                 (RELAY_OFFER), #3 accepts (RELAY_ACCEPT) and leaves PANIC through #2's relay
   5. command    the new master runs its --master-script: `behaviour all wait seconds=2`, `start
                 all`; both followers (#3 through the relay) go WORKING and report ACTION_OK
-  6. handover   the PC master comes back with its --state-file: it stands in epoch 3 (score 0),
+  6. handover   the PC master comes back with its --state-file: it stands in a newer epoch (score 0),
                 the agent-master steps down and hands the fleet over (HANDOVER)
 Then a summary: the timeline with times, the picture of the robots' paths (ev3-sim's --snapshot,
 written when it stops: build/demo/paths.svg), and the NDJSON traces validated by TLC against the spec: the
@@ -484,9 +485,10 @@ class Demo:
         self.watch(12, elected, "an agent to win the election")
         w = won["i"]
         self.winner = w
-        self.event(f"agent {self.name(w)} won epoch 2 ({won['text'].split('(')[1].rstrip(')').split(')')[0]}, "
+        e = int(won["text"].split("won epoch ")[1].split()[0])  # 5: the PC published the list in 2, 3, 4
+        self.event(f"agent {self.name(w)} won epoch {e} ({won['text'].split('(')[1].rstrip(')').split(')')[0]}, "
                    f"the lowest): it runs a Master core and sends LEADER")
-        who = f"following master {self.id_of.get(w)} (epoch 2)"
+        who = f"following master {self.id_of.get(w)} (epoch {e})"
 
         def followed(_):
             return all(i == w or who in self.following.get(i, (0, ""))[1] for i in range(3))
@@ -531,7 +533,7 @@ class Demo:
             return getattr(self, "stepped", False) and len(ags) == 3 and all(a["state"] != "SYNCING" for a in ags)
         self.watch(12, back, "the PC master to take the fleet back")
         self.show_table(force=True)
-        self.event("the PC master is master of epoch 3 again: all three agents in its table "
+        self.event("the PC master is master of a newer epoch again: all three agents in its table "
                    "(those that were WORKING are PAUSED: their master changed)")
         self.cmd("stop all")
 
@@ -540,7 +542,7 @@ class Demo:
             return len(ags) == 3 and all(a["state"] == "ACTIVE" for a in ags)
         self.watch(5, active, "all three agents ACTIVE")
         self.show_table(force=True)
-        self.event("the PC's STOP (EPOCH_CMD of epoch 3) took effect: all three agents ACTIVE")
+        self.event("the PC's STOP (EPOCH_CMD of its epoch) took effect: all three agents ACTIVE")
 
     def summary(self) -> None:
         self.heading("summary")
@@ -559,7 +561,8 @@ def master_consts(state: dict[str, str]) -> dict:
     if {"next_id", "next_msgid", "epoch"} <= state.keys():
         c.update({"NextId": int(state["next_id"]), "FirstMsgid": int(state["next_msgid"]), "Life": "CANDIDATE",
                   "Epoch": int(state["epoch"]),
-                  "Members": [int(x) for x in state.get("members", "").split(",") if x.strip()]})
+                  "Members": [int(x) for x in state.get("members", "").split(",") if x.strip()],
+                  "MEpoch": int(state.get("members_epoch", 0) or 0)})
     return c
 
 

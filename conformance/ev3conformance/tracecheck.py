@@ -214,6 +214,12 @@ def temp_id_of(recs: list[dict]) -> int:
             continue
         if r["action"] == "RecvMaster":
             return m["ref"]
+        if r["action"] == "ApplyCommand" and r.get("args", {}).get("cmd") == "RecvMaster":
+            # the MASTER inside EPOCH_CMD (a PC past epoch 1: it syncs agents in its epoch)
+            try:
+                return _msg(wire.decode(msg.encode("latin-1")).params[1].decode("latin-1"))["ref"]
+            except (wire.DecodeError, IndexError):
+                pass
         if r["action"] not in ("Ignore",) and m["dst"] >= 50000:
             return m["dst"]
     return 50000
@@ -322,7 +328,12 @@ def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp
     score = c.get("Score")
     k.update({"Fleet": frozenset(fleet), "Score": int(score) if score is not None else 0,
               "ScoreKnown": score is not None, "InitEpoch": int(c.get("Epoch", 1) or 1),
-              "InitVotedFor": int(c.get("VotedFor", 0) or 0)})
+              "InitVotedFor": int(c.get("VotedFor", 0) or 0),
+              "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
+              "InitMEpoch": int(c.get("MEpoch", 0) or 0), "InitFloor": int(c.get("Floor", 0) or 0),
+              # a core since issue 13 records the membership; an older trace has none of it
+              "WithMembers": bool(c.get("Members")) or any(
+                  {"members", "mepoch", "floor"} & r.get("changed", {}).keys() for r in mine)})
     return NodeData(node, "MCElectionTrace", "AgentLogic + Election (per-agent projection)", mine, items, k, tf,
                     ", election")
 
@@ -362,7 +373,7 @@ def jobs_default() -> int:
 
 MASTER_RECV = ["MasterSync", "MasterAnswer", "MasterPing", "MasterReport"]
 ELECTION_MASTER_ACTIONS = {"Heartbeat", "StartElection", "HandleVote", "BecomeMaster", "HandleElect",
-                           "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover"}
+                           "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover", "Reconfigure"}
 # TDrop has no default (the driver's and the program's differ); TResend 1 is the driver's.
 MASTER_DEFAULTS = {"TResend": 1, "MaxResends": 10, "Behaviours": ["wait"], "NextId": 2, "FirstMsgid": 1}
 _REG_KEYS = ("ann", "id", "ep", "synced", "pending", "mid", "resends", "desired", "beh", "quiet", "hi")
@@ -441,7 +452,8 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
         return NodeData(node or "master", "MCMasterTrace", "MasterLogic", recs, _master_records(recs), k, tf)
     k.update({"Self": int(c.get("Self", 1) or 1), "InitLife": str(c.get("Life") or "MASTER"),
               "InitEpoch": int(c.get("Epoch", 1) or 1),
-              "InitMembers": frozenset(int(x) for x in (c.get("Members") or []))})
+              "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
+              "InitMEpoch": int(c.get("MEpoch") or c.get("Epoch", 1) or 1)})
     return NodeData(node or "master", "MCMasterElectionTrace", "MasterLogic + Election (the PC's rules)", recs,
                     _master_election_records(recs), k, tf, ", election")
 
@@ -478,14 +490,15 @@ def validate_master(path: Path, consts: dict, workdir: Path | None = None, node:
 
 ELECTION_ACTIONS = {"RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped",
                     "GrantPreVote", "HandlePreVote", "StartElection", "HandleElect", "HandleVote",
-                    "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand"}
+                    "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand",
+                    "ShareMembers", "LearnMembers"}
 ELECTION_VARS = ["life", "epoch", "votedFor", "votes", "leader", "following", "via", "relays", "offered",
-                 "prevotes"]
+                 "prevotes", "members", "mepoch", "floor"]
 # Wire type names -> Election.tla's message types.
 _EL_TYPES = {"RELAY_REQ": "RREQ", "RELAY_OFFER": "ROFFER", "RELAY_ACCEPT": "RACCEPT", "RELAY_ROUTE": "ROUTE",
              "RELAY": "RELAY", "RELAY_DROP": "RDROP", "ELECT": "ELECT", "VOTE": "VOTE", "LEADER": "HB",
              "EPOCH_STALE": "STALE", "EPOCH_CMD": "CMD", "HANDOVER": "HANDOVER", "PREVOTE_OK": "PREOK"}
-_NONE_EL = {"t": "NONE", "src": 0, "dst": 0, "e": 0, "x": 0, "sc": 0, "tgt": 0}
+_NONE_EL = {"t": "NONE", "src": 0, "dst": 0, "e": 0, "x": 0, "sc": 0, "tgt": 0, "k": 0, "mem": frozenset()}
 
 
 def is_election_trace(recs: list[dict]) -> bool:
@@ -508,7 +521,7 @@ def _el_msg(text: str) -> tuple[dict, dict | None, list[int]]:
     if t is None:
         return dict(_NONE_EL), None, []
     ps = list(m.params)
-    d = {"t": t, "src": m.sender, "dst": m.receiver, "e": 0, "x": 0, "sc": 0, "tgt": 0}
+    d = {"t": t, "src": m.sender, "dst": m.receiver, "e": 0, "x": 0, "sc": 0, "tgt": 0, "k": 0, "mem": frozenset()}
     inner, members = None, []
     if t == "RELAY":
         d["tgt"] = _num(ps, 0)
@@ -516,10 +529,12 @@ def _el_msg(text: str) -> tuple[dict, dict | None, list[int]]:
         d["e"] = _num(ps, 0)
     if t in ("RREQ", "ELECT"):
         d["sc"] = _num(ps, 1)
+        d["k"] = _num(ps, 2)  # members_epoch (issue 13; 0 when an older sender left it out)
     if t in ("ROFFER", "RACCEPT"):
         d["x"] = _num(ps, 1)
     if t == "HB":
         members = [_num(ps, i) for i in range(2, len(ps))]
+        d["mem"] = frozenset(x for x in members if 2 <= x <= 49999)
     if t == "CMD" and len(ps) > 1:
         try:
             inner = _msg(ps[1].decode("latin-1"))

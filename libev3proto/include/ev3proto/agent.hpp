@@ -170,6 +170,9 @@ struct AgentVars {
   std::uint32_t following = 0; ///< following
   std::uint16_t via = 0;     ///< via (0 = NoNode)
   std::uint32_t relay_rev = 0; ///< changes whenever relays / offered / votes change
+  std::uint32_t mepoch = 0;    ///< Election mepoch (issue 13)
+  std::uint32_t floor = 0;     ///< Election floor
+  std::uint32_t members_rev = 0; ///< changes whenever the membership (Election members) may change
   /// The next msgid (not a spec variable): a record that sent datagrams moved it, so the trace
   /// names the msgids each record sent (the merge of a run's traces, docs/spec.md "Whole-run traces").
   std::uint32_t msgid = 0;
@@ -555,6 +558,9 @@ class Agent {
     v.following = el_.following;
     v.via = el_.via;
     v.relay_rev = el_.sets_rev();
+    v.mepoch = el_.mepoch;
+    v.floor = el_.floor;
+    v.members_rev = el_.members.rev();
     v.msgid = msgid_;
     return v;
   }

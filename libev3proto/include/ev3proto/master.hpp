@@ -973,6 +973,7 @@ class Master {
     }
     epoch_ = e;
     if (self_ == kMasterId) {
+      votes_.clear();  // HandleStaleNext's rule: the votes of the older epoch do not count in e
       become_candidate();
       return;
     }

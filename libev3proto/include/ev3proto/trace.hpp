@@ -152,6 +152,10 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
       ids("votes", agent.vote_count(), [&](std::size_t i) { return agent.vote(i); });
       ids("prevotes", agent.prevote_count(), [&](std::size_t i) { return agent.prevote(i); });
     }
+    if (a.members_rev != b.members_rev)
+      ids("members", agent.member_count(), [&](std::size_t i) { return agent.member(i); });
+    if (a.mepoch != b.mepoch) num("mepoch", a.mepoch);
+    if (a.floor != b.floor) num("floor", a.floor);
   }
   s += "}}";
   return s;

@@ -30,7 +30,12 @@ CONSTANTS
     Score,         \* the agent's --score, if ScoreKnown
     ScoreKnown,    \* FALSE: the score is unknown, both outcomes of every comparison are allowed
     InitEpoch,     \* the epoch the agent starts from (its --state-dir; 1)
-    InitVotedFor   \* the vote it starts from (0: none)
+    InitVotedFor,  \* the vote it starts from (0: none)
+    InitMembers,   \* the membership it starts with (its --state-dir; none)
+    InitMEpoch,    \* the epoch of that membership (0: none known)
+    InitFloor,     \* its floor (0)
+    WithMembers    \* the records carry the membership (members, mepoch, floor: a core since issue 13);
+                   \* FALSE: an older trace, quorums count against Fleet
 
 E == INSTANCE ElectionRules WITH Agents <- Fleet
 
@@ -39,13 +44,15 @@ MyScores == IF ScoreKnown THEN {Score} ELSE {0, E!MaxTLCInt}
 
 ElectionActions == {"RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped",
                     "GrantPreVote", "HandlePreVote", "StartElection", "HandleElect", "HandleVote",
-                    "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand"}
+                    "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand",
+                    "ShareMembers", "LearnMembers"}
+\* With the membership (issue 13): quorums count against the agent's own list (Election Fleet(s)).
 ElVars == {"life", "epoch", "votedFor", "votes", "leader", "following", "via", "relays", "offered",
-           "prevotes"}
+           "prevotes", "members", "mepoch", "floor"}
 \* votes is compared while the agent is a candidate: the core clears it when the candidacy ends
 \* (BecomeMaster, a LEADER heard), Election.tla keeps the last set, read only by a CANDIDATE.
 FitsEl(r, before, after) ==
-    \A v \in ElVars :
+    \A v \in ElVars \cap DOMAIN before :
         IF v = "votes" /\ after.life # "CANDIDATE" THEN TRUE
         ELSE IF v \in DOMAIN r.ech THEN after[v] = r.ech[v] ELSE after[v] = before[v]
 
@@ -88,7 +95,8 @@ ElSteps(r, s, me, sv) ==
     LET m == r.em IN
     CASE r.a = "RequestRelay" -> IfOk(E!RequestRelayOk(s), s)
       [] r.a = "StartElection" -> IfOk(E!StartElectionOk(me, s), E!StartElectionNext(me, s))
-      [] r.a = "BecomeMaster" -> IfOk(E!BecomeMasterOk(s), E!BecomeMasterNext(s))
+      [] r.a = "BecomeMaster" ->
+           IfOk(E!BecomeMasterOk(s), E!Learned(E!BecomeMasterNext(s), E!Get(s, "members", {}), s.epoch))
       [] r.a = "GrantPreVote" -> IfOk(E!GrantPreVoteOk(me, s, m, m.sc, sv), s)
       [] r.a = "Forward" -> IfOk(E!ForwardOk(me, s, FwdMsg(m, s)), s)
       [] r.a = "OfferRelay" -> {IF E!OfferRelayOk(me, s, m) THEN E!OfferRelayNext(s, m) ELSE s}
@@ -102,18 +110,28 @@ ElSteps(r, s, me, sv) ==
       [] r.a = "HandleHeartbeat" ->
            {IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(s, m) ELSE s}
       [] r.a = "HandleStale" -> {IF E!HandleStaleOk(me, s, m) THEN E!HandleStaleNext(me, s, m) ELSE s}
+      [] r.a = "ShareMembers" -> IfOk(E!ShareMembersOk(me, s, m), s)
+      [] r.a = "LearnMembers" -> IfOk(E!LearnMembersOk(me, s, m), E!LearnMembersNext(me, s, m))
       [] OTHER -> {}
 \* Following master c in epoch e after a MASTER (bare: the PC, epoch 1; inside EPOCH_CMD: its sender
 \* and epoch): Election's rule for hearing c's heartbeat; the lifecycle gives the state.
-Synced(s, c, e, st) == [E!HandleHeartbeatNext(s, E!M("HB", c, 0, e, 0)) EXCEPT !.life = LifeOf(st, s.life)]
+\* (MASTER carries no membership: the agent keeps the one it knows.)
+Synced(s, c, e, st) ==
+    LET t == [E!HandleHeartbeatNext(s, E!M("HB", c, 0, e, 0)) EXCEPT !.life = LifeOf(st, s.life)] IN
+    IF WithMembers THEN [t EXCEPT !.members = s.members, !.mepoch = s.mepoch, !.floor = s.floor] ELSE t
 \* The rest of the agent's Election state when only the lifecycle moved to a2.
 Mirror(s, a2) == [s EXCEPT !.life = LifeOf(a2.state, s.life)]
 
 -----------------------------------------------------------------------------
 (* The agent's local state in a check: AgentLogic's ag and Election's el.  *)
 
-InitEl == [life |-> "IDLE", epoch |-> InitEpoch, votedFor |-> InitVotedFor, votes |-> {}, leader |-> 0,
-           following |-> 0, via |-> 0, relays |-> {}, offered |-> {}, prevotes |-> {}]
+InitElOld == [life |-> "IDLE", epoch |-> InitEpoch, votedFor |-> InitVotedFor, votes |-> {}, leader |-> 0,
+              following |-> 0, via |-> 0, relays |-> {}, offered |-> {}, prevotes |-> {}]
+InitEl == IF WithMembers
+          THEN [f \in DOMAIN InitElOld \cup {"members", "mepoch", "floor"} |->
+                  IF f = "members" THEN InitMembers ELSE IF f = "mepoch" THEN InitMEpoch
+                  ELSE IF f = "floor" THEN InitFloor ELSE InitElOld[f]]
+          ELSE InitElOld
 ElectionStart == [ag |-> L!InitAgent(TempId), el |-> InitEl]
 
 \* The step to ag = a2, el = s2, if both fit record r (from s).

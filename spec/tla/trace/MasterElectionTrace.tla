@@ -56,7 +56,8 @@ CONSTANTS
     Self,         \* the master's node: the PC (1), or the elected agent whose Master core wrote it
     InitLife,     \* MASTER (fresh), or CANDIDATE (the PC restarted from its state file)
     InitEpoch,    \* the epoch it starts in
-    InitMembers   \* the membership it starts with
+    InitMembers,  \* the membership it starts with (Election members[Self])
+    InitMEpoch    \* the epoch that published it (Election mepoch[Self])
 
 PC == 1
 \* Election.tla's per-node operators for a membership F.  (Agents is a constant of Election: a
@@ -115,18 +116,21 @@ RouteTo(ms, a, from) ==
     ELSE [ms EXCEPT !.reg = @ \cup {Adopted(a, from)}]
 \* Election's BecomeMasterOk (a majority of the membership voted) over the membership mem.
 QuorumOk(el, mem) == \E F \in {mem} : E(F)!BecomeMasterOk(el)
+\* Election want (issue 13): the PC's membership, the ids handed over, the agents registered and synced.
+Want(s, ms) == s.mem \cup s.hand \cup {x.id : x \in {y \in ms.reg : y.synced}}
 
 -----------------------------------------------------------------------------
 InitEl == [life |-> InitLife, epoch |-> InitEpoch, votes |-> {}, votedFor |-> 0, leader |-> 0,
            following |-> 0, via |-> 0, relays |-> {}, offered |-> {}, prevotes |-> {}]
 MasterElectionStart ==
     [ms |-> [reg |-> {}, nextId |-> NextId, msgid |-> [k \in {0} |-> FirstMsgid]], el |-> InitEl,
-     mem |-> InitMembers, handed |-> FALSE, clock |-> 0, sent |-> [i \in {} |-> 0]]
+     mem |-> InitMembers, mep |-> InitMEpoch, hand |-> {}, handed |-> FALSE, clock |-> 0,
+     sent |-> [i \in {} |-> 0]]
 
 \* The step of record r from s (registry s0 after time passed) to registry ms2, Election state el2,
 \* membership mem2 (ticked ids D), if the record's changes fit it.
 ElTo(r, s, s0, ms2, el2, mem2, D) ==
-    {[ms |-> y, el |-> z, mem |-> mem2,
+    {[ms |-> y, el |-> z, mem |-> mem2, mep |-> s.mep, hand |-> s.hand,
       handed |-> s.handed \/ (r.a = "HandleHeartbeat" /\ Self # PC /\ r.em.e >= s.el.epoch),
       clock |-> r.now, sent |-> NewSent(s, y, D, r.now)]
      : y \in {x \in {ms2} : Fits(r, s0, x)}, z \in {w \in {el2} : FitsEl(r, s.el, w)}}
@@ -154,7 +158,7 @@ Act(r, s, s0) ==
                              /\ s1.nextId > 49999
                           THEN ElTo(r, s, s0, s1, el, mem, {})
                           ELSE ElTo(r, s, s0, M!Receive(s1, m, from).ms, el, mem, {})
-                          : s1 \in {Route(s0, m, from, mem)}}
+                          : s1 \in {Route(s0, m, from, mem \cup s.hand)}}
                    : from \in Eps(r, s) \cup {0}}
     ELSE IF r.a = "Heartbeat" THEN
        \* Election's Heartbeat(n): life[n] = "MASTER"
@@ -166,7 +170,19 @@ Act(r, s, s0) ==
        IF em.src \in mem /\ EP!HandleVoteOk(Self, el, em) THEN ElTo(r, s, s0, s0, EP!HandleVoteNext(el, em), mem, {})
        ELSE {}
     ELSE IF r.a = "BecomeMaster" THEN
-       IF QuorumOk(el, mem) THEN ElTo(r, s, s0, Drawn(s0), EP!BecomeMasterNext(el), mem, {}) ELSE {}
+       \* Election BecomeMaster: a majority of its membership (the PC's first list: none needed), in
+       \* an epoch newer than the list's; the PC publishes one step (OneStep) towards Want, an
+       \* agent-master the list it counted against.
+       IF /\ el.life = "CANDIDATE" /\ el.epoch > s.mep
+          /\ QuorumOk(el, mem) \/ (Self = PC /\ mem = {})
+       THEN UNION {{[x EXCEPT !.mep = el.epoch] : x \in ElTo(r, s, s0, Drawn(s0), EP!BecomeMasterNext(el), L, {})}
+                   : L \in IF Self = PC THEN EP!OneStep(mem, Want(s, s0)) ELSE {mem}}
+       ELSE {}
+    ELSE IF r.a = "Reconfigure" THEN
+       \* Election Reconfigure: the PC as MASTER whose Want differs from its membership stands.
+       IF Self = PC /\ el.life = "MASTER" /\ EP!OneStep(mem, Want(s, s0)) # {mem}
+       THEN ElTo(r, s, s0, s0, [el EXCEPT !.life = "CANDIDATE"], mem, {})
+       ELSE {}
     ELSE IF r.a = "HandleStale" THEN
        IF EP!HandleStaleOk(Self, el, em) THEN ElTo(r, s, s0, s0, EP!HandleStaleNext(Self, el, em), mem, {})
        ELSE {}
@@ -191,12 +207,12 @@ Act(r, s, s0) ==
        THEN ElTo(r, s, s0, s0, EP!HandleElectNext(Self, el, em, 0, 0), mem, {})
        ELSE {}
     ELSE IF r.a = "MasterRoute" THEN
-       IF em.t = "ROUTE" /\ em.dst = Self /\ el.life = "MASTER" /\ em.e = el.epoch /\ em.x \in Ids(s0) \cup mem
+       IF em.t = "ROUTE" /\ em.dst = Self /\ el.life = "MASTER" /\ em.e = el.epoch /\ em.x \in Ids(s0) \cup mem \cup s.hand
        THEN UNION {ElTo(r, s, s0, RouteTo(s0, em.x, from), el, mem, {}) : from \in Eps(r, s) \cup {0}}
        ELSE {}
     ELSE IF r.a = "MasterHandover" THEN
        IF em.t = "HANDOVER" /\ em.dst = Self /\ el.life = "MASTER" /\ em.e <= el.epoch
-       THEN ElTo(r, s, s0, s0, el, mem \cup (r.ids \cap (M!AssignedIds \ {Self})), {})
+       THEN {[x EXCEPT !.hand = s.hand \cup (r.ids \cap (M!AssignedIds \ {Self}))] : x \in ElTo(r, s, s0, s0, el, mem, {})}
        ELSE {}
     ELSE {}
 

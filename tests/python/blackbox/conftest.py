@@ -153,6 +153,9 @@ def _consts(args: list[str], state: dict | None = None) -> dict:
         state = state or {}
         c["Epoch"] = int(state.get("epoch", 1))
         c["VotedFor"] = int(state.get("voted_for", 0))
+        c["Members"] = [int(x) for x in state.get("members", "").split(",") if x.strip()]
+        c["MEpoch"] = int(state.get("members_epoch", 0) or 0)
+        c["Floor"] = int(state.get("floor", 0) or 0)
     return c
 
 
@@ -188,6 +191,7 @@ def _master_consts(args: list[str], state: dict) -> dict:
         c["Life"] = "CANDIDATE" if restored else "MASTER"
         c["Epoch"] = int(state["epoch"]) if restored else 1
         c["Members"] = [int(x) for x in state.get("members", "").split(",") if x.strip()] if restored else []
+        c["MEpoch"] = int(state.get("members_epoch", 0) or 0) if restored else 0
     return c
 
 

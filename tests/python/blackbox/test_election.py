@@ -1,6 +1,7 @@
 """Relay and election with real programs over loopback UDP (docs/programs.md "Relay and election"):
 ev3-master and three ev3-agent, all with --election; the master is killed (SIGKILL); the agents
-elect one of them master of epoch 2 (the lowest --score), the others follow it, and its
+elect one of them master of epoch 5 (the lowest --score; the PC published the membership one agent
+per epoch while the three synced, issue 13: epochs 2, 3, 4), the others follow it, and its
 --master-script commands take effect. With broadcast lists that make a line (#1 and #3 do not hear
 each other), #3 gets through #2's relay and answers the new master's PINGs and commands through it.
 
@@ -20,6 +21,8 @@ from ev3net import Program, free_ports, read_status, wait_until
 
 HB, LOSS, PAUSED = 100, 600, 1200          # ms; back-off before standing: 3000 + score x 100
 SCORES = (1, 20, 40)
+SYNCED = 1 + len(SCORES)                   # the PC's epoch once the three are members (one step each)
+WON = SYNCED + 1                           # the epoch the agents elect a master in
 
 
 def log_lines(tmp: Path, name: str) -> list[str]:
@@ -82,23 +85,24 @@ def test_election_after_the_master_is_killed(master_exe, agent_exe, programs, tm
     t0 = time.monotonic()
     wait_until(lambda: winner_of(tmp_path), 12, "an agent to win an election")
     won = winner_of(tmp_path)
-    assert len(won) == 1 and won[0][0] == 0 and "won epoch 2 (score 1)" in won[0][1], won  # the lowest score
+    assert len(won) == 1 and won[0][0] == 0 and f"won epoch {WON} (score 1)" in won[0][1], won  # the lowest score
     leader = ids[0]
-    # The others follow it (ACTIVE, epoch 2), directly.
+    # The others follow it (ACTIVE, epoch WON), directly.
     for i in (1, 2):
-        wait_until(lambda: any(f"following master {leader} (epoch 2) directly" in l
+        wait_until(lambda: any(f"following master {leader} (epoch {WON}) directly" in l
                                for l in log_lines(tmp_path, f"agent{i + 1}")), 4, f"agent{i + 1} to follow")
     # Its --master-script (after 1.5 s: a relayed agent needs up to relay_retry to join): BEHAVIOUR + START to both followers, which run it to ACTION_OK.
     for i in (1, 2):
         wait_until(lambda: any(f"master: agent {ids[i]}: ACTION_OK" in l for l in log_lines(tmp_path, "agent1")),
                    5, f"ACTION_OK of agent {ids[i]} at the new master")
-    # Exactly one master in epoch 2 (traces: BecomeMaster), epoch 2 durable on every agent.
+    # Exactly one master in epoch WON (traces: BecomeMaster), epoch WON durable on every agent.
     masters = [i for i in range(3) if any(r["action"] == "BecomeMaster" for r in trace(tmp_path, f"agent{i + 1}"))]
     assert masters == [0]
     for i in range(3):
-        assert (tmp_path / f"s{i + 1}" / "ev3-agent.state").read_text().startswith("epoch=2\n")
-    # Commands acted on in epoch 2 came as EPOCH_CMD from the new master.
-    applied = [r for r in trace(tmp_path, "agent2") if r["action"] == "ApplyCommand"]
+        assert (tmp_path / f"s{i + 1}" / "ev3-agent.state").read_text().startswith(f"epoch={WON}\n")
+    # Commands acted on in epoch WON came as EPOCH_CMD from the new master.
+    applied = [r for r in trace(tmp_path, "agent2")
+               if r["action"] == "ApplyCommand" and r["args"]["msg"].split(":")[4] == str(WON)]
     assert applied and all(r["args"]["msg"].split(":")[0] == str(leader) for r in applied)
     assert time.monotonic() - t0 < 15
 
@@ -107,7 +111,7 @@ def test_relay_for_an_agent_that_hears_only_a_peer(master_exe, agent_exe, progra
     # #1 and #3 do not hear each other: #3 reaches the new master (#1) only through #2.
     ids = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1], 1: [0, 2], 2: [1]})
     leader, relay, far = ids[0], ids[1], ids[2]
-    wait_until(lambda: any(f"following master {leader} (epoch 2) through the relay of agent {relay}" in l
+    wait_until(lambda: any(f"following master {leader} (epoch {WON}) through the relay of agent {relay}" in l
                            for l in log_lines(tmp_path, "agent3")), 14, "agent3 to follow through agent2's relay")
     # The new master's commands reach #3 through the relay and its answers come back.
     wait_until(lambda: any(f"master: agent {far}: ACTION_OK" in l for l in log_lines(tmp_path, "agent1")), 5,
@@ -125,3 +129,46 @@ def test_relay_for_an_agent_that_hears_only_a_peer(master_exe, agent_exe, progra
     assert any(r["action"] == "RecvPong" for r in t3[k:])
     relay_acts = [r["action"] for r in trace(tmp_path, "agent2")]
     assert "OfferRelay" in relay_acts and "HandleAccept" in relay_acts and "Forward" in relay_acts
+
+
+def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe, agent_exe, programs, tmp_path):
+    """Issue 13's liveness failure: five agents and the PC with 30 % loss, duplication and reordering
+    on every sender; the PC is killed as soon as its registry holds the five agents ACTIVE, before
+    every agent has heard a LEADER listing the whole membership (the PC publishes it one agent per
+    epoch). Agents that missed it learn the list from a peer (ShareMembers / LearnMembers, at their
+    first RELAY_REQ): an agent must become master within a bounded time (before the fix the fleet
+    sat in PANIC until the PC came back)."""
+    n = 5
+    mport, *aports = free_ports(n + 1)
+    status = tmp_path / "status.json"
+    faults = ["--fault-loss", "30", "--fault-dup", "30", "--fault-reorder", "30"]
+    master = Program(master_exe, ["--port", str(mport), "--bind", "127.0.0.1", "--election",
+                                  "--state-file", str(tmp_path / "master.state"), "--status-json", str(status),
+                                  *sum((["--broadcast", f"127.0.0.1:{p}"] for p in aports), []),
+                                  *faults, "--fault-seed", "13", "--log-file", str(tmp_path / "master.log")],
+                     tmp_path, "master")
+    for i, p in enumerate(aports):
+        (tmp_path / f"s{i + 1}").mkdir()
+        programs.append(Program(agent_exe, [
+            "--port", str(p), "--bind", "127.0.0.1",
+            *sum((["--broadcast", f"127.0.0.1:{q}"] for q in [mport] + [a for a in aports if a != p]), []),
+            "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
+            "--election", "--score", str(10 * (i + 1)), "--state-dir", str(tmp_path / f"s{i + 1}"),
+            *faults, "--fault-seed", str(100 + i), "--sysfs-root", str(tmp_path / "nosys"),
+            "--log-level", "2", "--log-file", str(tmp_path / f"agent{i + 1}.log")],
+            tmp_path, f"agent{i + 1}"))
+    wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == n and
+               all(a["state"] == "ACTIVE" for a in s["agents"]), 20, f"{n} ACTIVE agents")
+    master.stop(signal.SIGKILL)  # right after the sync: the last membership steps may be unheard
+    master.close()
+    t0 = time.monotonic()
+    won = wait_until(lambda: [(i, l) for i in range(n) for l in log_lines(tmp_path, f"agent{i + 1}")
+                              if "election: won epoch" in l], 30, "an agent to become master")
+    elapsed = time.monotonic() - t0
+    print(f"\nPC killed right after the sync of {n} agents (30 % loss, dup, reorder): "
+          f"{won[0][1].split('election: ')[1]} after {elapsed:.1f} s")
+    epochs = {}
+    for i, line in won:
+        e = int(re.search(r"won epoch (\d+)", line).group(1))
+        assert epochs.setdefault(e, i) == i, f"two masters of epoch {e}: {won}"
+    assert elapsed < 30

@@ -144,11 +144,12 @@ EXTENSIONS = {
                        {"action": "MasterHandover", "args": {"msg": "2:1:373755700:32:4:2:3:4"}}),  # epoch above ours
     # RELAY_ROUTE(3, 4) from relay 3
     "MasterRoute": (route_record(3), route_record(2)),                                          # an old epoch's route
-    # EPOCH_STALE(5): a newer epoch exists, the PC stands again
+    # EPOCH_STALE(5): a newer epoch exists, the PC stands again, without the votes of its epoch
+    # (Election.tla HandleStaleNext clears them since issue 13)
     "HandleStale": ({"action": "HandleStale", "args": {"msg": "3:1:900637401:30:5"},
-                     "changed": {"life": "CANDIDATE", "epoch": 5}},
+                     "changed": {"life": "CANDIDATE", "epoch": 5, "votes": []}},
                     {"action": "HandleStale", "args": {"msg": "3:1:900637401:30:5"},
-                     "changed": {"life": "MASTER", "epoch": 5}}),                                   # stays MASTER
+                     "changed": {"life": "MASTER", "epoch": 5, "votes": []}}),                                   # stays MASTER
     # LEADER of epoch 2 (older): answered EPOCH_STALE (a msgid), nothing else changes
     "HandleHeartbeat": ({"action": "HandleHeartbeat", "args": {"msg": "2:0:373755701:29:2:2:2:3:4"},
                          "changed": {"msgid": last_msgid(records(2)) + 1}},
@@ -169,7 +170,7 @@ def test_appended_record_checked(tmp_path, kind):
 def test_a_newer_leader_makes_the_pc_stand(tmp_path):
     """LEADER of epoch 4 (docs/core.md deviation 4): HandleStale's rule with its epoch."""
     ok = appended({"action": "HandleHeartbeat", "args": {"msg": "2:0:373755702:29:4:2:2:3:4"},
-                   "changed": {"life": "CANDIDATE", "epoch": 4}})
+                   "changed": {"life": "CANDIDATE", "epoch": 4, "votes": []}})
     r = check(tmp_path, 2, ok)
     assert r.ok, r.message
 
