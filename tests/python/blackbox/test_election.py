@@ -99,7 +99,13 @@ def test_election_after_the_master_is_killed(master_exe, agent_exe, programs, tm
     masters = [i for i in range(3) if any(r["action"] == "BecomeMaster" for r in trace(tmp_path, f"agent{i + 1}"))]
     assert masters == [0]
     for i in range(3):
-        assert (tmp_path / f"s{i + 1}" / "ev3-agent.state").read_text().startswith(f"epoch={WON}\n")
+        state = (tmp_path / f"s{i + 1}" / "ev3-agent.state").read_text()
+        assert state.startswith(f"epoch={WON}\n")
+        # the membership is on the SD card too (a restarted agent can stand and vote with it): the
+        # list of the new master's epoch, which it counted its votes against
+        kv = dict(line.split("=", 1) for line in state.splitlines())
+        assert kv["members"] == ",".join(str(x) for x in sorted(ids.values())), state
+        assert kv["members_epoch"] == str(WON) and kv["floor"] == str(WON), state
     # Commands acted on in epoch WON came as EPOCH_CMD from the new master.
     applied = [r for r in trace(tmp_path, "agent2")
                if r["action"] == "ApplyCommand" and r["args"]["msg"].split(":")[4] == str(WON)]
@@ -172,3 +178,24 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
         e = int(re.search(r"won epoch (\d+)", line).group(1))
         assert epochs.setdefault(e, i) == i, f"two masters of epoch {e}: {won}"
     assert elapsed < 30
+
+
+def test_a_damaged_membership_in_a_state_file_is_refused(master_exe, agent_exe, tmp_path):
+    """The membership is kept with the epoch (issue 13): a state file whose list is damaged, or a
+    master's list without the epoch that published it, stops the program with the entry named."""
+    import subprocess
+    (tmp_path / "s").mkdir()
+    cases = [
+        (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
+         "epoch=3\nvoted_for=0\nmembers=2,x\nmembers_epoch=2\nfloor=2\n", "bad members"),
+        (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
+         "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=7\nfloor=2\n", "bad members_epoch"),
+        (master_exe, ["--election", "--state-file", str(tmp_path / "m.state")], tmp_path / "m.state",
+         "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\n", "bad members_epoch (missing"),
+    ]
+    for exe, args, path, text, said in cases:
+        path.write_text(text)
+        p = subprocess.run([str(exe), "--port", "0", "--bind", "127.0.0.1", *args], capture_output=True, text=True,
+                           timeout=10)
+        assert p.returncode == 2, (exe.name, text, p.returncode, p.stderr)
+        assert said in p.stderr and str(path) in p.stderr, p.stderr
