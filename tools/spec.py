@@ -574,7 +574,7 @@ def election_check(args):
     man = load_manifest()
     el = man["election"]
     failed = False
-    for mod in ("MCElection", "MCElectionLive", "MCThesisElection"):
+    for mod in ("MCElection", "MCElectionLive", "MCThesisElection", "MCSystem"):
         sany(mod)
     if args.size == "small":
         failed |= not election_thesis(el)[0]

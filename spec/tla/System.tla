@@ -179,7 +179,8 @@ LoseHandover(h) ==
 (* the histories (read from the step's name, lastAction').                  *)
 
 Step == lastAction'
-Who == IF 2 \in DOMAIN Step THEN Step[2] ELSE NoNode
+\* The node that acted (every action of ElectionStep but Lose and Reconfigure names one).
+Who == IF Step[1] \in {"Lose", "Reconfigure"} THEN NoNode ELSE Step[2]
 Got == Step[3]   \* the datagram, for the actions that take one
 \* Actions that take a datagram carrying an epoch the receiver is told of.
 Telling == {"HandleElect", "HandleStale", "LearnMembers", "AcceptRelay"}
