@@ -23,6 +23,7 @@
 #include "core.hpp"
 #include "deadline_list.hpp"
 #include "dedupe.hpp"
+#include "election.hpp"
 #include "messages.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
@@ -935,9 +936,12 @@ class Master {
     return l;
   }
   /// Election Reconfigure's guard: the PC as MASTER whose wanted fleet differs from the membership
-  /// of its epoch. An elected agent's master never changes its membership (node.hpp).
+  /// of its epoch. An elected agent's master never changes its membership (node.hpp). The list
+  /// stops growing at kMaxMembership, all that one LEADER carries (and the state files keep):
+  /// agents beyond it follow and obey but never vote (docs/election.md section 6).
   bool ReconfigureOk() const {
-    return cfg_.election && self_ == kMasterId && role_ == MasterRole::master && OneStep(members_, want()) != members_;
+    return cfg_.election && self_ == kMasterId && role_ == MasterRole::master &&
+           members_.size() < kMaxMembership && OneStep(members_, want()) != members_;
   }
   /// Spec Reconfigure: the PC stands in the next epoch to publish the next step.
   void Reconfigure() { become_candidate(); }
