@@ -420,18 +420,7 @@ class Master {
   /// step each (Heartbeat, StartElection, or MasterTick of the entries due then).
   void advance(Millis now) {
     for (;;) {
-      if (BecomeMasterOk()) {  // the PC's first step needs no vote: it wins as it stands
-        Snapshot b = snap();
-        BecomeMaster();
-        record(Action::BecomeMaster, b, {});
-        continue;
-      }
-      if (ReconfigureOk()) {
-        Snapshot r = snap();
-        Reconfigure();
-        record(Action::Reconfigure, r, {});
-        continue;
-      }
+      if (settle_role()) continue;  // the PC's first step needs no vote: it wins as it stands
       const Millis t = next_deadline();
       if (t > now || t == kNever) break;
       Snapshot s = snap();  // before time moves: MasterTick's record shows quiet growing
@@ -556,22 +545,31 @@ class Master {
  private:
   // ------------------------------------------------ receive: the spec's Handler(m)
 
-  /// Takes @p m: dispatch, its trace record, and BecomeMaster when a vote completed a majority.
+  /// Takes @p m: dispatch, its trace record, then the role steps it enabled (settle_role).
   MasterReceipt take(const Message& m, std::string_view bytes, Peer from) {
     Snapshot s = snap();
     const MasterReceipt r = Dispatch(m, from, 0);
     if (r.action != Action::Ignore) record(r.action, s, bytes);
-    if (BecomeMasterOk()) {
-      Snapshot b = snap();
-      BecomeMaster();
-      record(Action::BecomeMaster, b, {});
-    }
-    if (ReconfigureOk()) {  // an agent synced (or handed over): stand to publish the next step
-      Snapshot c = snap();
-      Reconfigure();
-      record(Action::Reconfigure, c, {});
+    while (settle_role()) {
     }
     return r;
+  }
+
+  /// The role steps that need no input, one at a time, each with its record: BecomeMaster when a
+  /// vote completed a majority (or the fresh PC stands), else Reconfigure when an agent synced or
+  /// was handed over. False when neither is enabled.
+  bool settle_role() {
+    const bool become = BecomeMasterOk();
+    if (!become && !ReconfigureOk()) return false;
+    Snapshot s = snap();
+    if (become) {
+      BecomeMaster();
+      record(Action::BecomeMaster, s, {});
+    } else {
+      Reconfigure();
+      record(Action::Reconfigure, s, {});
+    }
+    return true;
   }
 
   static MasterReceipt taken(Action a, MasterIgnored why = MasterIgnored::none) noexcept { return MasterReceipt{a, why}; }
