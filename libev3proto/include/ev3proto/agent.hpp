@@ -1382,8 +1382,9 @@ class Agent {
     return cfg_.timers[Timer::backoff] + sc * step + (id_ % 16u) * step / 16u;
   }
   void durable_changed() noexcept {
-    if (el_.durable() == durable_) return;
-    durable_ = el_.durable();
+    const Durable d = el_.durable();
+    if (d == durable_) return;
+    durable_ = d;
     ++durable_rev_;
   }
   /// The master's id for answers and reports: the one followed, else the PC.
@@ -1405,7 +1406,7 @@ class Agent {
   /// next event is a relay request's retry or a PREVOTE_OK arriving, not the back-off's end), and
   /// the membership known is not older than the floor (else the next event is learning a newer one).
   void arm_stand() noexcept {
-    timers_.set(AgentTimer::stand, el_.PreVoteQuorum(id_) && el_.mepoch >= el_.floor ? stand_at_ : kNever);
+    timers_.set(AgentTimer::stand, el_.PreVoteQuorum(id_) && el_.MembershipCurrent() ? stand_at_ : kNever);
   }
   Millis clk_origin() const noexcept {
     return timers_.get(AgentTimer::periodic) - cfg_.timers[Timer::heartbeat];

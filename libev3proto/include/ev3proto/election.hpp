@@ -333,8 +333,11 @@ class AgentElection {
   /// included), an epoch left.
   bool StartElectionOk(const Lifecycle& me) const noexcept {
     return enabled && me.state == State::PANIC && role != Role::master && is_assigned_id(me.id) &&
-           epoch < 0xFFFFFFFFu && mepoch >= floor && PreVoteQuorum(me.id);
+           epoch < 0xFFFFFFFFu && MembershipCurrent() && PreVoteQuorum(me.id);
   }
+  /// Election's `mepoch >= floor`: the membership known is not older than one this agent voted to
+  /// replace (it may stand and count against it).
+  bool MembershipCurrent() const noexcept { return mepoch >= floor; }
   /// Election HandleElectOk (the CASE arms that change something): an older epoch (EPOCH_STALE);
   /// otherwise not a healthy follower (unless the PC stands), and a newer epoch or a vote to grant.
   bool HandleElectOk(const Message& m, const Lifecycle& me) const noexcept {
