@@ -22,12 +22,17 @@
                                                   [--candidate --epoch E --members 2,3,4: its state file];
                                                   an --election agent's trace: its Master cores
                                                   (node master:ID:EPOCH; timers: ev3-agent's defaults)
-    ev3-conformance merged DIR-or-TRACE... [--epoch FILE:NODE=E ...]
+    ev3-conformance merged DIR-or-TRACE... [--epoch FILE:NODE=E ...] [--master-timeout-ms MS]
                                                   the traces of every node of one run merged into one
                                                   behaviour (happens-before: process order, each receive
-                                                  after its send) and checked with TLC: at most one
-                                                  master per epoch, no command from a stale master,
-                                                  followers agree (spec/tla/trace/MergedTrace.tla)
+                                                  after its send) and checked with TLC against the
+                                                  composed spec's own invariants (System.tla INSTANCEd
+                                                  in spec/tla/trace/MergedTrace.tla): one master per
+                                                  epoch, followers agree, relays one hop and acyclic,
+                                                  no command from a stale master (fenced, newest epoch
+                                                  told), lifecycle, no motion without a genuine master
+                                                  datagram within MS (the agents' timeout, default
+                                                  3000), HANDOVER steps down
     ev3-conformance mutate [--only NAME ...] [--list]
                                                   mutation score: seeded core faults vs these checks
 
@@ -252,7 +257,11 @@ def _cmd_merged(args: argparse.Namespace) -> int:
             print(f"ev3-conformance merged: --epoch {x!r}: expected FILE:NODE=EPOCH (agent1.nd:agent=2)", file=sys.stderr)
             return 2
         epochs[lab] = int(e)
-    r = merged.validate(args.traces, epochs)
+    if args.loss is not None and args.loss <= 0:
+        print(f"ev3-conformance merged: --master-timeout-ms {args.loss}: expected a positive number of ms",
+              file=sys.stderr)
+        return 2
+    r = merged.validate(args.traces, epochs, loss=args.loss or merged.TLOSS)
     print(f"{'ok  ' if r.ok else 'FAIL'} merged run: {r.message}")
     print(f"merged: {'conforms' if r.ok else 'DOES NOT CONFORM'} ({r.records} records, {r.nodes} nodes, "
           f"{r.seconds:.1f} s)")
@@ -360,11 +369,15 @@ def _parser() -> argparse.ArgumentParser:
                     help="--master --election: restarted from a --state-file, it starts as a CANDIDATE")
     vp.set_defaults(run=_cmd_validate)
 
-    gm = sub.add_parser("merged", help="the traces of one run merged (happens-before) and checked for global safety")
+    gm = sub.add_parser("merged", help="the traces of one run merged (happens-before) and checked against "
+                                       "System.tla's and Election.tla's invariants")
     gm.add_argument("traces", nargs="+", help="NDJSON trace files of one run, or directories holding them")
     gm.add_argument("--epoch", action="append", metavar="FILE:NODE=E",
                     help="a node's epoch before its first record when not 1 (a --state-dir / --state-file "
                          "it restarted from), e.g. master2.ndjson:master=2")
+    gm.add_argument("--master-timeout-ms", type=int, metavar="MS", dest="loss",
+                    help="the agents' heartbeat timeout, as given to ev3-agent (System's T for "
+                         "NoUnsupervisedMotionInv); default: ev3-agent's (3000)")
     gm.set_defaults(run=_cmd_merged)
 
     mp = sub.add_parser("mutate", help="seeded faults in a copy of the core, each checked by replay/validate")

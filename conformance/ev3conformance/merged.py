@@ -38,10 +38,16 @@ from ev3conformance import tla, tracecheck, wire
 MODULE = "MCMergedTrace"
 PC_ID = 1            # the PC master's id (AgentLogic's MasterId)
 FIRST_SPAN = 64      # a node's first sending record: the msgids it may have sent below its new value
-GLOBAL_VARS = ("id", "epoch", "leader", "following")
+GLOBAL_VARS = ("id", "epoch", "leader", "following", "life", "via", "relays", "votedFor")
+TLOSS = tracecheck.DEFAULTS["TLoss"]   # the agents' heartbeat timeout (ms): ev3-agent's default
 TRACE_GLOBS = ("*.ndjson", "*.nd")
 _NONE_EM = {"t": "NONE", "src": 0, "e": 0}
 _NONE_M = {"t": "NONE", "src": 0}
+
+
+# What a conforming run satisfies: System.tla's and Election.tla's invariants, by name (MCMergedTrace.cfg).
+CHECKED = ("AtMostOneMasterPerEpochInv, FollowersAgreeInv, RelayOneHopInv, NoRelayCycleInv, StaleMasterFencedInv, "
+           "LifecycleInv, NoUnsupervisedMotionInv, ObeyedNewestEpochInv, HandoverStepsDownInv hold")
 
 
 class MergeError(ValueError):
@@ -72,6 +78,7 @@ class Merged:
     nodes: dict[str, dict]            # node label -> its start [id, epoch, leader, following]
     agents: list[str]                 # labels of the agent cores
     pairs: int = 0                    # receives matched with their send
+    paired: set = field(default_factory=set)            # (file, k) of those receives
     outside: Counter = field(default_factory=Counter)   # sender id (not traced) -> its receives
     unsent: Counter = field(default_factory=Counter)    # sender id (traced) -> receives of msgids no record sent
     undecodable: int = 0
@@ -205,7 +212,9 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
             if kind == "agent":
                 sid = tracecheck.temp_id_of([x.r for x in recs if x.node == node])
                 m.agents.append(lab)
-            m.nodes[lab] = {"id": sid, "epoch": ep, "leader": 0, "following": 0}
+            life = {"agent": "IDLE", "core": "NONE", "pc": "MASTER" if ep == 1 else "CANDIDATE"}.get(kind, "NONE")
+            m.nodes[lab] = {"id": sid, "epoch": ep, "leader": 0, "following": 0, "life": life, "via": 0,
+                            "relays": frozenset(), "votedFor": 0}
     # the happens-before graph: process order + send -> receive
     succ: dict[tuple[int, int], list[tuple[int, int]]] = {}
     npred: dict[tuple[int, int], int] = {}
@@ -235,6 +244,7 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
             succ.setdefault(src, []).append((fi, x.k))
             npred[(fi, x.k)] += 1
             m.pairs += 1
+            m.paired.add((fi, x.k))
     # Kahn's algorithm: the ready record of the first file first (deterministic; any order would do)
     ready = [key for key, n in npred.items() if n == 0]
     heapq.heapify(ready)
@@ -277,7 +287,14 @@ def _cycle(m: Merged, per_file, succ, npred) -> str:
 
 def _item(m: Merged, x: Rec, idx: dict[str, int]) -> dict:
     r = x.r
-    ch = {k: int(v) for k, v in r.get("changed", {}).items() if k in GLOBAL_VARS and isinstance(v, int)}
+    ch = {}
+    for k, v in r.get("changed", {}).items():
+        if k not in GLOBAL_VARS:
+            continue
+        if isinstance(v, list):
+            ch[k] = frozenset(int(i) for i in v)
+        elif isinstance(v, (int, str)) and not isinstance(v, bool):
+            ch[k] = v
     em, bm = dict(_NONE_EM), dict(_NONE_M)
     text = r.get("args", {}).get("msg")
     if text:
@@ -288,8 +305,10 @@ def _item(m: Merged, x: Rec, idx: dict[str, int]) -> dict:
                 em = {"t": e["t"], "src": e["src"], "e": e["e"]}
             else:
                 bm = {"t": d.type_name or "?", "src": d.sender}
+    ticks = r.get("args", {}).get("ticks", 0) if r.get("action") == "Tick" else 0
     return {"n": idx[m.label(x)], "a": str(r.get("action")), "ch": ch, "em": em, "m": bm,
-            "cmd": str(r.get("args", {}).get("cmd", ""))}
+            "cmd": str(r.get("args", {}).get("cmd", "")), "g": (x.file, x.k) in m.paired,
+            "sent": "msgid" in r.get("changed", {}), "ticks": int(ticks) if isinstance(ticks, int) else 0}
 
 
 def node_index(m: Merged) -> dict[str, int]:
@@ -297,10 +316,20 @@ def node_index(m: Merged) -> dict[str, int]:
     return {lab: i + 1 for i, lab in enumerate(m.nodes)}
 
 
-def data_module(m: Merged) -> str:
+def data_module(m: Merged, loss: int = TLOSS) -> str:
     """TraceData for MCMergedTrace: the merged records (n: the node's number), the nodes' start and
-    names in that order, the agent nodes, the PC's id."""
+    names in that order, the agent nodes, the PC's runs in the order they ran, the Master cores' [id, e]
+    (from their names), every id an agent core had, the PC's id, the agents' timeout @p loss."""
     idx = node_index(m)
+    pcs = [lab for lab in m.nodes if _kind(lab.split(":", 1)[1]) == "pc"]
+    pcs.sort(key=lambda lab: next(i for i, x in enumerate(m.order) if m.label(x) == lab)
+             if any(m.label(x) == lab for x in m.order) else len(m.order))
+    cores = [{"n": idx[lab], "id": int(lab.split(":")[2]), "e": int(lab.split(":")[3])}
+             for lab in m.nodes if _kind(lab.split(":", 1)[1]) == "core"]
+    ids = {m.nodes[a]["id"] for a in m.agents}
+    for x in m.order:
+        if m.label(x) in m.agents and isinstance(x.r.get("changed", {}).get("id"), int):
+            ids.add(x.r["changed"]["id"])
     body = ",\n".join("  " + tla.to_tla(_item(m, x, idx)) for x in m.order)
     return "\n".join([
         "---- MODULE TraceData ----",
@@ -311,7 +340,11 @@ def data_module(m: Merged) -> str:
         f"Start == {tla.to_tla(tuple(m.nodes.values()))}",
         f"NodeNames == {tla.to_tla(tuple(m.nodes))}",
         f"Agents == {tla.to_tla(frozenset(idx[a] for a in m.agents))}",
+        f"PCs == {tla.to_tla(tuple(idx[p] for p in pcs))}",
+        "Cores == {" + ", ".join(tla.to_tla(c) for c in cores) + "}",
+        f"AgentIds == {tla.to_tla(frozenset(ids))}",
         f"PC == {PC_ID}",
+        f"TLoss == {int(loss)}",
         "====", ""])
 
 
@@ -338,20 +371,26 @@ def _last_state(out: str) -> dict:
     return vals
 
 
-def _explain(m: Merged, inv: str, out: str) -> str:
+def _explain(m: Merged, inv: str, out: str, loss: int) -> str:
+    """What invariant @p inv (System's or Election's, MergedTrace) found, named with the records."""
     st = _last_state(out)
     try:
         cursor = int(st.get("cursor", "0"))
-        elected = tla.parse_value(st["elected"]) if "elected" in st else frozenset()
-        applied = tla.parse_value(st["applied"]) if "applied" in st else frozenset()
-        loc = tla.parse_value(st["loc"]) if "loc" in st else {}
+        val = {k: tla.parse_value(st[k]) for k in ("elected", "applied", "obeyed", "handed", "loc", "heard", "told")
+               if k in st}
     except (ValueError, KeyError) as e:
         return f"{inv} is violated (TLC's last state could not be read: {e})"
+    elected, applied = val.get("elected", frozenset()), val.get("applied", frozenset())
+    loc, heard = val.get("loc", ()), val.get("heard", ())
     at = lambda i: m.where(m.order[i - 1]) if 1 <= i <= len(m.order) else "(the start: the PC is master of epoch 1)"
     names = list(m.nodes)
     name = lambda n: names[n - 1] if isinstance(n, int) and 1 <= n <= len(names) else str(n)
     last = cursor - 1
-    if inv == "AtMostOneMasterPerEpoch":
+    after = f"after merged record {last}: {at(last)}"
+    masters = {(x["e"], x["id"]) for x in elected}
+    el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
+    agents = [(n, s) for n, s in enumerate(loc, 1) if name(n) in m.agents]
+    if inv == "AtMostOneMasterPerEpochInv":
         by_e: dict[int, list] = {}
         for x in elected:
             by_e.setdefault(x["e"], []).append(x)
@@ -360,9 +399,8 @@ def _explain(m: Merged, inv: str, out: str) -> str:
             if len({x["id"] for x in xs}) > 1:
                 rows += [f"  node id {x['id']} became master of epoch {e} at merged record {x['at']}: {at(x['at'])}"
                          for x in sorted(xs, key=lambda x: x["at"])]
-        return "two masters in one epoch (AtMostOneMasterPerEpoch):\n" + "\n".join(rows)
-    if inv == "StaleMasterFenced":
-        masters = {(x["e"], x["id"]) for x in elected}
+        return f"two masters in one epoch ({inv}):\n" + "\n".join(rows)
+    if inv == "StaleMasterFencedInv":
         rows = []
         for c in sorted(applied, key=lambda c: c["at"]):
             if c["e"] != c["seen"] or (c["e"], c["src"]) not in masters:
@@ -372,17 +410,31 @@ def _explain(m: Merged, inv: str, out: str) -> str:
                        f"node {c['src']} was not elected master of epoch {c['e']} before it")
                 rows.append(f"  agent {name(c['a'])} obeyed a command of node {c['src']} in epoch {c['e']}: {why}; "
                             f"merged record {c['at']}: {at(c['at'])}")
-        el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
-        return f"a command obeyed from a stale master (StaleMasterFenced; elected so far: {el}):\n" + "\n".join(rows)
-    if inv == "FollowersAgree":
-        masters = {(x["e"], x["id"]) for x in elected}
-        el = ", ".join(f"epoch {e}: node {i}" for e, i in sorted(masters))
+        return f"a command obeyed from a stale master ({inv}; elected so far: {el}):\n" + "\n".join(rows)
+    if inv == "ObeyedNewestEpochInv":
+        rows = [f"  agent {name(c['a'])} obeyed a command of node {c['src']} in epoch {c['e']} after epoch "
+                f"{c['told']} had reached it; merged record {c['at']}: {at(c['at'])}"
+                for c in sorted(val.get("obeyed", ()), key=lambda c: c["at"]) if c["e"] < c["told"]]
+        return f"a command obeyed from a stale master ({inv}: older than an epoch the agent was told of):\n" + \
+            "\n".join(rows)
+    if inv == "FollowersAgreeInv":
         rows = [f"  {name(n)} follows node {s['leader']} in epoch {s['following']} (its epoch {s['epoch']})"
-                for n, s in enumerate(loc, 1) if name(n) in m.agents and s["following"] != 0 and
+                for n, s in agents if s["following"] != 0 and
                 (s["following"] != s["epoch"] or (s["following"], s["leader"]) not in masters)]
-        return (f"an agent follows a node that is not the master of its epoch (FollowersAgree; elected so far: "
-                f"{el}), after merged record {last}: {at(last)}:\n" + "\n".join(rows))
-    return f"{inv} is violated after merged record {last}: {at(last)}"
+        return (f"an agent follows a node that is not the master of its epoch ({inv}; elected so far: "
+                f"{el}), {after}:\n" + "\n".join(rows))
+    if inv == "NoUnsupervisedMotionInv":
+        rows = [f"  {name(n)} (id {s['id']}) is WORKING and no genuine datagram of its master (node {s['leader']}, "
+                f"epoch {s['following']}) reached it for more than {loss} ms"
+                for n, s in agents if s["life"] == "WORKING" and n <= len(heard) and heard[n - 1] > loss]
+        return f"motion without a master ({inv}), {after}:\n" + "\n".join(rows)
+    if inv == "HandoverStepsDownInv":
+        rows = [f"  node {h['src']} handed the fleet over to the master of epoch {h['e']} at merged record {h['at']}: "
+                f"{at(h['at'])}" for h in sorted(val.get("handed", ()), key=lambda h: h["at"])]
+        return f"a master that handed over is still master of an older epoch ({inv}), {after}:\n" + "\n".join(rows)
+    rows = [f"  {name(n)} (id {s['id']}): {s['life']}, leader {s['leader']}, following {s['following']}, "
+            f"epoch {s['epoch']}, via {s['via']}, relays {sorted(s['relays'])}" for n, s in agents]
+    return f"{inv} is violated {after}; the agents then:\n" + "\n".join(rows)
 
 
 def summary(m: Merged) -> str:
@@ -404,9 +456,11 @@ def summary(m: Merged) -> str:
     return "; ".join(parts)
 
 
-def validate(paths: list[Path], epochs: dict[str, int] | None = None, workdir: Path | None = None) -> Result:
-    """Merge the traces of @p paths and check the run with TLC (MCMergedTrace). A run that cannot
-    be merged is a failed check, its message naming why."""
+def validate(paths: list[Path], epochs: dict[str, int] | None = None, workdir: Path | None = None,
+             loss: int = TLOSS) -> Result:
+    """Merge the traces of @p paths and check the run with TLC (MCMergedTrace: System's and
+    Election's invariants), @p loss the agents' heartbeat timeout (ms, --master-timeout-ms). A run
+    that cannot be merged is a failed check, its message naming why."""
     t0 = time.monotonic()
     try:
         m = merge([Path(p) for p in paths], epochs)
@@ -415,23 +469,23 @@ def validate(paths: list[Path], epochs: dict[str, int] | None = None, workdir: P
     wd = Path(workdir or (gr.BUILD / "traces"))
     wd.mkdir(parents=True, exist_ok=True)
     d = Path(tempfile.mkdtemp(prefix="merged-", dir=wd))
-    for f in list(tracecheck.TRACE_SPEC.glob("MergedTrace.tla")) + list(tracecheck.TRACE_SPEC.glob(f"{MODULE}.*")):
+    for f in (list(tracecheck.TRACE_SPEC.glob("MergedTrace.tla")) + list(tracecheck.TRACE_SPEC.glob(f"{MODULE}.*"))
+              + [gr.SPEC / "System.tla", gr.SPEC / "Election.tla"]):
         shutil.copy(f, d / f.name)
-    (d / "TraceData.tla").write_text(data_module(m))
+    (d / "TraceData.tla").write_text(data_module(m, loss))
     rc, out = gr.tlc(f"{MODULE}.tla", f"{MODULE}.cfg", [], cwd=d)
     secs = time.monotonic() - t0
     n = len(m.order)
     inv = re.search(r"Invariant (\w+) is violated", out)
-    if rc == 12 and inv and inv.group(1) == "Walked":
+    if rc == 12 and inv and inv.group(1) == "Walked":  # every record walked, no other invariant violated
         cur = _last_state(out).get("cursor")
         if cur is not None and int(cur) == n + 1:
             shutil.rmtree(d, ignore_errors=True)
-            return Result(True, n, len(m.nodes), f"{summary(m)}; at most one master per epoch, no stale command, "
-                                                  f"followers agree", secs)
+            return Result(True, n, len(m.nodes), f"{summary(m)}; {CHECKED}", secs)
         return Result(False, n, len(m.nodes), f"TLC's walk ended at record {cur}, the merge has {n} "
                                               f"(check kept in {d})", secs)
     if rc == 12 and inv:
-        return Result(False, n, len(m.nodes), f"{_explain(m, inv.group(1), out)}\n({summary(m)}; check kept in {d})",
+        return Result(False, n, len(m.nodes), f"{_explain(m, inv.group(1), out, loss)}\n({summary(m)}; check kept in {d})",
                       secs)
     return Result(False, n, len(m.nodes), f"TLC failed (exit {rc}); check in {d}:\n{out[-2500:]}", secs)
 
@@ -440,10 +494,31 @@ def validate(paths: list[Path], epochs: dict[str, int] | None = None, workdir: P
 
 PLANTS = {
     "two-masters": "a second node becomes master of an epoch another node won: a BecomeMaster record "
-                   "inserted in its trace after the record where its epoch became that one",
+                   "inserted in its trace after the record where its epoch became that one "
+                   "(AtMostOneMasterPerEpochInv)",
     "stale-command": "an agent obeys an EPOCH_CMD of an older epoch: the epoch of an obeyed EPOCH_CMD "
-                     "in its trace lowered by one",
+                     "in its trace lowered by one (StaleMasterFencedInv)",
+    "spoofed-master": "a WORKING agent keeps working on datagrams that only claim to be its master's: the "
+                      "sender of every bare or LEADER datagram of its master it receives after it started "
+                      "working changed to an id no traced node has, until one of its Tick records passes the "
+                      "timeout (NoUnsupervisedMotionInv; the record named is that Tick)",
+    "newer-epoch-ignored": "an agent hears a LEADER of a newer epoch (the epoch of an EPOCH_CMD it then obeys, "
+                           "plus one) and changes nothing: a HandleHeartbeat record inserted before the "
+                           "ApplyCommand, which is named (ObeyedNewestEpochInv)",
+    "handover-keeps-master": "an elected agent's Master core that steps down on a newer epoch instead hands "
+                             "over (a LEADER of that epoch, the same datagram's sender and msgid; HANDOVER "
+                             "sent) and stays master (HandoverStepsDownInv)",
+    "relay-relayed": "an agent that enters a peer in its relay table is itself relayed: via set to "
+                     "another agent in that HandleAccept record (RelayOneHopInv)",
+    "relay-self": "an agent enters itself in its relay table: its id added to the relays of a HandleAccept "
+                  "record (NoRelayCycleInv)",
+    "panic-following": "an agent that panics on heartbeat loss keeps following its master: leader and "
+                       "following left out of that HeartbeatLost record (LifecycleInv)",
 }
+
+
+# The invariant each planted fault breaks, exactly that one: the last "(Name)" of its description.
+PLANT_INVARIANT = {k: re.findall(r"\((\w+Inv)", v)[-1] for k, v in PLANTS.items()}
 
 
 def _read_all(files: list[Path]) -> dict[Path, list[dict]]:
@@ -460,10 +535,140 @@ def _epochs_of(recs: list[dict], node: str):
         yield i, e
 
 
-def plant(paths: list[Path], out: Path, fault: str) -> str:
+def _agent_recs(rs: list[dict]):
+    return [(i, r) for i, r in enumerate(rs) if r.get("node") == "agent"]
+
+
+def _with_sender(text: str, sender: int, msgid: int | None = None, params: tuple | None = None) -> str:
+    d = _datagram(text)
+    m = wire.Message(sender, d.receiver, d.msgid if msgid is None else msgid, d.type,
+                     d.params if params is None else params)
+    return wire.encode(m).decode("latin-1")
+
+
+# MergedTrace's Commands: AgentLogic's handlers of a master's command.
+_COMMANDS = {"RecvMaster", "RecvBehaviour", "RecvStart", "RecvStop", "RecvPause", "RecvResume", "RecvStandby",
+             "RecvContinue", "RecvRestart"}
+
+
+def _plant_spoofed(recs, loss):
+    """spoofed-master: see PLANTS."""
+    spoof = 9  # no traced node's id (ids 2.. are agents, 1 the PC; the runs stored have fewer than 8 agents)
+    for f, rs in recs.items():
+        life, leader, start = None, 0, None
+        for i, r in _agent_recs(rs):
+            ch = r.get("changed", {})
+            leader = ch.get("leader", leader)
+            if ch.get("life") == "WORKING" and life != "WORKING":
+                start, passed, changed = i, 0, {}
+            life = ch.get("life", life)
+            if start is None or i == start:
+                continue
+            if life != "WORKING":
+                start = None
+                continue
+            d = _datagram(r.get("args", {}).get("msg", "")) if r.get("args", {}).get("msg") else None
+            if d is not None and d.sender == leader:
+                if d.type_name in ("EPOCH_CMD", "RELAY") or r.get("action") in _COMMANDS:
+                    passed = 0   # a command: kept genuine (a spoofed one would be a stale command)
+                else:
+                    changed[i] = _with_sender(r["args"]["msg"], spoof)
+            if r.get("action") == "Tick":
+                passed += int(r.get("args", {}).get("ticks", 0))
+                if passed > loss:
+                    for k, text in changed.items():
+                        rs[k]["args"] = dict(rs[k]["args"], msg=text)
+                    return f"{f.name} record {i + 1} (WORKING since record {start + 1}, {len(changed)} datagrams spoofed)"
+    return None
+
+
+def _plant_newer_epoch(recs, loss):
+    """newer-epoch-ignored: see PLANTS."""
+    lead = next((r["args"]["msg"] for rs in recs.values() for _, r in _agent_recs(rs)
+                 if r.get("action") == "HandleHeartbeat" and r.get("args", {}).get("msg")), None)
+    for f, rs in recs.items():
+        for i, r in _agent_recs(rs):
+            if r.get("action") != "ApplyCommand" or r["args"].get("cmd") in (None, "Ignore") or lead is None:
+                continue
+            d = _datagram(r["args"].get("msg", ""))
+            if d is None or d.type_name != "EPOCH_CMD":
+                continue
+            e = int(d.params[0])
+            hb = _datagram(lead)
+            text = _with_sender(lead, PC_ID, 999_999_999, (str(e + 1).encode(),) + tuple(hb.params[1:]))
+            rs.insert(i, {"node": "agent", "action": "HandleHeartbeat", "args": {"msg": text},
+                          "now": r.get("now", 0), "changed": {}})
+            return f"{f.name} record {i + 2} (EPOCH_CMD of epoch {e} obeyed after a LEADER of epoch {e + 1})"
+    return None
+
+
+def _plant_handover(recs, loss):
+    """handover-keeps-master: see PLANTS."""
+    for f, rs in recs.items():
+        for i, r in enumerate(rs):
+            node, ch = str(r.get("node", "")), r.get("changed", {})
+            if _kind(node) != "core" or ch.get("life") != "STEPPED_DOWN" or "epoch" not in ch:
+                continue
+            d = _datagram(r.get("args", {}).get("msg", ""))
+            lead = next((x["args"]["msg"] for x in rs if x.get("action") == "HandleHeartbeat"
+                         and _datagram(x.get("args", {}).get("msg", "") or "x") is not None
+                         and _datagram(x["args"]["msg"]).type_name == "LEADER"), None)
+            if d is None or lead is None:
+                continue
+            hb = _datagram(lead)
+            text = wire.encode(wire.Message(d.sender, 0, d.msgid, hb.type, (str(ch["epoch"]).encode(),) +
+                                            tuple(hb.params[1:]))).decode("latin-1")
+            last = max((x["changed"]["msgid"] for x in rs[:i] if x.get("node") == node
+                        and isinstance(x.get("changed", {}).get("msgid"), int)), default=0)
+            rs[i] = dict(r, action="HandleHeartbeat", args={"msg": text},
+                         changed={"epoch": ch["epoch"], "msgid": last + 1})
+            return f"{f.name} record {i + 1} (node {node} hands over to epoch {ch['epoch']} and stays master)"
+    return None
+
+
+def _plant_accept(recs, how):
+    for f, rs in recs.items():
+        ids = {int(x["changed"]["id"]) for x in rs if isinstance(x.get("changed", {}).get("id"), int)}
+        others = sorted({int(x["changed"]["id"]) for g in recs.values() for x in g if g is not rs
+                         and x.get("node") == "agent" and isinstance(x.get("changed", {}).get("id"), int)})
+        for i, r in _agent_recs(rs):
+            rel = r.get("changed", {}).get("relays")
+            if r.get("action") != "HandleAccept" or not rel or not ids:
+                continue
+            me = max(ids)
+            if how == "relayed":
+                other = next((o for o in others if o not in rel), None)
+                if other is None:
+                    continue
+                r["changed"] = dict(r["changed"], via=other)
+                return f"{f.name} record {i + 1} (relays {rel} while relayed by {other})"
+            r["changed"] = dict(r["changed"], relays=sorted(set(rel) | {me}))
+            return f"{f.name} record {i + 1} (agent {me} relays for itself)"
+    return None
+
+
+def _plant_panic(recs, loss):
+    """panic-following: see PLANTS."""
+    for f, rs in recs.items():
+        for i, r in _agent_recs(rs):
+            ch = r.get("changed", {})
+            if r.get("action") == "HeartbeatLost" and ch.get("life") == "PANIC" and "leader" in ch:
+                r["changed"] = {k: v for k, v in ch.items() if k not in ("leader", "following")}
+                return f"{f.name} record {i + 1} (PANIC, still following)"
+    return None
+
+
+_PLANTERS = {"spoofed-master": _plant_spoofed, "newer-epoch-ignored": _plant_newer_epoch,
+             "handover-keeps-master": _plant_handover,
+             "relay-relayed": lambda recs, loss: _plant_accept(recs, "relayed"),
+             "relay-self": lambda recs, loss: _plant_accept(recs, "self"), "panic-following": _plant_panic}
+
+
+def plant(paths: list[Path], out: Path, fault: str, loss: int = TLOSS) -> str:
     """Copies the run's traces to directory @p out with @p fault (PLANTS) planted in one of them;
-    returns where (file and record number, as the check names them). Raises MergeError when the run
-    has no place for it (no epoch won by an agent, no EPOCH_CMD obeyed)."""
+    returns where (file and record number, as the check names them); @p loss: the agents' timeout the
+    check will be given (spoofed-master). Raises MergeError when the run has no place for it (no epoch
+    won by an agent, no EPOCH_CMD obeyed, ...)."""
     files = trace_files(paths)
     recs = _read_all(files)
     where = None
@@ -503,6 +708,8 @@ def plant(paths: list[Path], out: Path, fault: str) -> str:
                 break
             if where:
                 break
+    elif fault in PLANTS:
+        where = _PLANTERS[fault](recs, loss)
     else:
         raise MergeError(f"no such fault {fault!r} (known: {', '.join(PLANTS)})")
     if where is None:

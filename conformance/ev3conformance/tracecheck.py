@@ -707,7 +707,8 @@ def check_modules(say=print, jobs: int = 2) -> bool:
     sample must conform, and the same trace with one record changed must be rejected naming that
     record. A sample with "run" (MCMergedTrace) is a directory of one run's traces, checked whole
     (ev3conformance.merged): it must conform, and each of its "plants" planted in it must be rejected
-    naming the file and record. Every MC*Trace module must have a sample. Prints one line per check;
+    naming the file and record, and failing the one invariant it is planted for (merged.PLANT_INVARIANT).
+    Every MC*Trace module must have a sample. Prints one line per check;
     True when all pass."""
     wd = gr.BUILD / "trace-modules"
     wd.mkdir(parents=True, exist_ok=True)
@@ -755,13 +756,16 @@ def check_modules(say=print, jobs: int = 2) -> bool:
         s, fault = job
         path = SAMPLES / s["run"]
         if fault is None:
-            r = merged.validate([path], workdir=wd)
+            r = merged.validate([path], workdir=wd, loss=s["consts"]["TLoss"])
             return r.ok, f"{s['module']} on {s['run']}/ ({r.seconds:.0f} s): {r.message.splitlines()[0]}"
         out = Path(tempfile.mkdtemp(prefix="plant-", dir=wd))
-        where = merged.plant([path], out, fault)
-        r = merged.validate([out], workdir=wd)
+        where = merged.plant([path], out, fault, s["consts"]["TLoss"])
+        r = merged.validate([out], workdir=wd, loss=s["consts"]["TLoss"])
         shutil.rmtree(out, ignore_errors=True)
-        ok = not r.ok and where.split(" (")[0] in r.message and "cannot merge" not in r.message
+        inv = merged.PLANT_INVARIANT[fault]
+        head = r.message.splitlines()[0] if r.message else ""
+        ok = (not r.ok and where.split(" (")[0] in r.message and "cannot merge" not in r.message
+              and (f"({inv}" in head or f"{inv} is violated" in head))
         return ok, (f"{s['module']} on {s['run']}/ with {fault} planted at {where}: " +
                     (f"rejected: {r.message.splitlines()[0]}" if ok else f"NOT REJECTED AS IT SHOULD BE: {r.message}"))
 

@@ -1,8 +1,8 @@
 ---------------------------- MODULE MCMergedTrace ----------------------------
 (* The check of a whole run: TraceData (written by ev3conformance.merged:  *)
 (* the merged records and the nodes' start, data only) walked by           *)
-(* MergedTrace.                                                            *)
+(* MergedTrace, with System's and Election's invariants.                   *)
 EXTENDS TraceData
-VARIABLES loc, elected, applied, cursor
+VARIABLES loc, pcrun, elected, applied, heard, told, obeyed, handed, cursor
 INSTANCE MergedTrace
 ==============================================================================

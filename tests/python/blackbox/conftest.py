@@ -274,8 +274,8 @@ def _epoch_of(p) -> int:
 def _submit_merged(nodeid: str, started: list) -> None:
     """Whole-run validation (docs/spec.md "Whole-run traces"): when the test ran programs with
     --election, the traces of all the programs it started are merged into one behaviour (each receive
-    after its send) and checked by TLC for at most one master per epoch, no command obeyed from a
-    stale master, followers agreeing (ev3conformance.merged)."""
+    after its send) and checked by TLC against System's and Election's invariants (ev3conformance.merged),
+    with the agents' --master-timeout-ms (the largest, if they differ; ev3-agent's default if none)."""
     global _POOL
     progs = [p for p in started if getattr(p, "trace_path", None) is not None]
     if _MODE == "0" or len(progs) < 2 or not any("--election" in p.trace_args for p in progs):
@@ -286,7 +286,9 @@ def _submit_merged(nodeid: str, started: list) -> None:
               for p in progs}
     if _POOL is None:
         _POOL = _cf.ThreadPoolExecutor(max_workers=2)
-    fut = _POOL.submit(merged.validate, paths, epochs)
+    losses = [int(p.trace_args[p.trace_args.index("--master-timeout-ms") + 1]) for p in progs
+              if p.trace_prog == "ev3-agent" and "--master-timeout-ms" in p.trace_args[:-1]]
+    fut = _POOL.submit(merged.validate, paths, epochs, None, max(losses, default=merged.TLOSS))
     name = f"the whole run ({len(paths)} traces merged)"
     if _MODE == "sync":
         r = fut.result()

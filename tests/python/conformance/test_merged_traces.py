@@ -1,14 +1,16 @@
 """Whole-run trace validation (`ev3-conformance merged`, docs/spec.md "Whole-run traces"): the traces
 of every node of one run merged into one behaviour by send/receive and checked by TLC against the
-global properties of the election (spec/tla/trace/MergedTrace.tla).
+composed spec's own invariants (System.tla and Election.tla INSTANCEd in spec/tla/trace/MergedTrace.tla).
 
 testdata/merged_demo/ is one `make demo` run (tools/demo.py): agents #1-#3 (agent1..3; #1 wins epoch
 2 and runs a Master core, node master:ID:2 in its trace), the PC's first run (killed) and its second
 (restarted from its state file in epoch 2: stands, wins epoch 3). The run must conform; the same run
-with a second master planted in an epoch, or with an agent obeying an EPOCH_CMD of an older epoch,
-must fail naming the nodes and records, and so must make spec's black-box run (spec/tla/trace/samples/
-run) with an agent following a node that was not elected; a cycle of the happens-before graph and a receive from
-outside the traced nodes are shown with hand-made traces."""
+with a second master planted in an epoch, with an agent obeying an EPOCH_CMD of an older epoch, or with
+the Master core handing over and staying master must fail naming the nodes and records, and so must
+make spec's black-box run (spec/tla/trace/samples/run) with an agent following a node that was not
+elected (the other faults of merged.PLANTS are planted in that run by make spec); every invariant
+checked has a fault planted for it; a cycle of the happens-before graph and a receive from outside the
+traced nodes are shown with hand-made traces."""
 from __future__ import annotations
 
 import gzip
@@ -25,6 +27,8 @@ from trace_files import DATA, write
 
 RUN = DATA / "merged_demo"
 EPOCHS = {"master2.ndjson:master": 2}   # the PC's second run starts from its state file: epoch 2
+LOSS = 1000          # the demo's --master-timeout-ms (tools/demo.py)
+SAMPLE_LOSS = 400    # the black-box tests' (ev3net.LOSS): make spec's sample run
 
 
 @pytest.fixture(scope="module")
@@ -37,7 +41,7 @@ def run(tmp_path_factory) -> Path:
 
 
 def test_the_demo_run_conforms(run):
-    r = merged.validate([run], EPOCHS)
+    r = merged.validate([run], EPOCHS, loss=LOSS)
     assert r.ok, r.message
     m = merged.merge([run], EPOCHS)
     assert r.records == len(m.order) == sum(len(p.read_text().splitlines()) for p in run.glob("*.ndjson"))
@@ -66,22 +70,43 @@ def test_the_merge_keeps_each_process_order_and_puts_receives_after_sends(run):
 
 def test_two_masters_in_one_epoch_fail_naming_both(run, tmp_path):
     where = merged.plant([run], tmp_path / "bad", "two-masters")
-    r = merged.validate([tmp_path / "bad"], EPOCHS)
+    r = merged.validate([tmp_path / "bad"], EPOCHS, loss=LOSS)
     assert not r.ok
-    assert "two masters in one epoch (AtMostOneMasterPerEpoch)" in r.message, r.message
+    assert "two masters in one epoch (AtMostOneMasterPerEpochInv)" in r.message, r.message
     assert where.split(" (")[0] in r.message, (where, r.message)
     assert r.message.count("became master of epoch 2") == 2, r.message
 
 
 def test_a_command_obeyed_from_a_stale_master_fails_naming_the_agent_and_record(run, tmp_path):
     where = merged.plant([run], tmp_path / "bad", "stale-command")
-    r = merged.validate([tmp_path / "bad"], EPOCHS)
+    r = merged.validate([tmp_path / "bad"], EPOCHS, loss=LOSS)
     assert not r.ok
     assert "a command obeyed from a stale master (StaleMasterFenced" in r.message, r.message
     assert where.split(" (")[0] in r.message, (where, r.message)
     # the PC's STOP of epoch 3 to agent #1, lowered to epoch 2 (the agent-master's epoch)
     assert "obeyed a command of node 1 in epoch 2: epoch 2 is older than the newest the agent has seen (3)" \
         in r.message, r.message
+
+
+def test_a_master_core_that_hands_over_and_stays_master_fails_naming_the_record(run, tmp_path):
+    # agent #1's Master core of epoch 2 steps down on the PC's ELECT of epoch 3; planted: it takes a
+    # LEADER of epoch 3 instead, sends HANDOVER and stays master (the run has no HANDOVER of its own)
+    where = merged.plant([run], tmp_path / "bad", "handover-keeps-master", LOSS)
+    r = merged.validate([tmp_path / "bad"], EPOCHS, loss=LOSS)
+    assert not r.ok
+    assert r.message.startswith("a master that handed over is still master of an older epoch "
+                                "(HandoverStepsDownInv)"), r.message
+    assert where.split(" (")[0] in r.message and "node 2 handed the fleet over to the master of epoch 3" in r.message
+
+
+def test_each_fault_is_planted_for_one_invariant_of_the_composed_spec():
+    # the other faults are planted in make spec's sample run (tracecheck.check_modules, samples.json)
+    cfg = (merged.tracecheck.TRACE_SPEC / "MCMergedTrace.cfg").read_text()
+    # FollowersAgreeInv: test_an_agent_following_a_node_not_elected_fails_naming_it
+    assert set(merged.PLANT_INVARIANT.values()) | {"FollowersAgreeInv"} == {w for w in cfg.split() if w.endswith("Inv")}
+    sample = json.loads((merged.tracecheck.SAMPLES / "samples.json").read_text())["samples"]
+    planted = {f for s in sample if "run" in s for f in s["plants"]} | {"handover-keeps-master"}
+    assert planted == set(merged.PLANTS)
 
 
 def test_an_agent_following_a_node_not_elected_fails_naming_it(tmp_path):
@@ -94,7 +119,7 @@ def test_an_agent_following_a_node_not_elected_fails_naming_it(tmp_path):
             k = max(i for i, r in enumerate(rs) if r.get("changed", {}).get("leader") == 2)
             rs[k]["changed"]["leader"] = 3
         write(tmp_path / "bad" / f.name, rs)
-    r = merged.validate([tmp_path / "bad"])
+    r = merged.validate([tmp_path / "bad"], loss=SAMPLE_LOSS)
     assert not r.ok
     assert "an agent follows a node that is not the master of its epoch (FollowersAgree" in r.message, r.message
     assert f"agent3.nd record {k + 1} " in r.message and "agent3.nd:agent follows node 3 in epoch 2" in r.message
@@ -132,7 +157,8 @@ def test_a_receive_from_outside_the_traced_nodes_is_reported(tmp_path):
 def test_the_command_line(tmp_path):
     # the smaller run make spec checks (spec/tla/trace/samples/run: a black-box election test's)
     sample = merged.tracecheck.SAMPLES / "run"
-    ok = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "merged", str(sample)],
+    ok = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "merged", str(sample),
+                         "--master-timeout-ms", str(SAMPLE_LOSS)],
                         capture_output=True, text=True)
     assert ok.returncode == 0 and "merged: conforms" in ok.stdout, ok.stdout + ok.stderr
     merged.plant([sample], tmp_path / "bad", "two-masters")

@@ -134,12 +134,15 @@ def test_the_data_module_holds_values_only():
 
 def test_the_merged_data_module_holds_values_only():
     """The whole run's TraceData (ev3conformance.merged, make spec's sample run): values only, one
-    record per record of the run, each naming its node by number; the nodes' start and names."""
+    record per record of the run, each naming its node by number; the nodes' start and names, the PC's
+    runs, the Master cores, the agents' ids and timeout."""
     from ev3conformance import merged
     m = merged.merge([SAMPLES / "run"])
-    defs = _definitions(merged.data_module(m))
+    defs = _definitions(merged.data_module(m, 400))
     values = {k: tla.parse_value(v) for k, v in defs.items()}  # raises on anything but a value
-    assert set(values) == {"Trace", "Start", "NodeNames", "Agents", "PC"}
+    assert set(values) == {"Trace", "Start", "NodeNames", "Agents", "PC", "PCs", "Cores", "AgentIds", "TLoss"}
+    assert values["TLoss"] == 400 and values["PCs"] == (values["NodeNames"].index("master.nd:master") + 1,)
+    assert {c["id"] for c in values["Cores"]} <= values["AgentIds"]
     assert len(values["Trace"]) == len(m.order) == sum(len(tracecheck.load(f)) for f in (SAMPLES / "run").glob("*.nd"))
     assert values["NodeNames"] == tuple(m.nodes) and len(values["Start"]) == len(m.nodes)
     assert all(x["a"] == r.r["action"] and values["NodeNames"][x["n"] - 1] == m.label(r)
