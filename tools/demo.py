@@ -30,8 +30,9 @@ docs/spec.md "Election traces"), the master's two runs (`validate --master`: Mas
 with Election.tla's rules of the PC, "Election master traces") and the Master core the elected agent
 ran (its records in that agent's trace, node master:ID:EPOCH: the same check as node ID), and the
 whole run: all those traces merged into one behaviour, each receive after its send (`ev3-conformance
-merged`, docs/spec.md "Whole-run traces": at most one master per epoch, no command obeyed from a stale
-master, followers agreeing); a trace or a run that does not conform fails the demo. Logs, traces and the
+merged`, docs/spec.md "Whole-run traces": System.tla's and Election.tla's invariants, among them one
+master per epoch, no command obeyed from a stale master, no motion without the master heard within the
+timeout); a trace or a run that does not conform fails the demo. Logs, traces and the
 status JSON stay in build/demo/. The standard library, and for the validation the ev3conformance
 package (conformance/) with TLC: runs wherever `make deps` has run.
 """

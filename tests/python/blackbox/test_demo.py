@@ -3,7 +3,7 @@ a behaviour, the master killed, an election with a relay, the elected agent's co
 the fleet back) must complete every phase, and every trace it leaves (three agents, the master's two
 runs, the elected agent's Master core) must be validated by TLC as conforming (docs/spec.md
 "Election traces", "Election master traces"), and so must the whole run, all of them merged ("Whole-run
-traces": at most one master per epoch, no command obeyed from a stale master, followers agreeing).
+traces": System.tla's and Election.tla's invariants, the agents' timeout the demo's).
 The demo exits 1 on a failed phase or a trace that does not conform; its output names which."""
 
 from __future__ import annotations
