@@ -79,6 +79,7 @@ class Merged:
     agents: list[str]                 # labels of the agent cores
     pairs: int = 0                    # receives matched with their send
     paired: set = field(default_factory=set)            # (file, k) of those receives
+    late: set = field(default_factory=set)              # (file, k) of unsent receives past the sender's last record
     outside: Counter = field(default_factory=Counter)   # sender id (not traced) -> its receives
     unsent: Counter = field(default_factory=Counter)    # sender id (traced) -> receives of msgids no record sent
     undecodable: int = 0
@@ -236,6 +237,9 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
             if s is None:
                 traced = any(d.sender in st.ids for st in streams)
                 (m.unsent if traced else m.outside)[d.sender] += 1
+                # sent after a process's last record (lost with a SIGKILL, written through stdio): its own
+                if any(st.sends and d.msgid >= st.sends[-1][1] for st in streams if d.sender in st.ids):
+                    m.late.add((fi, x.k))
                 continue
             if isinstance(s, str):
                 raise MergeError(f"datagram {d.sender}:{d.msgid} received by {m.where(x)} could have been sent by "
@@ -307,7 +311,7 @@ def _item(m: Merged, x: Rec, idx: dict[str, int]) -> dict:
                 bm = {"t": d.type_name or "?", "src": d.sender}
     ticks = r.get("args", {}).get("ticks", 0) if r.get("action") == "Tick" else 0
     return {"n": idx[m.label(x)], "a": str(r.get("action")), "ch": ch, "em": em, "m": bm,
-            "cmd": str(r.get("args", {}).get("cmd", "")), "g": (x.file, x.k) in m.paired,
+            "cmd": str(r.get("args", {}).get("cmd", "")), "g": (x.file, x.k) in m.paired or (x.file, x.k) in m.late,
             "sent": "msgid" in r.get("changed", {}), "ticks": int(ticks) if isinstance(ticks, int) else 0}
 
 
@@ -448,7 +452,8 @@ def summary(m: Merged) -> str:
         unsent = ", ".join(f"{s} ({n})" for s, n in sorted(m.unsent.items()))
         parts.append(f"{sum(m.unsent.values())} receives of datagrams of traced nodes that no record of theirs "
                      f"sent (by sender id: {unsent}: sent after the sender's last record, by a kill's lost records "
-                     f"or LEAVING at exit, or before its trace began), not ordered")
+                     f"or LEAVING at exit, or before its trace began), not ordered; {len(m.late)} of them past "
+                     f"the sender's last recorded msgid, taken as its own (genuine)")
     if m.undecodable:
         parts.append(f"{m.undecodable} undecodable datagrams not ordered")
     if m.cut:

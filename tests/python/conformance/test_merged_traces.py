@@ -169,3 +169,26 @@ def test_the_command_line(tmp_path):
     usage = subprocess.run([sys.executable, "-m", "ev3conformance.cli", "merged", str(sample), "--epoch", "x"],
                            capture_output=True, text=True)
     assert usage.returncode == 2 and "expected FILE:NODE=EPOCH" in usage.stderr
+
+
+@pytest.mark.parametrize("pong_msgid, conforms", [(250, True), (3, False)])
+def test_motion_needs_a_genuine_master_datagram_within_the_timeout(tmp_path, pong_msgid, conforms):
+    # the PC's records sent msgids 36..199; agent #2 works, 900 ms pass, a PONG of the PC arrives, 900 ms
+    # more: a PONG past the PC's last recorded msgid was sent after its last record (lost with a kill):
+    # genuine, the master was heard 900 ms ago; one below every range the PC's records sent is not its
+    # own (only its id): 1,800 ms without the master while WORKING
+    write(tmp_path / "m.ndjson", [_rec("master", "MasterTick", changed={"msgid": 100}),
+                                  _rec("master", "MasterTick", changed={"msgid": 200})])
+    write(tmp_path / "a.ndjson", [
+        _rec("agent", "RecvMaster", "1:2:50:2:55481", {"id": 2, "life": "ACTIVE", "leader": 1, "following": 1}),
+        _rec("agent", "RecvStart", "1:2:51:8", {"life": "WORKING"}),
+        {**_rec("agent", "Tick", changed={"silence": 900}), "args": {"ticks": 900}},
+        _rec("agent", "RecvPong", f"1:2:{pong_msgid}:6:1", {"silence": 0}),
+        {**_rec("agent", "Tick", changed={"silence": 900}), "args": {"ticks": 900}}])
+    r = merged.validate([tmp_path], loss=1000)
+    assert r.ok == conforms, r.message
+    if not conforms:
+        assert r.message.startswith("motion without a master (NoUnsupervisedMotionInv), after merged record 6: "
+                                    "a.ndjson record 5 (node agent, Tick"), r.message
+        assert "a.ndjson:agent (id 2) is WORKING and no genuine datagram of its master (node 1, epoch 1) " \
+               "reached it for more than 1000 ms" in r.message
