@@ -1,6 +1,7 @@
 """Whole-run trace validation: the NDJSON traces of every node of one real run merged into one
-behaviour and checked by TLC against the global properties of the election (spec/tla/trace/
-MergedTrace.tla; docs/spec.md "Whole-run traces").
+behaviour and checked by TLC against the composed spec's own invariants: System.tla (with
+Election.tla) INSTANCEd in spec/tla/trace/MergedTrace.tla with the run mapped onto its variables
+(docs/spec.md "Whole-run traces").
 
 The merge is a topological order of the run's happens-before graph, never of wall clocks (each
 process has its own): every trace file is one process and keeps its order (an agent's records and
@@ -14,8 +15,9 @@ the summary; a cycle of the graph is an error naming its records; a datagram two
 could have sent is an error too.
 
 As tracecheck does, this module only converts data: each merged record with the fields the check
-reads, the nodes' start and the agent nodes, written as TraceData.tla (definitions of values);
-the properties are TLA+ (MergedTrace.tla), checked by TLC, whose verdict is read back: invariant
+reads (and whether its receive was paired with its send), the nodes' start, the agent nodes, the
+PC's runs, the Master cores, the agents' ids and timeout, written as TraceData.tla (definitions of
+values); the properties are TLA+ (System's, by name), checked by TLC, whose verdict is read back: invariant
 Walked violated = every record was walked and no property failed; another invariant violated =
 the run breaks it, named with the records TLC's last state points at.
 """
