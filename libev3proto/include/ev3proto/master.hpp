@@ -528,7 +528,7 @@ class Master {
   /// membership it publishes towards it one agent per epoch (Reconfigure); it never shrinks (an
   /// agent declared lost stays a member: the fleet needs a majority without it).
   std::vector<std::uint16_t> members() const {
-    std::set<std::uint16_t> m = want();
+    const std::set<std::uint16_t>& m = want();
     return std::vector<std::uint16_t>(m.begin(), m.end());
   }
   /// The membership of the master's epoch (persist it with published_epoch()): LEADER carries it,
@@ -939,7 +939,7 @@ class Master {
   /// agents beyond it follow and obey but never vote (docs/election.md section 6).
   bool ReconfigureOk() const {
     return cfg_.election && self_ == kMasterId && role_ == MasterRole::master &&
-           members_.size() < kMaxMembership && OneStep(members_, want()) != members_;
+           members_.size() < kMaxMembership && want_moves();
   }
   /// Spec Reconfigure: the PC stands in the next epoch to publish the next step.
   void Reconfigure() { become_candidate(); }
@@ -1041,12 +1041,23 @@ class Master {
   /// A member of our membership, or handed over to us.
   bool known(std::uint16_t id) const { return members_.count(id) != 0 || handed_.count(id) != 0; }
   /// Election want: the membership, the members handed over, the agents registered and synced.
-  std::set<std::uint16_t> want() const {
-    std::set<std::uint16_t> m = members_;
-    m.insert(handed_.begin(), handed_.end());
+  /// A walk of the registry, so built only when members_rev_ moved since the last build (each
+  /// change of members_, handed_ or an entry's synced moves it), not per datagram.
+  const std::set<std::uint16_t>& want() const {
+    if (want_built_ && want_rev_ == members_rev_) return want_;
+    want_ = members_;
+    want_.insert(handed_.begin(), handed_.end());
     for (const auto& kv : reg_.map())
-      if (kv.second.synced) m.insert(kv.first);
-    return m;
+      if (kv.second.synced) want_.insert(kv.first);
+    want_moves_ = OneStep(members_, want_) != members_;
+    want_rev_ = members_rev_;
+    want_built_ = true;
+    return want_;
+  }
+  /// OneStep(members_, want()) differs from members_ (with want()'s cache).
+  bool want_moves() const {
+    want();
+    return want_moves_;
   }
 
   /// Election.tla's rules for the datagrams they take, as a table: the type, the action, its guard
@@ -1355,6 +1366,10 @@ class Master {
   std::uint32_t mepoch_;
   std::set<std::uint16_t> handed_;   // ids handed over (HANDOVER), wanted as members
   std::uint64_t members_rev_ = 0;
+  // want()'s cache: the set, whether OneStep moves members_ towards it, the members_rev_ it is of.
+  mutable std::set<std::uint16_t> want_;
+  mutable bool want_moves_ = false, want_built_ = false;
+  mutable std::uint64_t want_rev_ = 0;
   std::set<std::uint16_t> votes_;
   Millis hb_at_ = kNever, cand_at_ = kNever;
   bool handed_over_ = false;
