@@ -5,7 +5,8 @@
 /// The same sans-I/O shape as the cores: datagrams, time, device events and operator commands in;
 /// datagrams, events and the next deadline out. Every datagram is decoded once (the agent core gets
 /// the decoded Message). After every input the node compares what the agent core reports with
-/// what it reported last and emits an event for each change, as etcd raft's Ready carries HardState
+/// what it reported last (the durable state by its revision, Agent::durable_rev()) and emits an
+/// event for each change, as etcd raft's Ready carries HardState
 /// and SoftState only when they changed: `durable` (epoch, votedFor: write them to stable storage
 /// before sending what the same call queued), `role`, `leader` (leader, following, via), `relays`,
 /// and `master_started` / `master_stopped` for the Master core. docs/core.md "The node".
@@ -123,6 +124,7 @@ class Node {
   Node(const Config& config, Millis now, AgentTrace* trace = nullptr)
       : cfg_(config), agent_(config.agent, now, trace) {
     seen_durable_ = agent_.durable();
+    seen_durable_rev_ = agent_.durable_rev();
   }
 
   // ---------------------------------------------------------------- inputs
@@ -271,13 +273,12 @@ class Node {
 
   /// After every input: start or drop the Master core, then report what changed since last time.
   void settle(Millis now) {
-    const Durable d = agent_.durable();
-    if (d != seen_durable_) {
+    if (agent_.durable_rev() != seen_durable_rev_) {  // the agent core counts its changes: no rebuild per input
+      seen_durable_rev_ = agent_.durable_rev();
       NodeEvent e = make(NodeEvent::Kind::durable);
-      e.durable = d;
       e.previous = seen_durable_;
       push(e);
-      seen_durable_ = d;
+      seen_durable_ = e.durable;
     }
     if (agent_.role() != seen_role_) {
       seen_role_ = agent_.role();
@@ -366,6 +367,7 @@ class Node {
   std::uint32_t rejected_ = 0, overflowed_ = 0;
   // What was reported last (raft's prevHardSt / prevSoftSt).
   Durable seen_durable_;
+  std::uint32_t seen_durable_rev_ = 0;
   Role seen_role_ = Role::none;
   std::uint16_t seen_leader_ = 0, seen_via_ = 0;
   std::uint32_t seen_following_ = 0;
