@@ -331,8 +331,9 @@ def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp
               "InitVotedFor": int(c.get("VotedFor", 0) or 0),
               "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
               "InitMEpoch": int(c.get("MEpoch", 0) or 0), "InitFloor": int(c.get("Floor", 0) or 0),
-              # a core since issue 13 records the membership; an older trace has none of it
-              "WithMembers": bool(c.get("Members")) or any(
+              # a core since issue 13 records the membership (only when it changes: a restored
+              # agent that hears the list it kept records none); an older trace has none of it
+              "WithMembers": bool(c.get("Members") or c.get("MEpoch") or c.get("Floor")) or any(
                   {"members", "mepoch", "floor"} & r.get("changed", {}).keys() for r in mine)})
     return NodeData(node, "MCElectionTrace", "AgentLogic + Election (per-agent projection)", mine, items, k, tf,
                     ", election")

@@ -225,15 +225,35 @@ class AgentElection {
     return d;
   }
   /// Election Learned(s, L, e): membership @p m (LEADER's params from the third on) is the one of
-  /// epoch @p e; the floor rises to @p e (Raised).
+  /// epoch @p e; the floor rises to @p e (Raised). The list is rebuilt only when it is news
+  /// (NewMembers): a master's every heartbeat repeats the list of its epoch.
   void Learned(const Message& m, std::uint32_t e) noexcept {
-    members.clear();
-    for (std::size_t i = 2; i < m.param_count() && members.size() < MaxMembers; ++i) {
-      const auto id = m.param_u16(i);
-      if (id && is_assigned_id(*id) && !members.contains(*id)) members.add(*id);
+    if (NewMembers(m, e)) {
+      members.clear();
+      for (std::size_t i = 2; i < m.param_count() && members.size() < MaxMembers; ++i) {
+        const auto id = m.param_u16(i);
+        if (id && is_assigned_id(*id) && !members.contains(*id)) members.add(*id);
+      }
     }
     mepoch = e;
     Raised(e);
+  }
+  /// Election NewMembers(s, m): LEADER @p m of epoch @p e lists another membership than the one we
+  /// know (as a set: its agent ids), or is of another epoch.
+  bool NewMembers(const Message& m, std::uint32_t e) const noexcept {
+    if (e != mepoch) return true;
+    auto listed = [&m](std::uint16_t id) {
+      for (std::size_t i = 2; i < m.param_count(); ++i)
+        if (m.param_u16(i) == id) return true;
+      return false;
+    };
+    for (std::size_t i = 2; i < m.param_count(); ++i) {
+      const auto id = m.param_u16(i);
+      if (id && is_assigned_id(*id) && !members.contains(*id)) return true;
+    }
+    for (std::size_t i = 0; i < members.size(); ++i)
+      if (!listed(members[i])) return true;
+    return false;
   }
   /// Election Raised(s, e): the floor rises to @p e.
   void Raised(std::uint32_t e) noexcept {
