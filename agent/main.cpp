@@ -467,26 +467,14 @@ class Program {
     ev3proto::Durable& d = e.durable;
     d.epoch = static_cast<std::uint32_t>(epoch);
     d.voted_for = static_cast<std::uint16_t>(voted);
-    const bool any = kv.count("members") + kv.count("members_epoch") + kv.count("floor") != 0;
-    if (!any) return true;  // written before the membership was kept: none known
-    std::uint64_t mepoch = 0, floor = 0;
-    std::vector<std::uint16_t> members;
-    const char* bad = nullptr;
-    if (!ev3io::to_uint(kv["members_epoch"], 0, epoch, mepoch))
-      bad = "members_epoch (a number 0..epoch)";
-    else if (!ev3io::to_uint(kv["floor"], 0, epoch, floor))
-      bad = "floor (a number 0..epoch)";
-    else if (!ev3io::parse_id_list(kv["members"], members) || members.size() > ev3proto::kMaxMembership)
-      bad = "members (at most 30 distinct agent ids 2..49999, comma-separated)";
-    else if (mepoch == 0 && !members.empty())
-      bad = "members_epoch (members without the epoch that published them)";
-    if (bad != nullptr) {
-      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: bad %s\n", state_path_.c_str(), bad);
+    ev3io::StoredMembership m;  // the rule ev3-master and the driver share (none kept: an older file)
+    if (!ev3io::read_membership(kv, d.epoch, true, m, err)) {
+      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: %s\n", state_path_.c_str(), err.c_str());
       return false;
     }
-    d.mepoch = static_cast<std::uint32_t>(mepoch);
-    d.floor = static_cast<std::uint32_t>(floor);
-    for (std::uint16_t m : members) d.members[d.member_count++] = m;
+    d.mepoch = m.members_epoch;
+    d.floor = m.floor;
+    for (std::uint16_t id : m.members) d.members[d.member_count++] = id;
     return true;
   }
 

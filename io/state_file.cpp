@@ -4,6 +4,8 @@
 
 #include "ev3io/cli.hpp"
 
+#include <ev3proto/election.hpp>
+
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -113,6 +115,51 @@ std::string format_id_list(const std::vector<std::uint16_t>& ids) {
   std::string s;
   for (std::uint16_t id : ids) s += (s.empty() ? "" : ",") + std::to_string(id);
   return s;
+}
+
+}  // namespace ev3io
+
+namespace ev3io {
+
+bool read_membership(const std::map<std::string, std::string>& kv, std::uint32_t epoch, bool with_floor,
+                     StoredMembership& out, std::string& err) {
+  out = StoredMembership{};
+  auto value = [&kv](const char* key) {
+    const auto it = kv.find(key);
+    return it == kv.end() ? std::string() : it->second;
+  };
+  const std::string members = value("members"), mepoch = value("members_epoch"), floor = value("floor");
+  const std::string e = std::to_string(epoch);
+  if (!parse_id_list(members, out.members) || out.members.size() > ev3proto::kMaxMembership) {
+    err = "members: '" + members + "' is not a list of at most " + std::to_string(ev3proto::kMaxMembership) +
+          " distinct agent ids 2..49999, comma-separated";
+    return false;
+  }
+  std::uint64_t n = 0;
+  if (!mepoch.empty() && !to_uint(mepoch, 0, epoch, n)) {
+    err = "members_epoch: '" + mepoch + "' is not a number 0.." + e + " (the epoch)";
+    return false;
+  }
+  out.members_epoch = static_cast<std::uint32_t>(n);
+  if (!out.members.empty() && out.members_epoch == 0) {
+    err = "members_epoch: " + std::string(mepoch.empty() ? "missing" : "0") +
+          ", but members lists agents (the epoch that published them is needed)";
+    return false;
+  }
+  if (!with_floor) return true;
+  n = 0;
+  if (!floor.empty() && !to_uint(floor, 0, epoch, n)) {
+    err = "floor: '" + floor + "' is not a number " + std::to_string(out.members_epoch) + ".." + e +
+          " (members_epoch..epoch)";
+    return false;
+  }
+  out.floor = static_cast<std::uint32_t>(n);
+  if (out.floor < out.members_epoch) {
+    err = "floor: " + (floor.empty() ? std::string("missing, but members_epoch is ") : floor + " is below members_epoch ") +
+          std::to_string(out.members_epoch) + " (learning a membership raises the floor to its epoch)";
+    return false;
+  }
+  return true;
 }
 
 }  // namespace ev3io

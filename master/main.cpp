@@ -330,19 +330,14 @@ class Program {
     // against. A list without its epoch (a file of an older version) is refused: the floor of the
     // agents' votes rests on it.
     const std::string members = kv["members"];
-    std::uint64_t mepoch = 0;
-    const char* bad = nullptr;
-    if (!ev3io::parse_id_list(members, cfg.members) || cfg.members.size() > ev3proto::kMaxParams - 2)
-      bad = "members (at most 30 distinct agent ids 2..49999, comma-separated)";
-    else if (!members.empty() && kv.count("members_epoch") == 0)
-      bad = "members_epoch (missing: the epoch that published members)";
-    else if (kv.count("members_epoch") != 0 && !ev3io::to_uint(kv["members_epoch"], members.empty() ? 0 : 1, epoch, mepoch))
-      bad = "members_epoch (a number 1..epoch)";
-    if (bad != nullptr) {
-      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged: bad %s\n", opt_.state_file.c_str(), bad);
+    ev3io::StoredMembership m;  // the rule ev3-agent shares (the PC keeps no floor)
+    if (!ev3io::read_membership(kv, cfg.epoch, false, m, err)) {
+      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged: %s\n", opt_.state_file.c_str(),
+                   err.c_str());
       return false;
     }
-    cfg.members_epoch = static_cast<std::uint32_t>(mepoch);
+    cfg.members = m.members;
+    cfg.members_epoch = m.members_epoch;
     cfg.candidate = cfg.election;
     note = "restarted from " + opt_.state_file + ": next id " + std::to_string(id) + ", msgid " +
            std::to_string(msgid) + ", epoch " + std::to_string(epoch) + ", members " + (members.empty() ? "none" : members) +

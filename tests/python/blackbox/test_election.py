@@ -181,17 +181,23 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
 
 
 def test_a_damaged_membership_in_a_state_file_is_refused(master_exe, agent_exe, tmp_path):
-    """The membership is kept with the epoch (issue 13): a state file whose list is damaged, or a
-    master's list without the epoch that published it, stops the program with the entry named."""
+    """The membership is kept with the epoch (issue 13): a state file whose list is damaged, whose list
+    lacks the epoch that published it or names one above the file's epoch, or (the agent's) whose
+    floor is below that epoch, stops the program with the entry named (one rule for both programs,
+    ev3io::read_membership)."""
     import subprocess
     (tmp_path / "s").mkdir()
     cases = [
         (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
-         "epoch=3\nvoted_for=0\nmembers=2,x\nmembers_epoch=2\nfloor=2\n", "bad members"),
+         "epoch=3\nvoted_for=0\nmembers=2,x\nmembers_epoch=2\nfloor=2\n", "damaged: members: '2,x'"),
         (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
-         "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=7\nfloor=2\n", "bad members_epoch"),
+         "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=7\nfloor=2\n", "damaged: members_epoch: '7'"),
+        (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
+         "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=3\nfloor=2\n", "damaged: floor: 2 is below members_epoch 3"),
         (master_exe, ["--election", "--state-file", str(tmp_path / "m.state")], tmp_path / "m.state",
-         "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\n", "bad members_epoch (missing"),
+         "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\n", "damaged: members_epoch: missing"),
+        (master_exe, ["--election", "--state-file", str(tmp_path / "m.state")], tmp_path / "m.state",
+         "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\nmembers_epoch=5\n", "damaged: members_epoch: '5'"),
     ]
     for exe, args, path, text, said in cases:
         path.write_text(text)
