@@ -55,3 +55,37 @@ def test_a_changed_record_is_rejected(tmp_path):
     r = tracecheck.validate(trace, mutate.ELECTION_CONSTS, workdir=tmp_path)
     assert not r.ok
     assert f"record {k + 1} of {len(recs)}" in r.message, r.message
+
+
+def _drive(inputs: list[dict]) -> list[dict]:
+    inp = "\n".join(json.dumps(i) for i in inputs) + "\n"
+    p = subprocess.run([str(BIN / "ev3-agent"), "--driver"], input=inp, text=True, capture_output=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    return [json.loads(line) for line in p.stdout.splitlines()]
+
+
+def test_the_driver_restores_the_membership_of_its_state():
+    """config's election object carries the membership the agent's state keeps (members,
+    members_epoch, floor), as ev3-agent restores it from DIR/ev3-agent.state: a synced agent that
+    knows the list of epoch 1 answers a peer that knows none with a copy of it (ShareMembers)."""
+    cfg = {"type": "config", "timers": mutate.ELECTION_TIMERS, "behaviours": [{"name": "wait", "devices": 0}],
+           "temp_id": 50001, "election": {"enabled": True, "score": 5, "epoch": 1, "members": [7, 8, 9],
+                                          "members_epoch": 1, "floor": 1}}
+    rx = lambda text: {"type": "recv", "from": int(text.split("->")[0]),  # noqa: E731
+                       "text": mutate.datagram(text).decode("latin-1")}
+    out = _drive([cfg, {"type": "advance", "ms": 100}, rx("1->7 MASTER #20 50001"), rx("9->0 RELAY_REQ #5 1 30 0")])
+    assert all("error" not in o for o in out), out
+    sent = [s["text"] for s in out[-1]["sent"]]
+    assert any(":".join(["7", "9"]) in t and t.endswith(":1:0:7:8:9") for t in sent), sent
+
+
+@pytest.mark.parametrize("membership, said", [
+    ({"members": [7, 8], "members_epoch": 2, "floor": 1}, "election: floor: 1 is below members_epoch 2"),
+    ({"members": [7, 8], "members_epoch": 4, "floor": 4}, "election: members_epoch: '4' is not a number 0..3"),
+    ({"members": [7, 1]}, "election: members: '7,1' is not a list"),
+    ({"members": [7, 8]}, "election: members_epoch: missing, but members lists agents"),
+])
+def test_the_driver_refuses_a_damaged_membership(membership, said):
+    cfg = {"type": "config", "election": {"enabled": True, "epoch": 3, **membership}}
+    out = _drive([cfg])
+    assert said in out[0].get("error", ""), out
