@@ -1211,14 +1211,7 @@ class Agent {
 
   /// Spec ShareMembers: a copy of the LEADER that published our membership, LEADER(mepoch, 0,
   /// members...) to the asker (leader 0: no master is claimed); nothing else changes.
-  void ShareMembers(const Message& m, Peer from) noexcept {
-    char e[10], ids[kMaxMembers][10];
-    std::string_view p[kMaxParams];
-    p[0] = number(el_.mepoch, e);
-    p[1] = "0";
-    for (std::size_t i = 0; i < el_.members.size(); ++i) p[2 + i] = number(el_.members[i], ids[i]);
-    emit_to(from, m.sender, MsgType::LEADER, p, 2 + el_.members.size());
-  }
+  void ShareMembers(const Message& m, Peer from) noexcept { emit_leader(el_.mepoch, 0, Dest::peer, m.sender, from); }
 
   /// Spec LearnMembers (a newer epoch was adopted by the prelude, as from EPOCH_STALE): the copy's
   /// membership is the one of its epoch; without a master we may now stand with it.
@@ -1329,12 +1322,17 @@ class Agent {
     el_.mepoch = el_.epoch;
     el_.Raised(el_.epoch);
     durable_changed();
-    char e[10], me[10], ids[kMaxMembers][10];
+    emit_leader(el_.epoch, id_, Dest::broadcast, kBroadcastId, 0);
+  }
+  /// LEADER(@p e, @p leader, members...): our membership, the one of epoch @p e; broadcast by a new
+  /// master (BecomeMaster), or a copy to peer @p to at @p peer (ShareMembers: leader 0).
+  void emit_leader(std::uint32_t e, std::uint16_t leader, Dest dest, std::uint16_t to, Peer peer) noexcept {
+    char ep[10], who[10], ids[kMaxMembers][10];
     std::string_view p[kMaxParams];
-    p[0] = number(el_.epoch, e);
-    p[1] = number(id_, me);
+    p[0] = number(e, ep);
+    p[1] = number(leader, who);
     for (std::size_t i = 0; i < el_.members.size(); ++i) p[2 + i] = number(el_.members[i], ids[i]);
-    emit(Dest::broadcast, kBroadcastId, MsgType::LEADER, p, 2 + el_.members.size());
+    emit_from(id_, dest, to, MsgType::LEADER, p, 2 + el_.members.size(), peer);
   }
 
   /// Spec HandleHeartbeat (a newer epoch was adopted by the prelude): follow this master directly
