@@ -232,8 +232,6 @@ template <typename Trace = NoTrace, std::size_t Window = 50, std::size_t TxSlots
           std::size_t RelaySlots = 4>
 class Agent {
  public:
-  /// Fleet members an agent keeps (LEADER carries at most 30).
-  static constexpr std::size_t kMaxMembers = kMaxParams - 2;
   /// Longest behaviour name the agent stores.
   static constexpr std::size_t kMaxNameLen = sizeof(AgentVars::beh);
   /// Most behaviour arguments (BEHAVIOUR has at most 31 besides the name).
@@ -245,7 +243,7 @@ class Agent {
   /// The dedupe window type (payload: the recorded answer).
   using WindowType = DedupeWindow<Window, StoredAnswer>;
   /// The election part (Election.tla's variables and guards).
-  using ElectionType = AgentElection<RelaySlots, kMaxMembers>;
+  using ElectionType = AgentElection<RelaySlots, kMaxMembership>;  // fleet members kept: kMaxMembership
 
   /// A fresh agent in IDLE at time @p now (spec Init with id = temp id).
   Agent(const AgentConfig& config, Millis now, Trace* trace = nullptr) noexcept
@@ -1327,7 +1325,7 @@ class Agent {
   /// LEADER(@p e, @p leader, members...): our membership, the one of epoch @p e; broadcast by a new
   /// master (BecomeMaster), or a copy to peer @p to at @p peer (ShareMembers: leader 0).
   void emit_leader(std::uint32_t e, std::uint16_t leader, Dest dest, std::uint16_t to, Peer peer) noexcept {
-    char ep[10], who[10], ids[kMaxMembers][10];
+    char ep[10], who[10], ids[kMaxMembership][10];
     std::string_view p[kMaxParams];
     p[0] = number(e, ep);
     p[1] = number(leader, who);
