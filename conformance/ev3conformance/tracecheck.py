@@ -454,7 +454,9 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
     k.update({"Self": int(c.get("Self", 1) or 1), "InitLife": str(c.get("Life") or "MASTER"),
               "InitEpoch": int(c.get("Epoch", 1) or 1),
               "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
-              "InitMEpoch": int(c.get("MEpoch") or c.get("Epoch", 1) or 1)})
+              "InitMEpoch": int(c.get("MEpoch") or c.get("Epoch", 1) or 1),
+              # a core since issue 13 records the membership of its epoch when it changes
+              "WithMembers": any({"members", "mepoch"} & r.get("changed", {}).keys() for r in recs)})
     return NodeData(node or "master", "MCMasterElectionTrace", "MasterLogic + Election (the PC's rules)", recs,
                     _master_election_records(recs), k, tf, ", election")
 
@@ -623,6 +625,10 @@ def _master_election_records(recs: list[dict]) -> list[dict]:
             ech["epoch"] = int(ch["epoch"])
         if "votes" in ch:
             ech["votes"] = frozenset(int(v) for v in ch["votes"])
+        if "members" in ch:  # the membership of the epoch (a core since issue 13 records it)
+            ech["members"] = frozenset(int(v) for v in ch["members"])
+        if "mepoch" in ch:
+            ech["mepoch"] = int(ch["mepoch"])
         text = r.get("args", {}).get("msg")
         m, em, ids = dict(_NONE_MSG), dict(_NONE_EL), []
         if text:

@@ -382,6 +382,8 @@ struct MasterTraceRecord {
   std::string_view life_before, life_after;             ///< Election life (MASTER, CANDIDATE...)
   std::uint32_t epoch_before = 0, epoch_after = 0;      ///< Election epoch
   std::string votes_before, votes_after;                ///< Election votes ([ids])
+  std::string members_before, members_after;            ///< Election members (of the epoch, [ids])
+  std::uint32_t mepoch_before = 0, mepoch_after = 0;    ///< Election mepoch
 };
 
 /// The master core.
@@ -1265,12 +1267,15 @@ class Master {
     std::string_view life;
     std::uint32_t epoch = 0;
     std::string votes;
+    std::string members;
+    std::uint32_t mepoch = 0;
   };
-  std::string votes_json() const {
+  static std::string ids_json(const std::set<std::uint16_t>& ids) {
     std::string v = "[";
-    for (std::uint16_t id : votes_) v += (v.size() > 1 ? "," : "") + std::to_string(id);
+    for (std::uint16_t id : ids) v += (v.size() > 1 ? "," : "") + std::to_string(id);
     return v + "]";
   }
+  std::string votes_json() const { return ids_json(votes_); }
 
   /// The registry as the spec's ms.reg (JSON array of MasterLogic entries, by id), for trace
   /// records: ann, id, ep, synced, pending, mid, resends, queue ([{type, name}], name "NONE" but
@@ -1313,7 +1318,7 @@ class Master {
   Snapshot snap() const {
     if constexpr (Trace::enabled) {
       if (trace_ != nullptr)
-        return Snapshot{reg_json(), next_id_, msgid_, to_string(role_), epoch_, votes_json()};
+        return Snapshot{reg_json(), next_id_, msgid_, to_string(role_), epoch_, votes_json(), ids_json(members_), mepoch_};
     }
     return Snapshot{};
   }
@@ -1337,6 +1342,10 @@ class Master {
       r.epoch_after = epoch_;
       r.votes_before = std::move(before.votes);
       r.votes_after = votes_json();
+      r.members_before = std::move(before.members);
+      r.members_after = ids_json(members_);
+      r.mepoch_before = before.mepoch;
+      r.mepoch_after = mepoch_;
       trace_->record(r);
     } else {
       (void)a, (void)before, (void)msg;

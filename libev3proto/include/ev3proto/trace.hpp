@@ -208,6 +208,14 @@ inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node =
     json_key(s, "votes", c);
     s += r.votes_after;
   }
+  if (r.members_after != r.members_before) {
+    json_key(s, "members", c);
+    s += r.members_after;
+  }
+  if (r.mepoch_after != r.mepoch_before) {
+    json_key(s, "mepoch", c);
+    s += std::to_string(r.mepoch_after);
+  }
   s += "}}";
   return s;
 }

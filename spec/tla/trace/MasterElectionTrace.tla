@@ -57,7 +57,9 @@ CONSTANTS
     InitLife,     \* MASTER (fresh), or CANDIDATE (the PC restarted from its state file)
     InitEpoch,    \* the epoch it starts in
     InitMembers,  \* the membership it starts with (Election members[Self])
-    InitMEpoch    \* the epoch that published it (Election mepoch[Self])
+    InitMEpoch,   \* the epoch that published it (Election mepoch[Self])
+    WithMembers   \* the records carry the membership when it changes (members, mepoch: a core
+                  \* since issue 13); FALSE: an older trace, the membership is the check's alone
 
 PC == 1
 \* Election.tla's per-node operators for a membership F.  (Agents is a constant of Election: a
@@ -118,6 +120,15 @@ RouteTo(ms, a, from) ==
 QuorumOk(el, mem) == \E F \in {mem} : E(F)!BecomeMasterOk(el)
 \* Election want (issue 13): the PC's membership, the ids handed over, the agents registered and synced.
 Want(s, ms) == s.mem \cup s.hand \cup {x.id : x \in {y \in ms.reg : y.synced}}
+\* The PC's choice among Election's OneStep(L, w) (master.hpp OneStep): the lowest id wanted added,
+\* else the lowest id not wanted removed, never down to none.  Election.tla's BecomeMaster may publish
+\* any list of OneStep (the safety properties hold for every choice); the trace pins the code's one
+\* (intersected with OneStep: a choice outside the spec is no step).
+Lowest(S) == CHOOSE i \in S : \A j \in S : i <= j
+CodeStep(L, w) ==
+    IF w \ L # {} THEN L \cup {Lowest(w \ L)}
+    ELSE IF L \ w # {} /\ \E a, b \in L : a # b THEN L \ {Lowest(L \ w)}
+    ELSE L
 
 -----------------------------------------------------------------------------
 InitEl == [life |-> InitLife, epoch |-> InitEpoch, votes |-> {}, votedFor |-> 0, leader |-> 0,
@@ -127,13 +138,20 @@ MasterElectionStart ==
      mem |-> InitMembers, mep |-> InitMEpoch, hand |-> {}, handed |-> FALSE, clock |-> 0,
      sent |-> [i \in {} |-> 0]]
 
+\* The membership the record claims (members, mepoch: a core since issue 13 records them when they
+\* change) is the one of the step (the list mem2 of epoch mep2).
+FitsMem(r, s, mem2, mep2) ==
+    WithMembers => (/\ IF "members" \in DOMAIN r.ech THEN mem2 = r.ech.members ELSE mem2 = s.mem
+                    /\ IF "mepoch" \in DOMAIN r.ech THEN mep2 = r.ech.mepoch ELSE mep2 = s.mep)
 \* The step of record r from s (registry s0 after time passed) to registry ms2, Election state el2,
-\* membership mem2 (ticked ids D), if the record's changes fit it.
-ElTo(r, s, s0, ms2, el2, mem2, D) ==
-    {[ms |-> y, el |-> z, mem |-> mem2, mep |-> s.mep, hand |-> s.hand,
-      handed |-> s.handed \/ (r.a = "HandleHeartbeat" /\ Self # PC /\ r.em.e >= s.el.epoch),
-      clock |-> r.now, sent |-> NewSent(s, y, D, r.now)]
-     : y \in {x \in {ms2} : Fits(r, s0, x)}, z \in {w \in {el2} : FitsEl(r, s.el, w)}}
+\* membership mem2 of epoch mep2 (ticked ids D), if the record's changes fit it.
+ElToMep(r, s, s0, ms2, el2, mem2, mep2, D) ==
+    IF ~FitsMem(r, s, mem2, mep2) THEN {}
+    ELSE {[ms |-> y, el |-> z, mem |-> mem2, mep |-> mep2, hand |-> s.hand,
+           handed |-> s.handed \/ (r.a = "HandleHeartbeat" /\ Self # PC /\ r.em.e >= s.el.epoch),
+           clock |-> r.now, sent |-> NewSent(s, y, D, r.now)]
+          : y \in {x \in {ms2} : Fits(r, s0, x)}, z \in {w \in {el2} : FitsEl(r, s.el, w)}}
+ElTo(r, s, s0, ms2, el2, mem2, D) == ElToMep(r, s, s0, ms2, el2, mem2, s.mep, D)
 
 \* Record r from s, its registry s0 aged to the record's time.
 Act(r, s, s0) ==
@@ -175,8 +193,9 @@ Act(r, s, s0) ==
        \* agent-master the list it counted against.
        IF /\ el.life = "CANDIDATE" /\ el.epoch > s.mep
           /\ QuorumOk(el, mem) \/ (Self = PC /\ mem = {})
-       THEN UNION {{[x EXCEPT !.mep = el.epoch] : x \in ElTo(r, s, s0, Drawn(s0), EP!BecomeMasterNext(el), L, {})}
-                   : L \in IF Self = PC THEN EP!OneStep(mem, Want(s, s0)) ELSE {mem}}
+       THEN UNION {ElToMep(r, s, s0, Drawn(s0), EP!BecomeMasterNext(el), L, el.epoch, {})
+                   : L \in IF Self = PC THEN {CodeStep(mem, Want(s, s0))} \cap EP!OneStep(mem, Want(s, s0))
+                          ELSE {mem}}
        ELSE {}
     ELSE IF r.a = "Reconfigure" THEN
        \* Election Reconfigure: the PC as MASTER whose Want differs from its membership stands.

@@ -220,3 +220,35 @@ def test_agent_master_heartbeat_after_stepping_down_is_rejected(tmp_path):
     hb = dict(recs[nth(recs, "Heartbeat")], now=recs[-1]["now"] + 1000, changed={"msgid": last_msgid(recs) + 1})
     recs = recs + [hb]
     rejected_at(check_agent_master(tmp_path, recs), len(recs), len(recs))
+
+
+def reconfigured(added: list[int]) -> list[dict]:
+    """master2 as a core since issue 13 writes it (its BecomeMaster records the membership's epoch,
+    mepoch 3), then HANDOVER(2, 6, 5) from the agent-master of epoch 2: the PC wants 5 and 6 besides
+    its list 2, 3, 4, stands in epoch 4 (Reconfigure, StartElection), gets the votes of 2 and 3 and
+    publishes 2, 3, 4 and @p added (BecomeMaster)."""
+    recs = copy.deepcopy(records(2))
+    recs[nth(recs, "BecomeMaster")]["changed"]["mepoch"] = 3
+    now, mid = recs[-1]["now"], last_msgid(recs)
+    extra = [
+        {"action": "MasterHandover", "args": {"msg": "2:1:373755700:32:2:6:5"}, "changed": {}},
+        {"action": "Reconfigure", "args": {}, "changed": {"life": "CANDIDATE"}},
+        {"action": "StartElection", "args": {}, "changed": {"msgid": mid + 1, "epoch": 4, "votes": []}},
+        {"action": "HandleVote", "args": {"msg": "2:1:900637500:28:4:1"}, "changed": {"votes": [2]}},
+        {"action": "HandleVote", "args": {"msg": "3:1:900637501:28:4:1"}, "changed": {"votes": [2, 3]}},
+        {"action": "BecomeMaster", "args": {},
+         "changed": {"msgid": mid + 2, "life": "MASTER", "members": [2, 3, 4] + added, "mepoch": 4}},
+    ]
+    return recs + [dict(r, node="master", now=now) for r in extra]
+
+
+def test_reconfigure_publishes_the_lowest_wanted_id(tmp_path):
+    """Election.tla's BecomeMaster may publish any one-step list (OneStep: 2, 3, 4 and 5, or 2, 3, 4
+    and 6); the master core adds the lowest id wanted (master.hpp OneStep) and the check pins that
+    choice (MasterElectionTrace CodeStep): 6 first is rejected at BecomeMaster, as is a list the
+    record does not claim (the membership unchanged)."""
+    r = check(tmp_path, 2, reconfigured([5]))
+    assert r.ok, r.message
+    for bad in ([6], []):
+        recs = reconfigured(bad)
+        rejected_at(check(tmp_path, 2, recs), len(recs), len(recs))
