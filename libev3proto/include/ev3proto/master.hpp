@@ -527,8 +527,8 @@ class Master {
   std::uint16_t self_id() const noexcept { return self_; }
   /// The fleet the master wants (Election want, the PC's registry): the membership of its epoch,
   /// the members handed over, and every agent registered and synced since. The PC changes the
-  /// membership it publishes towards it one agent per epoch (Reconfigure); it never shrinks (an
-  /// agent declared lost stays a member: the fleet needs a majority without it).
+  /// membership it publishes towards it one agent per epoch (Reconfigure); an agent declared lost
+  /// (DropMember) is no longer wanted until it syncs again.
   std::vector<std::uint16_t> members() const {
     const std::set<std::uint16_t>& m = want();
     return std::vector<std::uint16_t>(m.begin(), m.end());
@@ -846,6 +846,7 @@ class Master {
         fail_queue(e);
         push(OperatorEvent::Kind::dropped, e.id, MsgType::PING, {});
         erase(id);
+        DropMember(id);
         continue;
       }
       if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
@@ -945,6 +946,13 @@ class Master {
   }
   /// Spec Reconfigure: the PC stands in the next epoch to publish the next step.
   void Reconfigure() { become_candidate(); }
+  /// Spec DropMember (part of MasterTick's drop: the PC declares agent @p id lost): it is no longer
+  /// wanted (want()), so Reconfigure removes it from the membership, one agent per epoch, until it
+  /// syncs again. Without it a lost agent stayed a member: the fleet needed a majority without it.
+  void DropMember(std::uint16_t id) {
+    lost_.insert(id);
+    ++members_rev_;
+  }
 
   /// ELECT of a newer epoch, to an elected agent's master (the PC learns epochs from EPOCH_STALE).
   bool HandleElectOk(const Message& m) const {
@@ -1037,18 +1045,23 @@ class Master {
   void MasterHandover(const Message& m, Peer) {
     for (std::size_t i = 1; i < m.param_count(); ++i)
       if (const auto id = m.param_u16(i)) {
-        if (is_assigned_id(*id) && *id != self_ && handed_.insert(*id).second) ++members_rev_;
+        if (is_assigned_id(*id) && *id != self_ && (handed_.insert(*id).second || lost_.erase(*id) != 0))
+          ++members_rev_;  // alive in the fleet handed over: no longer lost
       }
   }
   /// A member of our membership, or handed over to us.
   bool known(std::uint16_t id) const { return members_.count(id) != 0 || handed_.count(id) != 0; }
-  /// Election want: the membership, the members handed over, the agents registered and synced.
-  /// A walk of the registry, so built only when members_rev_ moved since the last build (each
-  /// change of members_, handed_ or an entry's synced moves it), not per datagram.
+  /// Election want: the membership and the members handed over but those declared lost
+  /// (DropMember), and the agents registered and synced. A walk of the registry, so built only
+  /// when members_rev_ moved since the last build (each change of members_, handed_, lost_ or an
+  /// entry's synced moves it), not per datagram.
   const std::set<std::uint16_t>& want() const {
     if (want_built_ && want_rev_ == members_rev_) return want_;
-    want_ = members_;
-    want_.insert(handed_.begin(), handed_.end());
+    want_.clear();
+    for (std::uint16_t id : members_)
+      if (lost_.count(id) == 0) want_.insert(id);
+    for (std::uint16_t id : handed_)
+      if (lost_.count(id) == 0) want_.insert(id);
     for (const auto& kv : reg_.map())
       if (kv.second.synced) want_.insert(kv.first);
     want_moves_ = OneStep(members_, want_) != members_;
@@ -1159,7 +1172,10 @@ class Master {
   RegistryEntry& insert(RegistryEntry e) {
     RegistryEntry& r = reg_.insert(std::move(e));
     rearm(r);
-    if (r.synced) ++members_rev_;
+    if (r.synced) {
+      lost_.erase(r.id);  // back: wanted again
+      ++members_rev_;
+    }
     return r;
   }
   /// Removes entry @p id from the registry and its deadline.
@@ -1173,6 +1189,7 @@ class Master {
   }
   void set_synced(RegistryEntry& e, bool synced) {
     if (e.synced != synced) ++members_rev_;
+    if (synced) lost_.erase(e.id);  // back: wanted again
     e.synced = synced;
   }
 
@@ -1374,6 +1391,7 @@ class Master {
   std::set<std::uint16_t> members_;  // members[PC]: the membership of epoch mepoch_
   std::uint32_t mepoch_;
   std::set<std::uint16_t> handed_;   // ids handed over (HANDOVER), wanted as members
+  std::set<std::uint16_t> lost_;     // ids declared lost (DropMember) since they last synced: not wanted
   std::uint64_t members_rev_ = 0;
   // want()'s cache: the set, whether OneStep moves members_ towards it, the members_rev_ it is of.
   mutable std::set<std::uint16_t> want_;

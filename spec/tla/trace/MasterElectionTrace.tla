@@ -118,8 +118,13 @@ RouteTo(ms, a, from) ==
     ELSE [ms EXCEPT !.reg = @ \cup {Adopted(a, from)}]
 \* Election's BecomeMasterOk (a majority of the membership voted) over the membership mem.
 QuorumOk(el, mem) == \E F \in {mem} : E(F)!BecomeMasterOk(el)
-\* Election want (issue 13): the PC's membership, the ids handed over, the agents registered and synced.
-Want(s, ms) == s.mem \cup s.hand \cup {x.id : x \in {y \in ms.reg : y.synced}}
+\* Election want (issue 13): the PC's membership and the ids handed over but those declared lost
+\* (Election DropMember: MasterTick dropped them since they last synced), the agents registered and synced.
+SyncedIds(ms) == {x.id : x \in {y \in ms.reg : y.synced}}
+Want(s, ms) == ((s.mem \cup s.hand) \ s.lost) \cup SyncedIds(ms)
+\* The ids declared lost after record r took registry s0 to ms2: MasterTick's drops join them (DropMember),
+\* an agent synced again leaves them.
+LostAfter(r, s, s0, ms2) == (s.lost \cup (IF r.a = "MasterTick" THEN Ids(s0) \ Ids(ms2) ELSE {})) \ SyncedIds(ms2)
 \* The PC's choice among Election's OneStep(L, w) (master.hpp OneStep): the lowest id wanted added,
 \* else the lowest id not wanted removed, never down to none.  Election.tla's BecomeMaster may publish
 \* any list of OneStep (the safety properties hold for every choice); the trace pins the code's one
@@ -135,7 +140,7 @@ InitEl == [life |-> InitLife, epoch |-> InitEpoch, votes |-> {}, votedFor |-> 0,
            following |-> 0, via |-> 0, relays |-> {}, offered |-> {}, prevotes |-> {}]
 MasterElectionStart ==
     [ms |-> [reg |-> {}, nextId |-> NextId, msgid |-> [k \in {0} |-> FirstMsgid]], el |-> InitEl,
-     mem |-> InitMembers, mep |-> InitMEpoch, hand |-> {}, handed |-> FALSE, clock |-> 0,
+     mem |-> InitMembers, mep |-> InitMEpoch, hand |-> {}, lost |-> {}, handed |-> FALSE, clock |-> 0,
      sent |-> [i \in {} |-> 0]]
 
 \* The membership the record claims (members, mepoch: a core since issue 13 records them when they
@@ -147,7 +152,7 @@ FitsMem(r, s, mem2, mep2) ==
 \* membership mem2 of epoch mep2 (ticked ids D), if the record's changes fit it.
 ElToMep(r, s, s0, ms2, el2, mem2, mep2, D) ==
     IF ~FitsMem(r, s, mem2, mep2) THEN {}
-    ELSE {[ms |-> y, el |-> z, mem |-> mem2, mep |-> mep2, hand |-> s.hand,
+    ELSE {[ms |-> y, el |-> z, mem |-> mem2, mep |-> mep2, hand |-> s.hand, lost |-> LostAfter(r, s, s0, y),
            handed |-> s.handed \/ (r.a = "HandleHeartbeat" /\ Self # PC /\ r.em.e >= s.el.epoch),
            clock |-> r.now, sent |-> NewSent(s, y, D, r.now)]
           : y \in {x \in {ms2} : Fits(r, s0, x)}, z \in {w \in {el2} : FitsEl(r, s.el, w)}}
@@ -231,7 +236,8 @@ Act(r, s, s0) ==
        ELSE {}
     ELSE IF r.a = "MasterHandover" THEN
        IF em.t = "HANDOVER" /\ em.dst = Self /\ el.life = "MASTER" /\ em.e <= el.epoch
-       THEN {[x EXCEPT !.hand = s.hand \cup (r.ids \cap (M!AssignedIds \ {Self}))] : x \in ElTo(r, s, s0, s0, el, mem, {})}
+       THEN {[x EXCEPT !.hand = s.hand \cup (r.ids \cap (M!AssignedIds \ {Self})),
+                         !.lost = @ \ r.ids] : x \in ElTo(r, s, s0, s0, el, mem, {})}
        ELSE {}
     ELSE {}
 
