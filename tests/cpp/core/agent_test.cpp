@@ -138,7 +138,8 @@ TEST(ActionNames, EverySpecActionOfANodeIsACppAction) {
   ASSERT_NE(at, std::string::npos);
   const std::string next = text.substr(at, text.find("\nSpec ==", at) - at);
   const std::regex call(R"re(([A-Z][A-Za-z]*)\()re");
-  // AddMember / DropMember: the PC's registry changing (RecvAgent, MasterTick's drop).
+  // AddMember / DropMember: the PC's registry changing (RecvAgent; MasterTick's drop, which calls the
+  // master core's DropMember: no record of its own, the registry's drop is MasterTick's).
   const std::set<std::string> environment = {"Crash", "Restart", "Cut", "Heal", "Lose", "Timeout", "SendCommand",
                                              "AddMember", "DropMember"};
   std::size_t election = 0;
