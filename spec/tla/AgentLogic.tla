@@ -127,12 +127,23 @@ Accepts(a, m) == IF BUG = "NoAddressFilter" THEN TRUE ELSE AddressedTo(a, m)
 \* A message the agent acts on: from the master, addressed to it, alive.
 FromMaster(a, m) == a.state # "OFF" /\ (m.src = MasterId \/ BUG = "NoSenderCheck") /\ Accepts(a, m)
 
+Answered(m) == m.type \in Commands \cup {"MASTER"}
 Seen(a, m) == \E i \in 1..Len(a.win) : a.win[i].src = m.src /\ a.win[i].msgid = m.msgid
 Stored(a, m) == LET i == CHOOSE i \in 1..Len(a.win) :
                              a.win[i].src = m.src /\ a.win[i].msgid = m.msgid
                 IN a.win[i].ans
-Fresh(a, m) == IF BUG = "NoDedupe" THEN TRUE ELSE ~Seen(a, m)
-Answered(m) == m.type \in Commands \cup {"MASTER"}
+\* A command or MASTER older than one the window remembers from the same
+\* sender: a copy (or a resend given up) that outlived its own entry in the
+\* FIFO window.  The master draws its msgids in increasing order and never
+\* reuses them (they survive its crashes: docs/core.md), and sends an agent
+\* the next command (or a resync's MASTER) only once the last one is answered
+\* or given up; so a datagram below a remembered one was acted on already, or
+\* given up by the master, and must not take effect now (TLC, fleet_window:
+\* BUG "NoStaleCheck" acts on such a copy twice: a BEHAVIOUR copy after the
+\* resync's MASTER evicted it, a resync's MASTER copy in the next PANIC).
+Stale(a, m) == /\ Answered(m) /\ BUG # "NoStaleCheck"
+               /\ \E i \in 1..Len(a.win) : a.win[i].src = m.src /\ a.win[i].msgid > m.msgid
+Fresh(a, m) == IF BUG = "NoDedupe" THEN TRUE ELSE ~Seen(a, m) /\ ~Stale(a, m)
 
 Ack(a, m)    == Out(a.id, MasterId, "ACK", m.msgid, <<>>)
 Nak(a, m, r) == Out(a.id, MasterId, "NOT", m.msgid, <<r>>)
