@@ -845,8 +845,21 @@ class Agent {
   bool FromMaster(const Message& m, std::uint16_t master) const noexcept {
     return state_ != State::OFF && m.sender == master && AddressedTo(m);
   }
-  /// AgentLogic Fresh: (src, msgid) not in the window.
-  bool Fresh(const Message& m) const noexcept { return !win_.contains(m.sender, m.msgid); }
+  /// AgentLogic Seen: (src, msgid) in the window.
+  bool Seen(const Message& m) const noexcept { return win_.contains(m.sender, m.msgid); }
+  /// AgentLogic Stale: a command or MASTER below a msgid the window remembers from its sender -- a
+  /// copy that outlived its own entry (the master's msgids increase and are never reused), so it
+  /// was acted on already or given up by the master.
+  bool Stale(const Message& m) const noexcept {
+    if (!Answered(m)) return false;
+    bool older = false;
+    win_.for_each([&](std::uint16_t src, std::uint32_t msgid, const StoredAnswer&) {
+      if (src == m.sender && msgid > m.msgid) older = true;
+    });
+    return older;
+  }
+  /// AgentLogic Fresh: (src, msgid) not in the window, and not stale.
+  bool Fresh(const Message& m) const noexcept { return !Seen(m) && !Stale(m); }
   /// AgentLogic Answered: types answered with ACK / NOT.
   static bool Answered(const Message& m) noexcept {
     return m.type == MsgType::MASTER || (m.type >= MsgType::BEHAVIOUR && m.type <= MsgType::RESTART);
@@ -1107,7 +1120,7 @@ class Agent {
 
   /// Spec RecvDuplicateOk: a copy of an answered command or MASTER from the master.
   bool RecvDuplicateOk(const Message& m, std::uint16_t master) const noexcept {
-    return FromMaster(m, master) && Answered(m) && !Fresh(m);
+    return FromMaster(m, master) && Answered(m) && Seen(m);
   }
   /// Spec RecvDuplicate: the stored answer again, nothing else.
   void RecvDuplicate(const Message& m) noexcept {
