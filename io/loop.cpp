@@ -19,6 +19,12 @@ Millis monotonic_ms() noexcept {
   return static_cast<Millis>(ts.tv_sec) * 1000u + static_cast<Millis>(ts.tv_nsec / 1000000);
 }
 
+std::uint64_t wall_ms() noexcept {
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  return static_cast<std::uint64_t>(ts.tv_sec) * 1000u + static_cast<std::uint64_t>(ts.tv_nsec / 1000000);
+}
+
 Signals::Signals() noexcept {
   struct sigaction sa {};
   sa.sa_handler = on_stop_signal;

@@ -75,6 +75,9 @@ class Program {
     cfg.max_resends = opt_.max_resends;
     cfg.election = opt_.election;
     cfg.drop_copies = true;  // every datagram arrives 3 times (the transport's copies)
+    // Without a state file to continue from, msgids start from the wall clock, above what an earlier
+    // run sent (agents ignore a command below one they remember: ev3proto/msgids.hpp).
+    cfg.next_msgid = ev3proto::master_msgid_seed(ev3io::wall_ms());
     std::string restored;
     if (!load_state(cfg, restored)) return 2;
     master_.emplace(cfg, start_, trace_file_.is_open() ? &trace_ : nullptr);
@@ -350,7 +353,7 @@ class Program {
   void save_state(bool force) {
     if (opt_.state_file.empty()) return;
     const bool same = master_->next_id() == saved_id_ && master_->epoch() == saved_epoch_ &&
-                      master_->next_msgid() + kMsgidBlock / 2 < msgid_limit_;
+                      ev3proto::msgid_newer(msgid_limit_, master_->next_msgid() + kMsgidBlock / 2);
     if (!force && same && master_->members_rev() == saved_rev_) return;  // no walk per datagram
     saved_rev_ = master_->members_rev();
     const std::string members = ev3io::format_id_list(master_->published()) + "@" + std::to_string(master_->published_epoch());

@@ -359,8 +359,9 @@ def _parser() -> argparse.ArgumentParser:
     vp.add_argument("--max-resends", type=int, default=10, help="--master: the run's max resends")
     vp.add_argument("--next-id", type=int, default=2,
                     help="--master: the first id the master hands out (a restart from --state-file: its next_id)")
-    vp.add_argument("--first-msgid", type=int, default=1,
-                    help="--master: the master's first msgid (a restart from --state-file: its next_msgid)")
+    vp.add_argument("--first-msgid", type=int, default=None,
+                    help="--master: the master's first msgid (default: the trace's msgid_from of its first "
+                         "sending record; a restart from --state-file: its next_msgid)")
     vp.add_argument("--behaviour", action="append", help="--master: behaviour names (default wait)")
     vp.add_argument("--members", default="",
                     help="--master --election: the members (comma-separated ids) of the --state-file it "

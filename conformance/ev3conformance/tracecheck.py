@@ -376,7 +376,17 @@ MASTER_RECV = ["MasterSync", "MasterAnswer", "MasterPing", "MasterReport"]
 ELECTION_MASTER_ACTIONS = {"Heartbeat", "StartElection", "HandleVote", "BecomeMaster", "HandleElect",
                            "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover", "Reconfigure"}
 # TDrop has no default (the driver's and the program's differ); TResend 1 is the driver's.
-MASTER_DEFAULTS = {"TResend": 1, "MaxResends": 10, "Behaviours": ["wait"], "NextId": 2, "FirstMsgid": 1}
+MASTER_DEFAULTS = {"TResend": 1, "MaxResends": 10, "Behaviours": ["wait"], "NextId": 2}
+
+
+def first_msgid(recs: list[dict]) -> int:
+    """The master's first msgid as its trace says: `msgid_from` of the first record that sent (a
+    master starts from its state file's or the wall clock's msgid, ev3proto/msgids.hpp); 1 when no
+    record sent anything (or an older trace without msgid_from)."""
+    for r in recs:
+        if "msgid_from" in r:
+            return int(r["msgid_from"])
+    return 1
 _REG_KEYS = ("ann", "id", "ep", "synced", "pending", "mid", "resends", "desired", "beh", "quiet", "hi")
 
 
@@ -436,7 +446,7 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
     """A master's records for MasterTrace, or MasterElectionTrace when it ran with --election (see
     validate_master). Raises TraceError."""
     c = dict(MASTER_DEFAULTS)
-    c.update(consts)
+    c.update({k: v for k, v in consts.items() if v is not None})
     tf = read_trace(path)
     if node is None:  # the master program's records (an agent-master's are named master:ID:EPOCH)
         recs = [r for r in tf.records if str(r.get("node", "")).startswith("master") and ":" not in str(r.get("node", ""))]
@@ -448,6 +458,8 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
     election = c.get("Election")
     if election is None:
         election = is_master_election_trace(recs)
+    if "FirstMsgid" not in c:
+        c["FirstMsgid"] = first_msgid(recs)
     k = _master_consts(c, recs)
     if not election:
         return NodeData(node or "master", "MCMasterTrace", "MasterLogic", recs, _master_records(recs), k, tf)
@@ -464,7 +476,8 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
 def validate_master(path: Path, consts: dict, workdir: Path | None = None, node: str | None = None) -> Result:
     """A master trace against MasterLogic (exact msgids): `ev3-master --driver --trace` (TResend 1,
     the default) or the real program's `--trace` over UDP (TResend = its --resend-ms). consts: TDrop
-    (--agent-timeout-ms / the driver's drop), TResend, MaxResends, Behaviours, NextId, FirstMsgid.
+    (--agent-timeout-ms / the driver's drop), TResend, MaxResends, Behaviours, NextId, FirstMsgid
+    (default: the trace's own, first_msgid).
     A trace of `ev3-master --election` (Election.tla records, or consts Election = True) is checked by
     MasterLogic + Election.tla's PC rules (MasterElectionTrace; consts Epoch, Members, Life: the
     state the master starts from); Election = False forces MasterLogic alone. @p node: the records of

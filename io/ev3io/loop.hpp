@@ -7,6 +7,8 @@
 
 #include <cstddef>
 
+#include <cstdint>
+
 #include <ev3proto/timers.hpp>
 
 namespace ev3io {
@@ -18,6 +20,9 @@ inline constexpr Millis kNever = ~Millis{0};
 
 /// Milliseconds of CLOCK_MONOTONIC.
 Millis monotonic_ms() noexcept;
+
+/// Milliseconds of CLOCK_REALTIME (since 1970; may jump when the clock is set).
+std::uint64_t wall_ms() noexcept;
 
 /// Blocks SIGINT and SIGTERM (they are delivered only inside wait()) and ignores SIGPIPE.
 /// One per program.

@@ -21,6 +21,7 @@
 #include "dedupe.hpp"
 #include "election.hpp"
 #include "messages.hpp"
+#include "msgids.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
 
@@ -639,6 +640,7 @@ class Agent {
     if (!AddressedTo(m)) return Verdict{Action::Ignore, Ignored::misaddressed};
     if (m.sender != master) return Verdict{Action::Ignore, Ignored::foreign_sender};
     if (!Answered(m) && m.type != MsgType::PONG) return Verdict{Action::Ignore, Ignored::not_for_agent};
+    if (Stale(m)) return Verdict{Action::Ignore, Ignored::stale_copy};
     return Verdict{Action::Ignore, Ignored::ignored_in_state};
   }
 
@@ -848,13 +850,14 @@ class Agent {
   /// AgentLogic Seen: (src, msgid) in the window.
   bool Seen(const Message& m) const noexcept { return win_.contains(m.sender, m.msgid); }
   /// AgentLogic Stale: a command or MASTER below a msgid the window remembers from its sender -- a
-  /// copy that outlived its own entry (the master's msgids increase and are never reused), so it
-  /// was acted on already or given up by the master.
+  /// copy that outlived its own entry (the master's msgids increase and are never reused,
+  /// docs/protocol.md "Duplicates"), so it was acted on already or given up by the master.
+  /// "Below" is serial-number order (msgid_newer): msgids wrap at 2^32.
   bool Stale(const Message& m) const noexcept {
     if (!Answered(m)) return false;
     bool older = false;
     win_.for_each([&](std::uint16_t src, std::uint32_t msgid, const StoredAnswer&) {
-      if (src == m.sender && msgid > m.msgid) older = true;
+      if (src == m.sender && msgid_newer(msgid, m.msgid)) older = true;
     });
     return older;
   }

@@ -279,6 +279,8 @@ enum class Ignored : std::uint8_t {
   election_off,        ///< A relay / election datagram while the election is off.
   ignored_in_state,    ///< No handler takes it in this state (spec Ignore; an Election rule's
                        ///< guard does not hold).
+  stale_copy,          ///< A command or MASTER of the master below a msgid the dedupe window
+                       ///< remembers from it (AgentLogic Stale): a copy that outlived its entry.
   for_the_master_core, ///< (Node) The agent core ignored it; the Master core this node runs took it.
 };
 
@@ -295,6 +297,7 @@ constexpr std::string_view to_string(Ignored i) noexcept {
     case Ignored::stale_epoch: return "stale_epoch";
     case Ignored::election_off: return "election_off";
     case Ignored::ignored_in_state: return "ignored_in_state";
+    case Ignored::stale_copy: return "stale_copy";
     case Ignored::for_the_master_core: return "for_the_master_core";
   }
   return {};

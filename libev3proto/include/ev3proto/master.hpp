@@ -25,6 +25,7 @@
 #include "dedupe.hpp"
 #include "election.hpp"
 #include "messages.hpp"
+#include "msgids.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
 
@@ -50,14 +51,15 @@ struct MasterConfig {
   bool drop_copies = false;
 
   /// The configuration for an agent that won epoch @p epoch with membership @p members (see
-  /// Agent::master_epoch()): no new ids (AGENT from a temporary id is ignored), msgids disjoint
-  /// from the agent core's (@p next_msgid).
+  /// Agent::master_epoch()): no new ids (AGENT from a temporary id is ignored), msgids from
+  /// elected_master_first_msgid(@p epoch): disjoint from the agent core's, and above those of every
+  /// epoch this node won before, also across its restarts (msgids.hpp).
   static MasterConfig for_elected_agent(const Timers& t, std::uint16_t self, std::uint32_t epoch,
-                                        std::vector<std::uint16_t> members, std::uint32_t next_msgid) {
+                                        std::vector<std::uint16_t> members) {
     MasterConfig c;
     c.timers = t;
     c.next_id = kLastAssignedId + 1;
-    c.next_msgid = next_msgid;
+    c.next_msgid = elected_master_first_msgid(epoch);
     c.election = true;
     c.epoch = epoch;
     c.self_id = self;

@@ -48,7 +48,7 @@ struct NodeTransmit {
   Dest dest = Dest::broadcast;   ///< master (the agent's master), broadcast, or peer.
   Peer peer = 0;                 ///< Dest::master: the master's handle (0 if unknown); Dest::peer: the receiver's.
   std::string_view bytes;        ///< The datagram; valid until the next call into the node.
-  bool from_master_core = false; ///< Sent by the Master core (the agent's id, msgids from kMasterMsgidOffset on).
+  bool from_master_core = false; ///< Sent by the Master core (the agent's id, msgids from elected_master_first_msgid(epoch) on).
 };
 
 /// An event for the robot program: the agent core's (state, LED, behaviour control) and the node's
@@ -106,9 +106,6 @@ class Node {
   using AgentCore = Agent<AgentTrace>;
   /// The Master core run while elected.
   using MasterCore = Master<MasterTrace>;
-  /// The Master core's msgids start this far above the agent core's next one: both send with the
-  /// agent's id, so their msgids must not meet (2^30 datagrams of the agent core apart).
-  static constexpr std::uint32_t kMasterMsgidOffset = 1u << 30;
   /// "No deadline".
   static constexpr Millis kNever = ~Millis{0};
 
@@ -303,7 +300,9 @@ class Node {
   }
 
   /// The Master core runs while the agent core is master of an epoch (a new core per epoch won),
-  /// seeded with the agent's membership and msgids disjoint from the agent core's; it is dropped
+  /// seeded with the agent's membership and msgids disjoint from the agent core's, above those of
+  /// every epoch this node won before (msgids.hpp: followers ignore a command below one they
+  /// remember from this id, so a restarted node must not start lower); it is dropped
   /// once it stepped down and the agent core is master no more.
   void run_master_core(Millis now) {
     if (agent_.role() == Role::master && (!master_ || master_->epoch() != agent_.master_epoch())) {
@@ -312,7 +311,7 @@ class Node {
       for (std::size_t i = 0; i < agent_.member_count(); ++i) members.push_back(agent_.member(i));
       MasterTrace* trace = cfg_.master_trace ? cfg_.master_trace(agent_.id(), agent_.master_epoch()) : nullptr;
       master_.emplace(MasterConfig::for_elected_agent(cfg_.agent.timers, agent_.id(), agent_.master_epoch(),
-                                                      std::move(members), agent_.next_msgid() + kMasterMsgidOffset),
+                                                      std::move(members)),
                       now, trace);
       NodeEvent e = make(NodeEvent::Kind::master_started);
       e.epoch = agent_.master_epoch();

@@ -181,6 +181,12 @@ inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node =
   s += '}';
   json_key(s, "now", first);
   s += std::to_string(r.now);
+  if (r.msgid_after != r.msgid_before) {
+    // Where the msgids this record sent start (changed.msgid is where they end): a master's first
+    // msgid comes from its state file or the wall clock (msgids.hpp), and a check needs it.
+    json_key(s, "msgid_from", first);
+    s += std::to_string(r.msgid_before);
+  }
   json_key(s, "changed", first);
   s += '{';
   bool c = true;

@@ -3,7 +3,8 @@
 //
 // Inputs:
 //   agent [temp=N] [model=M] [behaviours=name:devbits,...] [devices=bits] [sync=ms] [heartbeat=ms]
-//         [loss=ms] [paused=ms] [at=ms] [election=1 score=N epoch=N voted=N relay_retry=ms
+//         [loss=ms] [paused=ms] [at=ms] [window=N] [first_msgid=N]
+//         [election=1 score=N epoch=N voted=N relay_retry=ms
 //         backoff=ms backoff_step=ms candidate=ms]   (re)create the agent at time `at` (default 0)
 //   advance MS                                   time moves MS milliseconds
 //   recv DATAGRAM [from=PEER]                    a datagram arrives (symbolic: 1->7 START #3, or
@@ -173,6 +174,8 @@ class AgentDriver {
       const auto eq = w[i].find('=');
       const std::string k = w[i].substr(0, eq), v = eq == std::string::npos ? "" : w[i].substr(eq + 1);
       if (k == "temp") c.temp_id = static_cast<std::uint16_t>(std::stoul(v));
+      else if (k == "window") c.window = static_cast<std::size_t>(std::stoul(v));
+      else if (k == "first_msgid") c.first_msgid = static_cast<std::uint32_t>(std::stoul(v));
       else if (k == "model") model = v;
       else if (k == "behaviours") behaviours = v;
       else if (k == "devices") devices = static_cast<std::uint32_t>(std::stoul(v));

@@ -236,7 +236,7 @@ TEST(MasterReceipts, HandleMessageTakesADecodedDatagramAsHandleDatagramDoes) {
 
 TEST(MasterReceipts, ElectionReasons) {
   // An elected agent's master (id 7, epoch 2, members 7 8 9) gives no ids.
-  Master<> m(MasterConfig::for_elected_agent(Timers{}, 7, 2, {7, 8, 9}, 1000), 0);
+  Master<> m(MasterConfig::for_elected_agent(Timers{}, 7, 2, {7, 8, 9}), 0);
   sent(m);
   expect_receipt(m.handle_datagram("50001:0:1:1:A", 11, 1), Action::MasterSync, MasterIgnored::ids_exhausted);
   expect_receipt(m.handle_datagram("7:0:1003:29:2:7:8:9", 11, 2), Action::Ignore, MasterIgnored::own_broadcast);

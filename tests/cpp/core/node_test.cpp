@@ -95,6 +95,43 @@ void win(Node<>& n) {
   n.handle_datagram("8:7:3:28:2:7", 8, 7543); // VOTE: BecomeMaster
 }
 
+TEST(Node, AnElectedMasterCoreStartsAboveEveryEpochWonBefore) {
+  // Followers ignore a command below a msgid they remember from the same id (AgentLogic Stale), so a
+  // node elected again after a restart must not start lower than it sent before. Its Master core's
+  // first msgid comes from the epoch won, not from the agent core's msgids (drawn at random at
+  // every start): two lives with different agent-core msgids, the same Master-core msgids.
+  for (const std::uint32_t first : {1u, 999999999u}) {
+    Node<>::Config c = config(true);
+    c.agent.first_msgid = first;
+    Node<> n(c, 0);
+    win(n);
+    ASSERT_NE(n.master(), nullptr);
+    EXPECT_EQ(n.master()->next_msgid(), elected_master_first_msgid(2) + 1) << first;  // its first LEADER
+    EXPECT_LT(n.agent().next_msgid(), kElectedMsgidBase) << "the agent core's msgids stay below the Master core's";
+  }
+  // Epoch 3's block starts above all of epoch 2's; the blocks come round after kElectedMsgidEpochs.
+  EXPECT_TRUE(msgid_newer(elected_master_first_msgid(3), elected_master_first_msgid(2) + kElectedMsgidsPerEpoch - 1));
+  EXPECT_TRUE(msgid_newer(elected_master_first_msgid(kElectedMsgidEpochs + 1), elected_master_first_msgid(kElectedMsgidEpochs)));
+  EXPECT_EQ(elected_master_first_msgid(kElectedMsgidEpochs + 2), elected_master_first_msgid(2));
+}
+
+TEST(Msgids, SerialOrderAndTheMastersSeed) {
+  EXPECT_TRUE(msgid_newer(2, 1));
+  EXPECT_FALSE(msgid_newer(1, 1));
+  EXPECT_FALSE(msgid_newer(1, 2));
+  EXPECT_TRUE(msgid_newer(0, 0xFFFFFFFFu)) << "past the wrap";
+  EXPECT_TRUE(msgid_newer(5, 0xFFFFFFF0u));
+  EXPECT_FALSE(msgid_newer(0xFFFFFFF0u, 5));
+  EXPECT_FALSE(msgid_newer(0x80000001u, 1)) << "2^31 apart: not newer either way";
+  EXPECT_FALSE(msgid_newer(1, 0x80000001u));
+  // ev3-master without a state file: one msgid per ms of the wall clock, so a run started later
+  // starts above an earlier one that sent fewer msgids than ms passed (also across 2^32).
+  const std::uint64_t t0 = 1764160000000ull;  // 2025-11-26
+  EXPECT_TRUE(msgid_newer(master_msgid_seed(t0 + 1000), master_msgid_seed(t0) + 999));
+  EXPECT_TRUE(msgid_newer(master_msgid_seed(0x100000005ull), master_msgid_seed(0xFFFFFFFFull)));
+  EXPECT_EQ(master_msgid_seed(0x100000000ull), 1u) << "never 0";
+}
+
 TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
   Node<> n(config(true), 0);
   win(n);
@@ -108,7 +145,7 @@ TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
   ASSERT_NE(n.master(), nullptr);
   EXPECT_EQ(n.master()->epoch(), 2u);
   EXPECT_EQ(n.master()->self_id(), 7u);
-  EXPECT_EQ(n.master()->next_msgid(), n.agent().next_msgid() + Node<>::kMasterMsgidOffset + 1);  // its first LEADER
+  EXPECT_EQ(n.master()->next_msgid(), elected_master_first_msgid(2) + 1);  // its first LEADER, above epoch 1's block
   const std::vector<std::string> out = sent(n);
   ASSERT_FALSE(out.empty());
   EXPECT_EQ(out.back().substr(0, 2), "M ");  // the Master core's LEADER, after the agent core's
