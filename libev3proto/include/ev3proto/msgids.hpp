@@ -32,20 +32,22 @@ constexpr std::uint32_t master_msgid_seed(std::uint64_t unix_ms) noexcept {
   return s == 0 ? 1u : s;
 }
 
-/// The elected Master core's msgids live in [2^31, 2^32): the agent core's (same sender id) start
-/// below 2^30 (ev3-agent draws them in 1..10^9), so the two never meet.
-inline constexpr std::uint32_t kElectedMsgidBase = 1u << 31;
+/// The elected Master core's msgids live in [2^30, 2^31): the agent core's (same sender id) start
+/// below 10^9 (ev3-agent draws them in 1..10^9), so the two never meet unless the agent core sends
+/// more than 2^30 - 10^9 (73 million) datagrams in one life; below 2^31, TLC's integers, so real
+/// runs can be checked against the spec (docs/spec.md "Implementation -> spec").
+inline constexpr std::uint32_t kElectedMsgidBase = 1u << 30;
 /// Msgids an elected Master core may send in one epoch before it would reach the next epoch's
 /// (2^22: 11 hours at 100 datagrams a second).
 inline constexpr std::uint32_t kElectedMsgidsPerEpoch = 1u << 22;
 /// Epochs after which the elected Master core's first msgid comes round again.
-inline constexpr std::uint32_t kElectedMsgidEpochs = (1u << 31) / kElectedMsgidsPerEpoch;
+inline constexpr std::uint32_t kElectedMsgidEpochs = (1u << 30) / kElectedMsgidsPerEpoch;
 
 /// The first msgid of the Master core an agent runs as master of @p epoch: a block of
 /// kElectedMsgidsPerEpoch per epoch above kElectedMsgidBase. A node wins each epoch at most once
 /// and the epochs it wins increase (Election.tla, durable in ev3-agent.state), so a restarted
 /// node, elected again, starts above every msgid it sent as master before -- within
-/// kElectedMsgidEpochs (512) epochs, beyond which the blocks come round again.
+/// kElectedMsgidEpochs (256) epochs, beyond which the blocks come round again.
 constexpr std::uint32_t elected_master_first_msgid(std::uint32_t epoch) noexcept {
   return kElectedMsgidBase + (epoch % kElectedMsgidEpochs) * kElectedMsgidsPerEpoch;
 }
