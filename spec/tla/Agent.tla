@@ -16,7 +16,7 @@ CONSTANTS Behaviours, UnknownBehaviour, Refused, CheckReason, ModelName, TSync, 
           TempId,      \* the temporary id the agent draws at start
           AssignIds,   \* ids a master may assign it
           Stranger,    \* another agent's id (never this agent's)
-          MsgIds,      \* msgids the environment uses (reused: the window is FIFO)
+          MsgIds,      \* msgids the master's datagrams carry (see EnvMsgs)
           EventPorts   \* ports the device events name (a subset of AgentLogic's Ports)
 
 L == INSTANCE AgentLogic
@@ -38,14 +38,23 @@ vars == <<ag, out, lastAction>>
 \* broadcast (the address filter does not look at the type); MASTER to an
 \* id a master may assign, naming this agent's id or another; PONG; an ACK
 \* from the master; AGENT and PANIC broadcasts of another agent.
+\* Msgids: any of MsgIds at any time.  A real master sends its msgids in
+\* increasing order (with gaps: one counter for the whole fleet) and never
+\* reuses one, and copies, resends and late datagrams carry older ones
+\* (docs/protocol.md "Duplicates and stale copies"); all of that is among
+\* these behaviours.  The agent acts on a command or MASTER only above every
+\* msgid its window remembers from the master (AgentLogic Stale), so it acts
+\* on at most Cardinality(MsgIds) of them per life: MsgIds is large enough
+\* for every state and transition of the lifecycle (MASTER, BEHAVIOUR,
+\* START, STOP, then one more command: 1..5 in MCAgent).
 EnvMsgs ==
        {Msg(MasterId, d, i, "MASTER", p, <<>>) : d \in AssignIds, i \in MsgIds,
                                                  p \in {ag.id, Stranger}}
   \cup {Msg(MasterId, ag.id, i, "BEHAVIOUR", 0, <<b>>) :
             i \in MsgIds, b \in Behaviours \cup {UnknownBehaviour}}
   \cup {Msg(MasterId, ag.id, i, c, 0, <<>>) : i \in MsgIds, c \in Commands \ {"BEHAVIOUR"}}
-  \cup {Msg(MasterId, Stranger, 1, "START", 0, <<>>),
-        Msg(MasterId, Broadcast, 1, "STOP", 0, <<>>)}
+  \cup {Msg(MasterId, Stranger, 1, "START", 0, <<>>)}
+  \cup {Msg(MasterId, Broadcast, i, "STOP", 0, <<>>) : i \in MsgIds}
   \cup {Msg(MasterId, d, 0, "PONG", 0, <<>>) : d \in {ag.id, Stranger}}
   \cup {Msg(MasterId, ag.id, 0, "ACK", 0, <<>>)}
   \cup {Msg(Stranger, Broadcast, 0, "AGENT", 0, <<ModelName>>),

@@ -9,6 +9,7 @@ EXTENDS Agent
 MCBehaviours == {"explore", "broken"}
 MCRefused    == {"broken"}
 MCAssignIds  == {2}
-MCMsgIds     == {1, 2}
+\* Five fresh commands or MASTERs per life (Agent.tla EnvMsgs: the agent ignores a msgid below one it remembers).
+MCMsgIds     == 1..5
 MCEventPorts == {"in1"}
 =============================================================================

@@ -5,7 +5,8 @@ EXTENDS AgentEnv
 MCBehaviours == {"explore"}
 MCRefused    == {}      \* the check on receipt: MCAgent
 MCAssignIds  == {2}
-MCMsgIds     == {1, 2}
+\* Four fresh commands or MASTERs per life: MASTER, BEHAVIOUR, START, PAUSE (Agent.tla EnvMsgs).
+MCMsgIds     == 1..4
 MCPeerSrcs   == {9, 50001}
 MCEventPorts == {"in1"}
 =============================================================================
