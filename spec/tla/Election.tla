@@ -24,7 +24,10 @@
 (*                                                                         *)
 (* Network: a set of datagrams; delivery does not remove one (so it may be *)
 (* delivered again: duplication), any order (reordering), Lose removes one *)
-(* (loss), cut links deliver nothing (partition).                          *)
+(* (loss), cut links deliver nothing (partition).  Every handler of a      *)
+(* datagram m leaves the network as Received(m, net): net itself here; the *)
+(* liveness models (MCElectionLive) replace it by a delivery that consumes *)
+(* the datagram unless a bounded Duplicate fault keeps a copy.            *)
 (*                                                                         *)
 (* BUG selects a deliberately broken variant (the MC cfgs); "None" is the *)
 (* protocol.                                                               *)
@@ -122,6 +125,10 @@ M(t, s, d, e, x) == [t |-> t, src |-> s, dst |-> d, e |-> e, x |-> x, k |-> 0, m
 MK(t, s, d, e, k) == [M(t, s, d, e, NoNode) EXCEPT !.k = k]
 MH(s, d, e, x, L) == [M("HB", s, d, e, x) EXCEPT !.mem = L]
 Drops(a) == {M("RDROP", a, r, epoch[a], NoNode) : r \in relays[a]}
+\* The datagrams in flight after datagram m was received: all of them (the copy
+\* received stays: it may arrive again, unbounded duplication).  The liveness
+\* models override it (cfg: Received <- LiveReceived, MCElectionLive.tla).
+Received(m, N) == N
 
 -----------------------------------------------------------------------------
 (* One node's own variables as a record (its "local state"), and the      *)
@@ -266,7 +273,7 @@ OfferRelayNext(s, m) == [s EXCEPT !.offered = @ \cup {m.src}]
 OfferRelay(p, m) ==
     /\ OfferRelayOk(p, Loc(p), m) /\ Linked(m.src, p)
     /\ M("ROFFER", p, m.src, epoch[p], leader[p]) \notin net
-    /\ net' = net \cup {M("ROFFER", p, m.src, epoch[p], leader[p])}
+    /\ net' = Received(m, net) \cup {M("ROFFER", p, m.src, epoch[p], leader[p])}
     /\ SetLoc(p, OfferRelayNext(Loc(p), m))
     /\ lastAction' = <<"OfferRelay", p, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
@@ -285,8 +292,9 @@ HandleAcceptNext(s, m) == [s EXCEPT !.relays = @ \cup {m.src}, !.offered = @ \ {
 HandleAccept(p, m) ==
     /\ HandleAcceptOk(p, Loc(p), m) /\ Linked(m.src, p)
     /\ SetLoc(p, HandleAcceptNext(Loc(p), m))
+    /\ net' = Received(m, net)
     /\ lastAction' = <<"HandleAccept", p, m>>
-    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 \* Agent a in PANIC takes an offer from p (RELAY_ACCEPT to p): it follows
 \* p's master through p, in p's epoch if that is not older than its own.
@@ -300,7 +308,7 @@ AcceptRelayNext(s, m) ==
 AcceptRelay(a, m) ==
     /\ AcceptRelayOk(a, Loc(a), m) /\ Linked(m.src, a)
     /\ SetLoc(a, AcceptRelayNext(Loc(a), m))
-    /\ net' = net \cup {M("RACCEPT", a, m.src, m.e, m.x)}
+    /\ net' = Received(m, net) \cup {M("RACCEPT", a, m.src, m.e, m.x)}
     /\ lastAction' = <<"AcceptRelay", a, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
@@ -310,8 +318,9 @@ RelayDroppedNext(s) == [s EXCEPT !.life = "PANIC", !.leader = NoNode, !.followin
 RelayDropped(a, m) ==
     /\ RelayDroppedOk(a, Loc(a), m)
     /\ SetLoc(a, RelayDroppedNext(Loc(a)))
+    /\ net' = Received(m, net)
     /\ lastAction' = <<"RelayDropped", a, m>>
-    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Pre-vote.  An agent stands only when a majority of the fleet (itself    *)
@@ -332,7 +341,7 @@ GrantPreVoteOk(v, s, m, sa, sv) ==
 GrantPreVote(v, m) ==
     /\ GrantPreVoteOk(v, Loc(v), m, Score[m.src], Score[v]) /\ Linked(m.src, v)
     /\ M("PREOK", v, m.src, m.e, NoNode) \notin net
-    /\ net' = net \cup {M("PREOK", v, m.src, m.e, NoNode)}
+    /\ net' = Received(m, net) \cup {M("PREOK", v, m.src, m.e, NoNode)}
     /\ lastAction' = <<"GrantPreVote", v, m>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
@@ -347,8 +356,9 @@ HandlePreVoteNext(s, m) == [s EXCEPT !.prevotes = @ \cup {m.src}]
 HandlePreVote(a, m) ==
     /\ HandlePreVoteOk(a, Loc(a), m) /\ Linked(m.src, a)
     /\ SetLoc(a, HandlePreVoteNext(Loc(a), m))
+    /\ net' = Received(m, net)
     /\ lastAction' = <<"HandlePreVote", a, m>>
-    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
 (* Election.                                                               *)
@@ -410,9 +420,9 @@ HandleElect(v, m) ==
     /\ HandleElectOk(v, Loc(v), m, sc, Score[v]) /\ Linked(c, v)
     /\ IF m.e < epoch[v]
        THEN /\ M("STALE", v, c, epoch[v], NoNode) \notin net
-            /\ net' = net \cup {M("STALE", v, c, epoch[v], NoNode)}
+            /\ net' = Received(m, net) \cup {M("STALE", v, c, epoch[v], NoNode)}
        ELSE /\ ~(life[v] \in Followers /\ HeartbeatOK(v) /\ c # PC)
-            /\ net' = net \cup (IF m.e > epoch[v] THEN Drops(v) ELSE {})
+            /\ net' = Received(m, net) \cup (IF m.e > epoch[v] THEN Drops(v) ELSE {})
                           \cup (IF ElectGrant(Loc(v), m, sc, Score[v])
                                 THEN {M("VOTE", v, c, m.e, NoNode)} ELSE {})
     /\ SetLoc(v, HandleElectNext(v, Loc(v), m, sc, Score[v]))
@@ -429,8 +439,9 @@ HandleVote(n, m) ==
     /\ m.t = "VOTE" /\ m.dst = n   \* first: Loc(n) needs a node
     /\ HandleVoteOk(n, Loc(n), m) /\ Linked(m.src, n)
     /\ SetLoc(n, HandleVoteNext(Loc(n), m))
+    /\ net' = Received(m, net)
     /\ lastAction' = <<"HandleVote", n, m>>
-    /\ UNCHANGED <<net, down, faults, lost, elected, applied>>
+    /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 \* A candidate with the votes of a majority of the fleet becomes master of
 \* its epoch and announces itself (LEADER, also its heartbeat).
@@ -497,8 +508,8 @@ HandleHeartbeat(v, m) ==
     /\ HandleHeartbeatOk(v, Loc(v), m) /\ Linked(m.src, v)
     /\ IF Stale(Loc(v), m)
        THEN /\ M("STALE", v, m.src, epoch[v], NoNode) \notin net
-            /\ net' = net \cup {M("STALE", v, m.src, epoch[v], NoNode)}
-       ELSE net' = IF MasterChange(Loc(v), m) THEN net \cup Drops(v) ELSE net
+            /\ net' = Received(m, net) \cup {M("STALE", v, m.src, epoch[v], NoNode)}
+       ELSE net' = Received(m, net) \cup (IF MasterChange(Loc(v), m) THEN Drops(v) ELSE {})
     /\ SetLoc(v, HandleHeartbeatNext(Loc(v), m))
     /\ lastAction' = <<"HandleHeartbeat", v, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
@@ -516,7 +527,7 @@ HandleStale(n, m) ==
     /\ m.t = "STALE" /\ m.dst = n   \* first: Loc(n) needs a node
     /\ HandleStaleOk(n, Loc(n), m) /\ Linked(m.src, n)
     /\ SetLoc(n, HandleStaleNext(n, Loc(n), m))
-    /\ net' = IF n = PC THEN net ELSE net \cup Drops(n)
+    /\ net' = Received(m, net) \cup (IF n = PC THEN {} ELSE Drops(n))
     /\ lastAction' = <<"HandleStale", n, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
@@ -560,7 +571,7 @@ LearnMembers(a, m) ==
     /\ m.t = "HB" /\ m.dst = a   \* first: the copy is a's
     /\ LearnMembersOk(a, Loc(a), m) /\ Linked(m.src, a)
     /\ SetLoc(a, LearnMembersNext(a, Loc(a), m))
-    /\ net' = IF m.e > epoch[a] THEN net \cup Drops(a) ELSE net
+    /\ net' = Received(m, net) \cup (IF m.e > epoch[a] THEN Drops(a) ELSE {})
     /\ lastAction' = <<"LearnMembers", a, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
@@ -618,7 +629,7 @@ ForwardOk(p, s, m) == m.t = "RELAY" /\ m.dst = p /\ s.life \in Followers /\ m.x 
 Forward(p, m) ==
     /\ ForwardOk(p, Loc(p), m) /\ Linked(m.src, p)
     /\ M("CMD", m.src, m.x, m.e, p) \notin net
-    /\ net' = net \cup {M("CMD", m.src, m.x, m.e, p)}
+    /\ net' = Received(m, net) \cup {M("CMD", m.src, m.x, m.e, p)}
     /\ lastAction' = <<"Forward", p, m>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
@@ -637,8 +648,9 @@ ApplyCommand(a, m) ==
     /\ Linked(IF m.x = NoNode THEN m.src ELSE m.x, a)
     /\ SetLoc(a, ApplyCommandNext(Loc(a)))
     /\ applied' = applied \cup {[a |-> a, src |-> m.src, e |-> m.e, seen |-> epoch[a]]}
+    /\ net' = Received(m, net)
     /\ lastAction' = <<"ApplyCommand", a, m>>
-    /\ UNCHANGED <<net, down, faults, lost, elected>>
+    /\ UNCHANGED <<down, faults, lost, elected>>
 
 -----------------------------------------------------------------------------
 (* Faults.                                                                 *)

@@ -17,43 +17,52 @@
 (*     itself without a master it hears (the weaker one's back-off is     *)
 (*     shorter, so its ELECT arrives first); a candidate stands again only *)
 (*     when its election is stalled: nobody can still vote for it.         *)
-(* Duplication is a fault too: a late copy of a datagram whose sender has *)
-(* moved on (a LEADER of a master that is gone, an offer its relay can no  *)
-(* longer honour, a RELAY_DROP older than the relay's current table, a     *)
-(* PREVOTE_OK of a peer that has found a master since) is                  *)
-(* not delivered in these models (Current); without that, an endless      *)
-(* stream of duplicates of a dead master's heartbeat keeps agents from     *)
-(* standing, which TLC shows at once.  Safety with unbounded duplication   *)
-(* is checked by the other models.                                         *)
+(* Duplication is a fault too, with a budget like loss (MaxDup).  In     *)
+(* these models a datagram is consumed by its delivery (Received <-       *)
+(* LiveReceived): a unicast one leaves the network, a broadcast one (a     *)
+(* LEADER, RELAY_REQ, ELECT: one copy per agent) once every agent but its  *)
+(* sender has taken its copy (took); a Duplicate fault (dups < MaxDup)     *)
+(* keeps the copy for another delivery.  Late datagrams do arrive: a copy *)
+(* that nothing takes now stays in flight and may be taken later, in any  *)
+(* order, after its sender crashed or moved on (a LEADER of a dead master, *)
+(* an offer of a relay that has since lost its master, an old RELAY_DROP   *)
+(* or PREVOTE_OK), and delivery is fair, so such copies drain.  A sender   *)
+(* that sends again a broadcast whose copies are partly taken (a master's *)
+(* heartbeat, a RELAY_REQ retry) gives every agent a fresh copy (Resend).  *)
+(* No filter on what is delivered: liveness rests only on the protocol's  *)
+(* rules (issue 13).  Commands: a copy of an EPOCH_CMD or RELAY is never  *)
+(* applied twice (the agent's dedupe window, agent.hpp Fresh, drops it by *)
+(* sender and msgid), so Duplicate keeps none; a command a master sends   *)
+(* again is a new datagram.  Safety with unbounded duplication is checked *)
+(* by the other models (Election's Received keeps every datagram).        *)
 (* No state constraint: TLC would take a pruned state for a final one.     *)
 (***************************************************************************)
 EXTENDS MCElection
 
 CONSTANT Backoff
 
-Weaker(n) == {a \in Agents : Score[a] < Score[n]}
+CONSTANTS
+    MaxDup,   \* bound on duplicated deliveries (model checking)
+    Consume   \* TRUE: delivery consumes a datagram; FALSE: Election's network, filtered by Current
 
-\* Nothing can still bring candidate n a vote or make it master.
-Stalled(n) ==
-    /\ ~ENABLED BecomeMaster(n)
-    /\ ~ENABLED (\E m \in net : HandleVote(n, m))
-    /\ ~\E m \in net : m.t = "ELECT" /\ m.src = n /\ m.e = epoch[n]
-                       /\ \E v \in Agents : ENABLED HandleElect(v, m)
+VARIABLES
+    took,   \* <<m, a>>: agent a has taken its copy of broadcast m (m still in flight for others)
+    dups    \* Duplicate faults so far
 
-StandOK(n) ==
-    \/ ~Backoff
-    \/ n = PC
-    \/ /\ \A a \in Weaker(n) :
-            Linked(a, n) => life[a] = "DOWN" \/ (life[a] \in Followers /\ HeartbeatOK(a))
-       /\ life[n] = "CANDIDATE" => Stalled(n)
+lvars == <<vars, took, dups>>
 
-Stand(n) == StartElection(n) /\ StandOK(n)
+\* Who gets a copy of datagram m: every agent but its sender (a broadcast), or its addressee.
+Receivers(m) == IF m.dst = NoNode THEN Agents \ {m.src} ELSE {m.dst}
+\* Types a duplicate never takes effect of: the dedupe window drops a command's copy.
+Deduped == {"CMD", "RELAY"}
+\* A RELAY_REQ stands: an agent without a master sends it again and again (its retry timer),
+\* so one record stands for all its copies, as in Election (taking it changes nothing at the
+\* peer: what it does is answer, and each answer is a datagram of its own, consumed).
+Standing == {"RREQ"}
 
-\* Timeout as Election has it; the broken variant FreezeOnLoss (the name of the
-\* same broken rule in AgentLogic) never times out in WORKING: it must fail
-\* MasterGoneLeavesWorkingProp (tools/spec.py refute, election_live_work).
-LiveTimeout(a) == Timeout(a) /\ (BUG = "FreezeOnLoss" => life[a] # "WORKING")
-
+(* Consume = FALSE: the network of Election, where every datagram stays  *)
+(* in flight for ever, filtered by Current (the models that cannot yet   *)
+(* afford consuming delivery, docs/election.md section 4).              *)
 \* The datagram is not a late copy of something its sender no longer means.
 \* A LEADER copy (ShareMembers) is always current: it only teaches a membership.
 Current(m) ==
@@ -70,9 +79,7 @@ Current(m) ==
 \* master's command keeps an agent that has lost it going WORKING -> PAUSED ->
 \* WORKING, never reaching PANIC (TLC, election_live_work).  Commands are an
 \* option of the masters (no fairness), so this only drops behaviours.
-LiveApply(a, m) ==
-    /\ ApplyCommand(a, m)
-    /\ \A r \in applied : ~(r.a = a /\ r.src = m.src /\ r.e = m.e)
+LiveApply(a, m) == \A r \in applied : ~(r.a = a /\ r.src = m.src /\ r.e = m.e)
 
 \* A LEADER of a master that has died since is delivered to an agent that
 \* does not know the membership it lists yet (it was in flight when the
@@ -81,49 +88,122 @@ LiveApply(a, m) ==
 Teaches(a, m) == m.t = "HB" /\ m.dst = NoNode /\ m.e > mepoch[a]
 CurrentFor(a, m) == Current(m) \/ Teaches(a, m)
 
+\* Agent (or PC) a receives its copy of m: with a Duplicate fault (d = 1) the copy stays for
+\* another delivery; otherwise a takes it, and a broadcast whose copies are all taken leaves
+\* the network with its record in took.  Before the handler: LiveReceived reads took', dups'.
+Take(a, m) ==
+    IF ~Consume THEN CurrentFor(a, m) /\ UNCHANGED <<took, dups>> ELSE
+    /\ m.dst = NoNode => <<m, a>> \notin took
+    /\ \E d \in IF m.t \in Deduped \cup Standing \/ dups = MaxDup THEN {0} ELSE {0, 1} :
+         /\ dups' = dups + d
+         /\ took' = IF m.dst # NoNode \/ d = 1 \/ m.t \in Standing THEN took
+                    ELSE LET t == took \cup {<<m, a>>} IN
+                         IF \A r \in Receivers(m) : <<m, r>> \in t
+                         THEN t \ {<<m, r>> : r \in Receivers(m)} ELSE t
+\* Received's liveness meaning (cfg: Received <- LiveReceived): m leaves the network unless a
+\* duplicate was kept or other agents still have their copy of the broadcast coming.
+LiveReceived(m, N) ==
+    IF ~Consume \/ dups' # dups \/ m.t \in Standing \/ (m.dst = NoNode /\ \E r \in Receivers(m) : <<m, r>> \in took')
+    THEN N ELSE N \ {m}
+
+\* Sending again a broadcast datagram still in flight, some of whose copies were taken
+\* (Election's send guards "not in net" merge it with the one in flight): every agent gets
+\* a fresh copy.  A master's periodic LEADER; an agent's RELAY_REQ retry.
+Resend(m) ==
+    /\ m \in net /\ \E r \in Receivers(m) : <<m, r>> \in took
+    /\ took' = {x \in took : x[1] # m}
+    /\ UNCHANGED <<vars, dups>>
+LiveHeartbeat(n) ==
+    \/ Heartbeat(n) /\ UNCHANGED <<took, dups>>
+    \/ life[n] = "MASTER" /\ Resend(MH(n, NoNode, epoch[n], NoNode, members[n]))
+LiveRequestRelay(a) == RequestRelay(a) /\ UNCHANGED <<took, dups>>
+
+\* The network loses m: no copy of it arrives any more.
+LiveLose(m) == Lose(m) /\ took' = {x \in took : x[1] # m} /\ UNCHANGED dups
+
+Weaker(n) == {a \in Agents : Score[a] < Score[n]}
+
+\* Nothing can still bring candidate n a vote or make it master.
+Stalled(n) ==
+    /\ ~ENABLED BecomeMaster(n)
+    /\ ~ENABLED (\E m \in net : m.t = "VOTE" /\ Take(n, m) /\ HandleVote(n, m))
+    /\ ~\E m \in net : m.t = "ELECT" /\ m.src = n /\ m.e = epoch[n]
+                       /\ \E v \in Agents : ENABLED (Take(v, m) /\ HandleElect(v, m))
+
+StandOK(n) ==
+    \/ ~Backoff
+    \/ n = PC
+    \/ /\ \A a \in Weaker(n) :
+            Linked(a, n) => life[a] = "DOWN" \/ (life[a] \in Followers /\ HeartbeatOK(a))
+       /\ life[n] = "CANDIDATE" => Stalled(n)
+
+Stand(n) == StartElection(n) /\ StandOK(n)
+
+\* Timeout as Election has it; the broken variant FreezeOnLoss (the name of the
+\* same broken rule in AgentLogic) never times out in WORKING: it must fail
+\* MasterGoneLeavesWorkingProp (tools/spec.py refute, election_live_work).
+LiveTimeout(a) == Timeout(a) /\ (BUG = "FreezeOnLoss" => life[a] # "WORKING")
+
+\* Agent a receives its copy of m and the handler of its kind takes it.
 Deliver(a, m) ==
-    /\ CurrentFor(a, m)
+    /\ Take(a, m)
     /\ \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
        \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
        \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
-       \/ Forward(a, m) \/ LiveApply(a, m)
-       \/ ShareMembers(a, m) \/ LearnMembers(a, m)
+       \/ Forward(a, m) \/ LearnMembers(a, m)
+       \/ ApplyCommand(a, m) /\ (Consume \/ LiveApply(a, m))
+\* A peer that takes a RELAY_REQ also sends the asker a copy of its LEADER when it knows a
+\* newer membership: the same receipt (agent.hpp: a second step), so it does not take a copy.
+Share(a, m) == ShareMembers(a, m) /\ UNCHANGED <<took, dups>>
+
+\* A step that takes no datagram: no copy taken, no duplicate.
+Only(A) == A /\ UNCHANGED <<took, dups>>
 
 LiveNext ==
-    \/ \E a \in Agents : LiveTimeout(a) \/ RequestRelay(a) \/ AddMember(a) \/ DropMember(a)
-    \/ Reconfigure
-    \/ \E n \in Nodes : Stand(n) \/ BecomeMaster(n) \/ Heartbeat(n) \/ Crash(n) \/ Restart(n)
-    \/ \E s \in Nodes, a \in CmdAgents : SendCommand(s, a)
-    \/ \E x, y \in Nodes : ({x, y} \in CutLinks /\ Cut(x, y)) \/ Heal(x, y)
+    \/ Only(\/ \E a \in Agents : LiveTimeout(a) \/ AddMember(a) \/ DropMember(a)
+            \/ Reconfigure
+            \/ \E n \in Nodes : Stand(n) \/ BecomeMaster(n) \/ Crash(n) \/ Restart(n)
+            \/ \E s \in Nodes, a \in CmdAgents : SendCommand(s, a)
+            \/ \E x, y \in Nodes : ({x, y} \in CutLinks /\ Cut(x, y)) \/ Heal(x, y))
+    \/ \E a \in Agents : LiveRequestRelay(a)
+    \/ \E n \in Nodes : LiveHeartbeat(n)
     \/ \E m \in net :
-         \/ Lose(m)
-         \/ HandleVote(m.dst, m) \/ HandleStale(m.dst, m)
-         \/ \E a \in Agents : Deliver(a, m)
+         \/ LiveLose(m)
+         \/ m.t \in {"VOTE", "STALE"} /\ Take(m.dst, m) /\ (HandleVote(m.dst, m) \/ HandleStale(m.dst, m))
+         \/ \E a \in Agents : Deliver(a, m) \/ Share(a, m)
 
 \* Weak fairness per node and kind of step (grouping all agents under one WF
 \* is too weak: one agent's steps would starve another's, and TLC finds such
-\* spurious loops at once).  Commands (SendCommand, ApplyCommand) are not fair: a
-\* model may send them (election_live_work), none has to.
+\* spurious loops at once).  Delivery is fair whatever the datagram: a late
+\* copy that a node can take is eventually taken, once.  Commands
+\* (SendCommand, ApplyCommand) are not fair: a model may send them
+\* (election_live_work), none has to.
 Fairness ==
     /\ \A a \in Agents :
-         /\ WF_vars(LiveTimeout(a)) /\ WF_vars(RequestRelay(a))
-         /\ WF_vars(\E m \in net : Current(m) /\ OfferRelay(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ AcceptRelay(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ HandleAccept(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ RelayDropped(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ GrantPreVote(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ HandlePreVote(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ HandleElect(a, m))
-         /\ WF_vars(\E m \in net : CurrentFor(a, m) /\ HandleHeartbeat(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ ShareMembers(a, m))
-         /\ WF_vars(\E m \in net : Current(m) /\ LearnMembers(a, m))
+         /\ WF_lvars(Only(LiveTimeout(a))) /\ WF_lvars(LiveRequestRelay(a))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ OfferRelay(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ AcceptRelay(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandleAccept(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ RelayDropped(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ GrantPreVote(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandlePreVote(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandleElect(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandleHeartbeat(a, m))
+         /\ WF_lvars(\E m \in net : Share(a, m))
+         /\ WF_lvars(\E m \in net : Take(a, m) /\ LearnMembers(a, m))
     /\ \A n \in Nodes :
-         /\ WF_vars(Stand(n)) /\ WF_vars(BecomeMaster(n)) /\ WF_vars(Heartbeat(n))
-         /\ WF_vars(\E m \in net : HandleVote(n, m))
-         /\ WF_vars(\E m \in net : HandleStale(n, m))
-    /\ WF_vars(Reconfigure)
+         /\ WF_lvars(Only(Stand(n))) /\ WF_lvars(Only(BecomeMaster(n))) /\ WF_lvars(LiveHeartbeat(n))
+         /\ WF_lvars(\E m \in net : m.t = "VOTE" /\ Take(n, m) /\ HandleVote(n, m))
+         /\ WF_lvars(\E m \in net : m.t = "STALE" /\ Take(n, m) /\ HandleStale(n, m))
+    /\ WF_lvars(Only(Reconfigure))
 
-LiveSpec == Init /\ [][LiveNext]_vars /\ Fairness
+LiveInit == Init /\ took = {} /\ dups = 0
+
+\* The view of the liveness models: MCElection's (the state without lastAction, which no
+\* property reads and no step depends on: two states that differ only in it have the same
+\* successors) with the copies taken and the duplicates.
+LiveView == <<StateView, took, dups>>
+LiveSpec == LiveInit /\ [][LiveNext]_lvars /\ Fairness
 
 \* A master exists and every agent that is up follows it, for ever after
 \* (in these models every agent that is up is linked to a majority).
