@@ -39,9 +39,8 @@
 (***************************************************************************)
 EXTENDS MCElection
 
-CONSTANT Backoff
-
 CONSTANTS
+    Backoff,  \* FALSE: no back-off (the broken variant NoBackoff)
     MaxDup,   \* bound on duplicated deliveries (model checking)
     Consume   \* TRUE: delivery consumes a datagram; FALSE: Election's network, filtered by Current
 
@@ -101,14 +100,15 @@ Take(a, m) ==
                          IF \A r \in Receivers(m) : <<m, r>> \in t
                          THEN t \ {<<m, r>> : r \in Receivers(m)} ELSE t
 \* Received's liveness meaning (cfg: Received <- LiveReceived): m leaves the network unless a
-\* duplicate was kept or other agents still have their copy of the broadcast coming.
+\* duplicate was kept or other agents still have their copy of the broadcast coming (with
+\* Consume = FALSE it stays, as in Election).
 LiveReceived(m, N) ==
     IF ~Consume \/ dups' # dups \/ m.t \in Standing \/ (m.dst = NoNode /\ \E r \in Receivers(m) : <<m, r>> \in took')
     THEN N ELSE N \ {m}
 
 \* Sending again a broadcast datagram still in flight, some of whose copies were taken
 \* (Election's send guards "not in net" merge it with the one in flight): every agent gets
-\* a fresh copy.  A master's periodic LEADER; an agent's RELAY_REQ retry.
+\* a fresh copy: a master's periodic LEADER (a RELAY_REQ stands: never taken).
 Resend(m) ==
     /\ m \in net /\ \E r \in Receivers(m) : <<m, r>> \in took
     /\ took' = {x \in took : x[1] # m}
