@@ -449,8 +449,12 @@ HandleVote(n, m) ==
 \* publishes it changed by one agent towards its registry (want), never to
 \* an empty one: so the PC's membership is empty only if it always was (a
 \* fresh start), nobody knows a membership, and the PC needs no vote.
+\* The list stops growing at MaxMembers, all that one LEADER carries (master.hpp
+\* kMaxMembership); a full list still sheds an agent that is not wanted.
+MaxMembers == 30
 OneStep(L, w) ==
-    LET S == ({L \cup {a} : a \in w \ L} \cup {L \ {a} : a \in L \ w}) \ {{}}
+    LET grow == IF Cardinality(L) < MaxMembers THEN {L \cup {a} : a \in w \ L} ELSE {}
+        S == (grow \cup {L \ {a} : a \in L \ w}) \ {{}}
     IN IF S = {} THEN {L} ELSE S
 \* A candidate has stood in an epoch newer than the one of its membership (StartElection since
 \* the PC's Reconfigure): without it the PC, whose votes of its epoch are still counted, would

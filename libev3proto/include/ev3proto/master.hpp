@@ -923,14 +923,16 @@ class Master {
     ++members_rev_;
     Heartbeat();
   }
-  /// Election OneStep(L, w): L with one agent of w added (the lowest id), else one agent not in w
-  /// removed, never down to none; L when it is w.
+  /// Election OneStep(L, w): L with one agent of w added (the lowest id) while L has fewer than
+  /// kMaxMembership (Election MaxMembers: all one LEADER carries), else one agent not in w removed,
+  /// never down to none; L when neither is possible. A full membership still sheds a lost agent.
   static std::set<std::uint16_t> OneStep(std::set<std::uint16_t> l, const std::set<std::uint16_t>& w) {
-    for (std::uint16_t id : w)
-      if (l.count(id) == 0) {
-        l.insert(id);
-        return l;
-      }
+    if (l.size() < kMaxMembership)
+      for (std::uint16_t id : w)
+        if (l.count(id) == 0) {
+          l.insert(id);
+          return l;
+        }
     for (std::uint16_t id : l)
       if (w.count(id) == 0 && l.size() > 1) {
         l.erase(id);
@@ -939,12 +941,12 @@ class Master {
     return l;
   }
   /// Election Reconfigure's guard: the PC as MASTER whose wanted fleet differs from the membership
-  /// of its epoch. An elected agent's master never changes its membership (node.hpp). The list
-  /// stops growing at kMaxMembership, all that one LEADER carries (and the state files keep):
-  /// agents beyond it follow and obey but never vote (docs/election.md section 6).
+  /// of its epoch by a step OneStep can take. An elected agent's master never changes its
+  /// membership (node.hpp). The list stops growing at kMaxMembership, all that one LEADER carries
+  /// (and the state files keep): agents beyond it follow and obey but never vote, and a full list
+  /// still sheds an agent declared lost (docs/election.md section 6).
   bool ReconfigureOk() const {
-    return cfg_.election && self_ == kMasterId && role_ == MasterRole::master &&
-           members_.size() < kMaxMembership && want_moves();
+    return cfg_.election && self_ == kMasterId && role_ == MasterRole::master && want_moves();
   }
   /// Spec Reconfigure: the PC stands in the next epoch to publish the next step.
   void Reconfigure() { become_candidate(); }

@@ -131,7 +131,7 @@ LostAfter(r, s, s0, ms2) == (s.lost \cup (IF r.a = "MasterTick" THEN Ids(s0) \ I
 \* (intersected with OneStep: a choice outside the spec is no step).
 Lowest(S) == CHOOSE i \in S : \A j \in S : i <= j
 CodeStep(L, w) ==
-    IF w \ L # {} THEN L \cup {Lowest(w \ L)}
+    IF w \ L # {} /\ Cardinality(L) < EP!MaxMembers THEN L \cup {Lowest(w \ L)}
     ELSE IF L \ w # {} /\ \E a, b \in L : a # b THEN L \ {Lowest(L \ w)}
     ELSE L
 
