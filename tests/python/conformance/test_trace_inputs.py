@@ -147,3 +147,18 @@ def test_the_merged_data_module_holds_values_only():
     assert values["NodeNames"] == tuple(m.nodes) and len(values["Start"]) == len(m.nodes)
     assert all(x["a"] == r.r["action"] and values["NodeNames"][x["n"] - 1] == m.label(r)
                for x, r in zip(values["Trace"], m.order))
+
+
+def test_msgids_past_tlcs_integers_are_written_modulo_2_31():
+    # An ev3-master without a state file seeds its msgids from the wall clock (ev3proto/msgids.hpp):
+    # half the time at 2^31 or above, which TLC's 32-bit signed integers cannot hold. to_tla writes
+    # them modulo 2^31: equal msgids stay equal, and consecutive ones stay in order below the wrap.
+    assert tla.to_tla(5) == "5"
+    assert tla.to_tla((1 << 31) - 1) == str((1 << 31) - 1)
+    assert tla.to_tla(1 << 31) == "0"
+    assert tla.to_tla((1 << 31) + 7) == "7"
+    assert tla.to_tla((1 << 32) - 1) == str((1 << 31) - 1)
+    seed = 3_000_000_000
+    written = [int(tla.to_tla(seed + k)) for k in range(4)]
+    assert written == sorted(written) and len(set(written)) == 4 and max(written) < 1 << 31
+    assert tla.to_tla({"msgid": seed}) == tla.to_tla({"msgid": seed - (1 << 31)})
