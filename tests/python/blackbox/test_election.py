@@ -143,7 +143,10 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
     every agent has heard a LEADER listing the whole membership (the PC publishes it one agent per
     epoch). Agents that missed it learn the list from a peer (ShareMembers / LearnMembers, at their
     first RELAY_REQ): an agent must become master within a bounded time (before the fix the fleet
-    sat in PANIC until the PC came back)."""
+    sat in PANIC until the PC came back). Every node runs with --trace=FILE: conftest checks each
+    node's trace (ElectionTrace / MasterElectionTrace, and the winner's Master core) and the whole run
+    merged (ev3conformance.merged: two masters of one epoch, or a command obeyed from a stale master,
+    fail it), as for the other tests of this file."""
     n = 5
     mport, *aports = free_ports(n + 1)
     status = tmp_path / "status.json"
@@ -151,7 +154,8 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
     master = Program(master_exe, ["--port", str(mport), "--bind", "127.0.0.1", "--election",
                                   "--state-file", str(tmp_path / "master.state"), "--status-json", str(status),
                                   *sum((["--broadcast", f"127.0.0.1:{p}"] for p in aports), []),
-                                  *faults, "--fault-seed", "13", "--log-file", str(tmp_path / "master.log")],
+                                  *faults, "--fault-seed", "13", f"--trace={tmp_path / 'master.nd'}",
+                                  "--log-file", str(tmp_path / "master.log")],
                      tmp_path, "master")
     for i, p in enumerate(aports):
         (tmp_path / f"s{i + 1}").mkdir()
@@ -161,7 +165,7 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
             "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
             "--election", "--score", str(10 * (i + 1)), "--state-dir", str(tmp_path / f"s{i + 1}"),
             *faults, "--fault-seed", str(100 + i), "--sysfs-root", str(tmp_path / "nosys"),
-            "--log-level", "2", "--log-file", str(tmp_path / f"agent{i + 1}.log")],
+            f"--trace={tmp_path / f'agent{i + 1}.nd'}", "--log-level", "2", "--log-file", str(tmp_path / f"agent{i + 1}.log")],
             tmp_path, f"agent{i + 1}"))
     wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == n and
                all(a["state"] == "ACTIVE" for a in s["agents"]), 20, f"{n} ACTIVE agents")
@@ -177,6 +181,20 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
     for i, line in won:
         e = int(re.search(r"won epoch (\d+)", line).group(1))
         assert epochs.setdefault(e, i) == i, f"two masters of epoch {e}: {won}"
+    # The traces say the same: one BecomeMaster per epoch, by the agent whose log says it won.
+    time.sleep(0.3)  # (traces are flushed every 0.2 s)
+    became = []
+    for i in range(n):
+        epoch = None  # the agent's epoch as its trace has it (changed.epoch)
+        for r in trace(tmp_path, f"agent{i + 1}"):
+            if r.get("node") != "agent":
+                continue  # its Master core's records (node master:ID:EPOCH)
+            epoch = r.get("changed", {}).get("epoch", epoch)
+            if r["action"] == "BecomeMaster":
+                became.append((epoch, i))
+    assert became, "no BecomeMaster in the agents' traces"
+    assert len({e for e, _ in became}) == len(became), f"two BecomeMaster in one epoch: {became}"
+    assert all((e, i) in became for e, i in epochs.items()), (became, epochs)
     assert elapsed < 30
 
 
