@@ -657,8 +657,9 @@ def _master_election_records(recs: list[dict]) -> list[dict]:
 # master") whose records go to the agent's --trace as node "master:ID:EPOCH" (one core per epoch won).
 # Each is checked by MasterElectionTrace with Self = ID: MASTER of EPOCH from its first record, no
 # ids to assign (next id 50000: an unknown temporary id is ignored), the membership its agent core
-# knew (the members of the last LEADER it took before), the first msgid read from its first record
-# (a Heartbeat: the core draws msgids above the agent core's); its step-down by Election's
+# knew (the members of the last LEADER it took before, from a master or a peer's copy: LearnMembers),
+# the first msgid read from its first record (a Heartbeat: the core draws msgids above the agent
+# core's); its step-down by Election's
 # HandleElect / HandleHeartbeat / HandleStale of node ID (the trace's STEPPED_DOWN: any life but
 # MASTER), HANDOVER sent once.
 
@@ -680,8 +681,10 @@ def agent_master_runs(path: Path, consts: dict | None = None) -> list[tuple[str,
         start = mine[0].get("now", 0)
         members: list[int] = []
         best = 0
-        for r in recs:  # the last LEADER the agent core took (not an older epoch's) before this core started
-            if r.get("node") == "agent" and r.get("now", 0) <= start and r.get("action") == "HandleHeartbeat":
+        for r in recs:  # the last LEADER the agent core took (not an older epoch's) before this core started:
+            # from a master (HandleHeartbeat) or a peer's copy of one (LearnMembers, leader 0)
+            if (r.get("node") == "agent" and r.get("now", 0) <= start
+                    and r.get("action") in ("HandleHeartbeat", "LearnMembers")):
                 try:
                     m = wire.decode(r["args"]["msg"].encode("latin-1"))
                 except (KeyError, AttributeError, wire.DecodeError):

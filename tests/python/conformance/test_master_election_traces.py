@@ -204,6 +204,26 @@ def test_agent_master_trace_conforms(tmp_path):
     assert r.ok and r.records == len(recs), r.message
 
 
+def test_an_agent_master_starts_with_the_membership_a_peer_taught_it(tmp_path):
+    """The Master core's membership is the newest LEADER its agent core took, from the master
+    (HandleHeartbeat) or a peer's copy (LearnMembers, leader 0): here the copy of epoch 7 lists agent
+    6, which the PC's LEADER of epoch 6 did not (a run of the lossy PC-killed black-box test: the
+    core's PING from agent 6 was refused by a check started with the older list)."""
+    recs = [
+        {"node": "agent", "action": "HandleHeartbeat", "args": {"msg": "1:0:413304634:29:6:1:2:3:4:5"},
+         "now": 10, "changed": {"members": [2, 3, 4, 5], "mepoch": 6, "floor": 6}},
+        {"node": "agent", "action": "LearnMembers", "args": {"msg": "5:3:11787827:29:7:0:2:3:4:5:6"},
+         "now": 11, "changed": {"members": [2, 3, 4, 5, 6], "mepoch": 7, "floor": 7}},
+        {"node": "agent", "action": "HandleHeartbeat", "args": {"msg": "1:0:413304635:29:6:1:2:3:4:5"},
+         "now": 12, "changed": {}},  # a late copy of the older LEADER changes nothing
+        {"node": "master:3:8", "action": "Heartbeat", "args": {}, "now": 20, "msgid_from": 100,
+         "changed": {"msgid": 101}},
+    ]
+    p = write(tmp_path / "agent1.ndjson", recs)
+    (node, c), = tracecheck.agent_master_runs(p)
+    assert node == "master:3:8" and c["Members"] == [2, 3, 4, 5, 6] and c["Epoch"] == 8 and c["Self"] == 3
+
+
 @pytest.mark.parametrize("action, edit", [
     # steps down to epoch 4 on an ELECT of epoch 3
     ("HandleElect", lambda r: r["changed"].update(epoch=4)),
