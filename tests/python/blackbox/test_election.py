@@ -167,9 +167,14 @@ def test_agent_master_when_the_pc_dies_right_after_the_sync_with_loss(master_exe
             *faults, "--fault-seed", str(100 + i), "--sysfs-root", str(tmp_path / "nosys"),
             f"--trace={tmp_path / f'agent{i + 1}.nd'}", "--log-level", "2", "--log-file", str(tmp_path / f"agent{i + 1}.log")],
             tmp_path, f"agent{i + 1}"))
-    wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == n and
-               all(a["state"] == "ACTIVE" for a in s["agents"]), 20, f"{n} ACTIVE agents")
-    master.stop(signal.SIGKILL)  # right after the sync: the last membership steps may be unheard
+    # The PC is killed as soon as its trace holds its BecomeMaster with the five members (the trace is
+    # flushed every 0.2 s): the LEADER that lists them has gone out a few times at most (30 % loss),
+    # so some agents know only an older membership. (Killed before that record is flushed, the PC's
+    # last election is missing from its trace and the merged check cannot tell who leads that epoch.)
+    wait_until(lambda: any(r["action"] == "BecomeMaster" and len(r["changed"].get("members", [])) == n
+                           for r in trace(tmp_path, "master")), 20, f"the PC master of the {n} agents",
+               interval=0.005)
+    master.stop(signal.SIGKILL)  # right after the sync: the last membership step is unheard by some
     master.close()
     t0 = time.monotonic()
     won = wait_until(lambda: [(i, l) for i in range(n) for l in log_lines(tmp_path, f"agent{i + 1}")
