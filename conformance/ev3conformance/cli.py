@@ -7,8 +7,10 @@
                                                   or in hex with --hex ('-' for an empty one)
 
     ev3-conformance graph [--model agent]         TLC's state graph of the model: states, edges, paths
-    ev3-conformance replay [--model agent|master] [--driver CMD] [--known CLASS]
-                                                  replay every edge against the driver (docs/driver.md)
+    ev3-conformance replay [--model agent|master] [--driver CMD] [--known CLASS] [--sample N]
+                                                  replay every edge against the driver (docs/driver.md);
+                                                  agent --sample N: one in N of the ignored/duplicate
+                                                  datagram edges (and the first of each class)
     ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D]
                                                   TLC -simulate traces of the fleet replayed against
                                                   one master and one agent driver per agent
@@ -181,6 +183,9 @@ def _cmd_replay_fleet(args: argparse.Namespace) -> int:
 def _cmd_replay(args: argparse.Namespace) -> int:
     import shlex
     from ev3conformance import driver, graph, replay
+    if args.sample < 1 or args.sample != 1 and args.model != "agent":
+        print(f"ev3-conformance replay: --sample {args.sample}: a whole number >= 1, for --model agent only")
+        return 2
     if args.model == "master":
         return _cmd_replay_master(args)
     if args.model == "fleet":
@@ -188,8 +193,10 @@ def _cmd_replay(args: argparse.Namespace) -> int:
     module, cfg = MODELS[args.model]
     argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-agent"), "--driver"]
     g, figs = graph.dump_graph(module, cfg, args.model)
+    if figs.get("reused"):
+        print(f"{args.model}: the state graph TLC dumped in make spec's run of the same spec (its digest)")
     c = graph.cfg_constants(module, cfg)
-    r = replay.AgentReplay(g, c, argv)
+    r = replay.AgentReplay(g, c, argv, sample=args.sample)
     r.fig.tlc_seconds = figs["tlc_seconds"] + figs["parse_seconds"]
     try:
         f = r.run()
@@ -277,9 +284,12 @@ def _cmd_mutate(args: argparse.Namespace) -> int:
             where = at if isinstance(at, str) else at[3]
             print(f"{m.name:38} {m.kind:8} {where:34} {m.what}")
         return 0
+    if args.sample < 1:
+        print(f"ev3-conformance mutate: --sample {args.sample}: a whole number >= 1")
+        return 2
     t0 = time.monotonic()
     try:
-        res = mutate.run(graph.ROOT, args.only, jobs=args.jobs, limit=args.limit)
+        res = mutate.run(graph.ROOT, args.only, jobs=args.jobs, limit=args.limit, sample=args.sample)
     except RuntimeError as e:
         print(f"mutate: {e}")
         return 2
@@ -325,6 +335,9 @@ def _parser() -> argparse.ArgumentParser:
     rp = sub.add_parser("replay", help="replay every edge of the model's state graph against a driver")
     rp.add_argument("--model", choices=sorted(MODELS) + ["fleet"], default="agent")
     rp.add_argument("--driver", help="driver command line (default: $EV3_BIN/ev3-agent --driver, ev3-master --driver)")
+    rp.add_argument("--sample", type=int, default=1, metavar="N",
+                    help="agent: replay one in N of the edges where the agent ignores a datagram or"
+                         " answers a duplicate, and the first of each class of them (default 1: all)")
     rp.add_argument("--seed", type=int, default=1, help="fleet: TLC -seed of the simulation (default 1)")
     rp.add_argument("--num", type=int, default=30, help="fleet: traces to simulate and replay (default 30)")
     rp.add_argument("--depth", type=int, default=300, help="fleet: states per trace (TLC -depth, default 300)")
@@ -384,6 +397,8 @@ def _parser() -> argparse.ArgumentParser:
     mp = sub.add_parser("mutate", help="seeded faults in a copy of the core, each checked by replay/validate")
     mp.add_argument("--only", nargs="*", help="mutant names (prefixes, e.g. A01 M)")
     mp.add_argument("--list", action="store_true", help="list the mutants and exit")
+    mp.add_argument("--sample", type=int, default=1, metavar="N",
+                    help="the agent replay as `replay --model agent --sample N` (default 1: every edge)")
     mp.add_argument("--jobs", type=int, default=2, help="ninja jobs (default 2)")
     mp.add_argument("--limit", type=float, default=120.0, help="CPU seconds of a driver before it is killed")
     mp.add_argument("--min-score", type=float, default=95.0, help="exit 1 below this score in %% (default 95)")

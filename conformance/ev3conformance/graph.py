@@ -6,6 +6,8 @@ edge is the target state's `lastAction` (TLC labels edges with the bare name, us
 
 from __future__ import annotations
 
+import hashlib
+import json
 import os
 import re
 import shutil
@@ -107,22 +109,56 @@ def parse_dot(path: Path) -> Graph:
     return g
 
 
-def dump_graph(module: str, cfg: str, name: str, cwd: Path = SPEC) -> tuple[Graph, dict]:
-    """Runs TLC with -dump dot,actionlabels and parses the graph. Returns (graph, figures)."""
+def spec_digest(module: str, cfg: str, cwd: Path = SPEC) -> str:
+    """What a model's state graph depends on: every module of @p cwd, the cfg, the TLC jar."""
+    h = hashlib.sha256(f"{module.removesuffix('.tla')} {cfg}".encode())
+    for f in sorted(Path(cwd).glob("*.tla")) + [Path(cwd) / cfg]:
+        h.update(f.name.encode() + b"\0" + f.read_bytes() + b"\0")
+    h.update(str(JAR.stat().st_size if JAR.exists() else 0).encode())
+    return h.hexdigest()
+
+
+def dump_args(name: str) -> list[str]:
+    """TLC's arguments to dump a model's state graph where dump_graph looks for it."""
     BUILD.mkdir(parents=True, exist_ok=True)
-    dump = BUILD / f"{name}-graph"
+    return ["-dump", "dot,actionlabels", str(BUILD / f"{name}-graph")]
+
+
+def record_dump(module: str, cfg: str, name: str, out: str, cwd: Path = SPEC) -> None:
+    """After a TLC run with dump_args(name) that passed: the dump is of this spec (its key), and
+    TLC's counts, so dump_graph takes it instead of running TLC again (make spec, then make
+    conformance: one TLC run of MCAgent)."""
+    m = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found", out)
+    figs = {"generated": int(m.group(1).replace(",", "")), "distinct": int(m.group(2).replace(",", ""))} if m else {}
+    (BUILD / f"{name}-graph.key").write_text(json.dumps({"digest": spec_digest(module, cfg, cwd)} | figs))
+
+
+def dump_graph(module: str, cfg: str, name: str, cwd: Path = SPEC) -> tuple[Graph, dict]:
+    """Runs TLC with -dump dot,actionlabels and parses the graph. Returns (graph, figures). A dump
+    recorded (record_dump) for the same spec is taken as it is (figures: reused)."""
+    dump, key = BUILD / f"{name}-graph", BUILD / f"{name}-graph.key"
     t0 = time.monotonic()
-    rc, out = tlc(module, cfg, ["-dump", "dot,actionlabels", str(dump)], cwd=cwd)
-    if rc != 0:
-        raise RuntimeError(f"TLC failed (exit {rc}) on {module} {cfg}:\n{out[-3000:]}")
+    try:
+        known = json.loads(key.read_text())
+    except (OSError, ValueError):
+        known = {}
     path = dump if dump.exists() else dump.with_suffix(".dot")
+    if known.get("digest") == spec_digest(module, cfg, cwd) and path.exists():
+        figs = {k: known[k] for k in ("generated", "distinct") if k in known} | {"reused": True}
+    else:
+        key.unlink(missing_ok=True)
+        rc, out = tlc(module, cfg, dump_args(name), cwd=cwd)
+        if rc != 0:
+            raise RuntimeError(f"TLC failed (exit {rc}) on {module} {cfg}:\n{out[-3000:]}")
+        path = dump if dump.exists() else dump.with_suffix(".dot")
+        figs = {}
+        m = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found", out)
+        if m:
+            figs["generated"] = int(m.group(1).replace(",", ""))
+            figs["distinct"] = int(m.group(2).replace(",", ""))
     t1 = time.monotonic()
     g = parse_dot(path)
-    figs = {"tlc_seconds": round(t1 - t0, 1), "parse_seconds": round(time.monotonic() - t1, 1)}
-    m = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found", out)
-    if m:
-        figs["generated"] = int(m.group(1).replace(",", ""))
-        figs["distinct"] = int(m.group(2).replace(",", ""))
+    figs |= {"tlc_seconds": round(t1 - t0, 1), "parse_seconds": round(time.monotonic() - t1, 1)}
     return g, figs
 
 
@@ -200,13 +236,16 @@ class WalkFigures:
         return f"{name}: states {self.states}  edges {self.edges}  paths {self.paths} (longest {self.max_path})"
 
 
-def walk(g: Graph, ps: PathSet, ok=None):
+def walk(g: Graph, ps: PathSet, ok=None, leave=None):
     """The replay of every path of @p ps as driver operations, depth-first over the prefix tree:
     ("save", d) snapshots the node reached at depth d in slot d, ("restore", d) goes back to it,
     ("edge", ei) replays edge ei. A tree child is expanded right after the edge into it, so slot
     d + 1 holds it until its subtree is done. Edges for which ok(ei) is false are left out (all are
-    replayed when ok is None). Both spec-graph replays (agent, master) walk this way."""
+    replayed when ok is None); so is an edge for which leave(ei) holds unless the tree goes on
+    through it (a sample: every state stays reached). Both spec-graph replays (agent, master) walk
+    this way."""
     ok = ok or (lambda ei: True)
+    leave = leave or (lambda ei: False)
     for root in g.init:
         yield ("save", 0)
         stack = [(root, 0, iter(g.out.get(root, [])))]
@@ -219,9 +258,12 @@ def walk(g: Graph, ps: PathSet, ok=None):
             if not ok(ei):
                 continue
             v = g.edges[ei][1]
+            goes_on = ps.tree_edge.get(v) == ei and g.out.get(v)
+            if not goes_on and leave(ei):
+                continue
             yield ("restore", d)
             yield ("edge", ei)
-            if ps.tree_edge.get(v) == ei and g.out.get(v):
+            if goes_on:
                 yield ("save", d + 1)
                 stack.append((v, d + 1, iter(g.out.get(v, []))))
 

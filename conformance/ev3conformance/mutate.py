@@ -492,8 +492,8 @@ class Workspace:
 class Checks:
     """The checks, with the state graphs dumped by TLC once."""
 
-    def __init__(self, bin_dir: Path, limit: float) -> None:
-        self.bin, self.limit = bin_dir, limit
+    def __init__(self, bin_dir: Path, limit: float, sample: int = 1) -> None:
+        self.bin, self.limit, self.sample = bin_dir, limit, sample
         self.ag = self.ms = None
         self.ag_cache: dict = {}
         self.ms_cache: dict = {}
@@ -518,7 +518,8 @@ class Checks:
     def agent_replay(self) -> tuple[bool, str]:
         from ev3conformance import replay
         try:
-            f = replay.AgentReplay(self.ag, self.agc, self.argv("ev3-agent"), cache=self.ag_cache).run()
+            f = replay.AgentReplay(self.ag, self.agc, self.argv("ev3-agent"), cache=self.ag_cache,
+                                   sample=self.sample).run()
         except replay.Mismatch as m:
             return False, m.report.splitlines()[0]
         except drv.DriverError as e:
@@ -611,7 +612,7 @@ class Checks:
 
 
 def run(root: Path, names: list[str] | None = None, jobs: int = 2, limit: float = 120.0,
-        log=print) -> list[Outcome]:
+        log=print, sample: int = 1) -> list[Outcome]:
     base = gr.BUILD.parent / "mutate"
     ws = Workspace(root, base)
     chosen = [m for m in MUTANTS if not names or any(m.name.startswith(n) for n in names)]
@@ -623,7 +624,7 @@ def run(root: Path, names: list[str] | None = None, jobs: int = 2, limit: float 
         raise RuntimeError(f"the unmutated copy does not build (retry when the tree builds):\n{out}")
     base_digest = ws.digest()
     log(f"mutate: workspace {base} built in {time.monotonic() - t0:.0f}s")
-    ck = Checks(ws.bin, limit)
+    ck = Checks(ws.bin, limit, sample)
     t1 = time.monotonic()
     figs = ck.load({"agent" if k == "election" else k for k in kinds})
     log(f"mutate: state graphs dumped in {time.monotonic() - t1:.0f}s "
