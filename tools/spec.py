@@ -28,6 +28,7 @@ import subprocess
 import sys
 import tempfile
 import time
+from concurrent.futures import ThreadPoolExecutor
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 SPEC = os.path.join(ROOT, "spec", "tla")
@@ -36,6 +37,8 @@ BUILD = os.path.join(ROOT, "build", "spec")
 MANIFEST = os.path.join(SPEC, "manifest.json")
 DOCS = os.path.join(ROOT, "docs")
 JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"]
+# TLC runs at a time in check and refute (one JVM each; a model's own -workers as the manifest says).
+JOBS = int(os.environ.get("SPEC_JOBS", "2"))
 
 
 def load_manifest():
@@ -53,6 +56,13 @@ def run(cmd, timeout=None, cwd=SPEC):
         out = e.stdout.decode(errors="replace") if isinstance(e.stdout, bytes) else (e.stdout or "")
         return None, out, time.monotonic() - t0
     return p.returncode, p.stdout, time.monotonic() - t0
+
+
+def in_parallel(fn, items):
+    """fn(item) for each item, JOBS at a time; the results in the order of items, each as soon as
+    it and those before it are done (so the printed lines keep the manifest's order)."""
+    with ThreadPoolExecutor(max(1, JOBS)) as ex:
+        yield from ex.map(fn, items)
 
 
 def metadir(name):
@@ -134,6 +144,21 @@ def check_tsv():
     print("types: Messages.tla TypeNum matches docs/messages.tsv (%d types)" % len(tsv))
 
 
+def check_model(m):
+    """TLC on a model of the manifest. "dump": NAME also dumps its state graph where `ev3-conformance
+    replay` takes it (build/conformance/NAME-graph.dot, recorded with the spec's digest): make
+    conformance then replays the graph of this run instead of running TLC on the model again."""
+    if not m.get("dump"):
+        return tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"])
+    sys.path.insert(0, os.path.join(ROOT, "conformance"))
+    from ev3conformance import graph
+    rc, out, secs = tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"],
+                        extra=graph.dump_args(m["dump"]))
+    if rc == 0 and "Model checking completed. No error has been found." in out:
+        graph.record_dump(m["module"], m["cfg"], m["dump"], out)
+    return rc, out, secs
+
+
 def cmd_check(args):
     man = load_manifest()
     check_tsv()
@@ -141,9 +166,9 @@ def cmd_check(args):
     models = [m for m in man["models"] if m["size"] == args.size]
     for mod in sorted({m["module"] for m in models}):
         sany(mod)
-    for m in models:
-        # One worker: TLC's reported depth is only exact with a single worker.
-        rc, out, secs = tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"])
+    # One worker: TLC's reported depth is only exact with a single worker.
+    runs = in_parallel(check_model, models)
+    for m, (rc, out, secs) in zip(models, runs):
         fig = figures(out)
         v = violation(out)
         if v or fig is None or "Model checking completed. No error has been found." not in out:
@@ -270,10 +295,12 @@ def cmd_refute(args):
     variants_declared()
     man = load_manifest()
     failed = False
-    for v in man["refute"]:
+    def one(v):
         base = next(m for m in man["models"] if m["name"] == v["model"] and m["size"] == "small")
-        cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]])
-        rc, out, secs = tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"])
+        cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]],
+                          name="%s-%s" % (v["bug"], v["model"]))
+        return tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"])
+    for v, (rc, out, secs) in zip(man["refute"], in_parallel(one, man["refute"])):
         got = violation(out)
         live = [p for p in v.get("all", []) if is_liveness(p)]
         if got == "temporal" and len(live) == 1:
@@ -578,10 +605,8 @@ def election_check(args):
         sany(mod)
     if args.size == "small":
         failed |= not election_thesis(el)[0]
-    for m in el["models"] + el.get("live", []):
-        if m["size"] != args.size:
-            continue
-        rc, out, secs = election_tlc(m, m["name"])
+    models = [m for m in el["models"] + el.get("live", []) if m["size"] == args.size]
+    for m, (rc, out, secs) in zip(models, in_parallel(lambda m: election_tlc(m, m["name"]), models)):
         fig = figures(out)
         v = violation(out)
         if rc != 0 or v or fig is None or "Model checking completed. No error has been found." not in out:
@@ -640,14 +665,15 @@ def election_refute(args):
     the one named."""
     el = load_manifest()["election"]
     failed = False
-    for v in el["refute"]:
+    def one(v):
         base = next(m for m in el["models"] + el.get("live", [])
                     if m["name"] == v["model"] and m["size"] == "small")
         # "only": the variant is checked on these properties alone (another property the bug
         # also breaks would be found first and hide whether this one is reached)
-        cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-" + v["bug"], sets=v.get("set"))
-        entry = dict(base, cfg=cfg)
-        rc, out, secs = election_tlc(entry, "refute-" + v["bug"])
+        cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-%s-%s" % (v["bug"], v["model"]),
+                          sets=v.get("set"))
+        return election_tlc(dict(base, cfg=cfg), "refute-" + v["bug"])
+    for v, (rc, out, secs) in zip(el["refute"], in_parallel(one, el["refute"])):
         got = violation(out)
         # exit 12: an invariant is violated; 13: a temporal property (the Live variant)
         ok = rc == v.get("exit", 12) and got == v["property"]
