@@ -188,8 +188,16 @@ SteppedDown(n, s) ==
       [] s.life = "WORKING" -> "PAUSED"
       [] OTHER -> s.life
 
+\* The start, as the models may override it (cfg: Informed <- .., InitNet <- .., InitDown <- ..;
+\* MCElectionLive: the PC dead before its LEADER reached anyone): the agents that know the PC's
+\* membership (it published it at epoch 1), the datagrams in flight, the nodes that are down
+\* (each a fault already).
+Informed == InitMembers
+InitNet == {}
+InitDown == {}
+
 Init ==
-    /\ life = [n \in Nodes |-> IF n = PC THEN "MASTER" ELSE "ACTIVE"]
+    /\ life = [n \in Nodes |-> IF n \in InitDown THEN "DOWN" ELSE IF n = PC THEN "MASTER" ELSE "ACTIVE"]
     /\ epoch = [n \in Nodes |-> 1]
     /\ votedFor = [a \in Agents |-> NoNode]
     /\ votes = [n \in Nodes |-> {}]
@@ -199,15 +207,15 @@ Init ==
     /\ relays = [a \in Agents |-> {}]
     /\ offered = [a \in Agents |-> {}]
     /\ prevotes = [a \in Agents |-> {}]
-    /\ net = {}
+    /\ net = InitNet
     /\ down = {}
-    /\ faults = 0
+    /\ faults = Cardinality(InitDown)
     /\ lost = 0
     /\ elected = {<<1, PC>>}
     /\ applied = {}
-    /\ members = [n \in Nodes |-> IF n = PC \/ n \in InitMembers THEN InitMembers ELSE {}]
-    /\ mepoch = [n \in Nodes |-> IF n = PC \/ n \in InitMembers THEN 1 ELSE 0]
-    /\ floor = [a \in Agents |-> IF a \in InitMembers THEN 1 ELSE 0]
+    /\ members = [n \in Nodes |-> IF n = PC \/ n \in Informed THEN InitMembers ELSE {}]
+    /\ mepoch = [n \in Nodes |-> IF n = PC \/ n \in Informed THEN 1 ELSE 0]
+    /\ floor = [a \in Agents |-> IF a \in Informed THEN 1 ELSE 0]
     /\ want = InitMembers
     /\ changes = 0
     /\ lastAction = <<"Init">>

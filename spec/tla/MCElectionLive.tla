@@ -199,6 +199,15 @@ Fairness ==
 
 LiveInit == Init /\ took = {} /\ dups = 0
 
+\* The PC dies before any LEADER listing the membership reached anyone (issue 13, the failure of
+\* the real programs): the PC, master of epoch 1 with its membership, has sent its LEADER listing
+\* it (in flight: cfg InitNet <- UnheardNet) and no agent knows any list (Informed <- Unheard);
+\* the PC is already down (InitDown <- PCDown: it died right after sending).  Its copies still
+\* arrive, late, unless lost (MaxLoss).
+Unheard == {}
+UnheardNet == {MH(PC, NoNode, 1, NoNode, InitMembers)}
+PCDown == {PC}
+
 \* The view of the liveness models: MCElection's (the state without lastAction, which no
 \* property reads and no step depends on: two states that differ only in it have the same
 \* successors) with the copies taken and the duplicates.
