@@ -199,8 +199,15 @@ class Node {
 
   // ---------------------------------------------------------------- outputs
 
-  /// Takes the next datagram to send: the agent core's first, then the Master core's.
+  /// Takes the next datagram to send: those a Master core dropped had not sent yet (its HANDOVER)
+  /// first, then the agent core's, then the running Master core's.
   bool poll_transmit(NodeTransmit& out) {
+    if (!parting_.empty()) {
+      mtx_ = std::move(parting_.front().bytes);
+      out = NodeTransmit{parting_.front().dest, parting_.front().peer, mtx_, true};
+      parting_.erase(parting_.begin());  // a few at most
+      return true;
+    }
     Transmit t;
     if (agent_.poll_transmit(t)) {
       out = NodeTransmit{t.dest, t.peer, t.bytes, false};
@@ -319,6 +326,9 @@ class Node {
       master_->advance(now);  // its first LEADER is due now
     }
     if (master_ && master_->role() == MasterRole::stepped_down && agent_.role() != Role::master) {
+      // what it sent as it stepped down (HANDOVER to the new master) still goes out
+      MasterTransmit mt;
+      while (master_->poll_transmit(mt)) parting_.push_back(std::move(mt));
       NodeEvent e = make(NodeEvent::Kind::master_stopped);
       e.epoch = agent_.master_epoch();
       e.handed_over = master_->handed_over();
@@ -363,6 +373,7 @@ class Node {
   DedupeWindow<CopyWindow> copies_;  // in front of master_: one copy of each (sender, msgid)
   Message rx_;
   std::string mtx_;                  // the Master core's datagram last polled
+  std::vector<MasterTransmit> parting_; // a dropped Master core's datagrams not polled yet (no heap until one)
   std::uint32_t rejected_ = 0, overflowed_ = 0;
   // What was reported last (raft's prevHardSt / prevSoftSt).
   Durable seen_durable_;

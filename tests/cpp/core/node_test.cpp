@@ -171,6 +171,10 @@ TEST(Node, RunsAMasterCoreWhileMasterAndReportsEachChangeOnce) {
   EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "durable 3/0 [7,8,9]@3 floor 3", "role none 3", "leader 1@3",
                                                  "master_stopped 2 handed_over"}));
   EXPECT_EQ(n.master(), nullptr);
+  // its HANDOVER goes out although the core is gone (it was lost with the core before)
+  const std::vector<std::string> last = sent(n);
+  ASSERT_FALSE(last.empty());
+  EXPECT_EQ(last.front(), "M 7->1 HANDOVER #" + std::to_string(elected_master_first_msgid(2) + 3) + " 3 7 8 9");
   EXPECT_FALSE(n.command(8, Command::simple(MsgType::STOP), 7701));
 }
 
