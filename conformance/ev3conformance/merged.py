@@ -512,9 +512,11 @@ PLANTS = {
     "newer-epoch-ignored": "an agent hears a LEADER of a newer epoch (the epoch of an EPOCH_CMD it then obeys, "
                            "plus one) and changes nothing: a HandleHeartbeat record inserted before the "
                            "ApplyCommand, which is named (ObeyedNewestEpochInv)",
-    "handover-keeps-master": "an elected agent's Master core that steps down on a newer epoch instead hands "
-                             "over (a LEADER of that epoch, the same datagram's sender and msgid; HANDOVER "
-                             "sent) and stays master (HandoverStepsDownInv)",
+    "handover-keeps-master": "an elected agent's Master core that steps down on a newer epoch stays master "
+                             "after handing over: the STEPPED_DOWN left out of its record that took the newer "
+                             "LEADER and sent HANDOVER, or, when it stepped down otherwise (an ELECT), that "
+                             "record made one (a LEADER of that epoch, the same datagram's sender and msgid; "
+                             "HANDOVER sent) (HandoverStepsDownInv)",
     "relay-relayed": "an agent that enters a peer in its relay table is itself relayed: via set to "
                      "another agent in that HandleAccept record (RelayOneHopInv)",
     "relay-self": "an agent enters itself in its relay table: its id added to the relays of a HandleAccept "
@@ -617,6 +619,9 @@ def _plant_handover(recs, loss):
             if _kind(node) != "core" or ch.get("life") != "STEPPED_DOWN" or "epoch" not in ch:
                 continue
             d = _datagram(r.get("args", {}).get("msg", ""))
+            if r.get("action") == "HandleHeartbeat" and "msgid" in ch and d is not None and d.type_name == "LEADER":
+                rs[i] = dict(r, changed={k: v for k, v in ch.items() if k != "life"})   # a real HANDOVER
+                return f"{f.name} record {i + 1} (node {node} handed over to epoch {ch['epoch']} and stays master)"
             lead = next((x["args"]["msg"] for x in rs if x.get("action") == "HandleHeartbeat"
                          and _datagram(x.get("args", {}).get("msg", "") or "x") is not None
                          and _datagram(x["args"]["msg"]).type_name == "LEADER"), None)
