@@ -103,11 +103,12 @@ import ev3net as _ev3net  # noqa: E402
 
 _MODE = os.environ.get("EV3_TRACE_VALIDATE", "1")
 _POOL: _cf.ThreadPoolExecutor | None = None
-_PENDING: list[tuple[str, str, bool | str, _cf.Future]] = []  # (nodeid, name, master? or "merged", future of Result)
+# (nodeid, name, master? or "merged" or ("refused", invariant, text named): a planted run, future of Result)
+_PENDING: list[tuple[str, str, bool | str | tuple, _cf.Future]] = []
 _CURRENT: list = []                                 # the running test's item
 _STATS = {"traces": 0, "records": 0, "master_traces": 0, "master_records": 0, "empty": 0,
           "election_masters": 0, "election_agents": 0, "election_agent_masters": 0, "seconds": 0.0,
-          "master_seconds": 0.0, "merged_runs": 0, "merged_records": 0, "merged_seconds": 0.0}
+          "master_seconds": 0.0, "merged_runs": 0, "merged_records": 0, "merged_seconds": 0.0, "planted": 0}
 _STATS_LOCK = _threading.Lock()
 _orig_init = _ev3net.Program.__init__
 
@@ -253,7 +254,19 @@ def _submit(nodeid: str, p, expect_empty: bool = False) -> None:
         _PENDING.append((nodeid, name, is_master, fut))
 
 
+def _refused(r, kind) -> str | None:
+    """Why a planted run's Result @p r is not what ("refused", invariant) @p kind expects, or None."""
+    if r.ok:
+        return f"the run with {kind[1]}'s fault planted conforms: the check did not bite"
+    if f"({kind[1]}" not in r.message or kind[2] not in r.message:
+        return f"the run with {kind[1]}'s fault planted is not refused naming it and {kind[2]}: {r.message}"
+    return None
+
+
 def _count(r, master) -> None:
+    if isinstance(master, tuple):
+        _STATS["planted"] += 1
+        return
     if master == "merged":
         _STATS["merged_runs"] += 1
         _STATS["merged_records"] += r.records
@@ -271,24 +284,73 @@ def _epoch_of(p) -> int:
     return int(st.get("epoch", 1)) if restored else 1
 
 
-def _submit_merged(nodeid: str, started: list) -> None:
-    """Whole-run validation (docs/spec.md "Whole-run traces"): when the test ran programs with
-    --election, the traces of all the programs it started are merged into one behaviour (each receive
-    after its send) and checked by TLC against System's and Election's invariants (ev3conformance.merged),
-    with the agents' --master-timeout-ms (the largest, if they differ; ev3-agent's default if none)."""
-    global _POOL
-    progs = [p for p in started if getattr(p, "trace_path", None) is not None]
-    if _MODE == "0" or len(progs) < 2 or not any("--election" in p.trace_args for p in progs):
-        return
+def _merged_inputs(started: list):
+    """What the whole-run check of the programs @p started takes: (their trace files, each node's
+    epoch at start, the agents' --master-timeout-ms: the largest, if they differ; ev3-agent's
+    default if none), or None when there is no run to merge (fewer than two traced programs, none
+    with --election)."""
     from ev3conformance import merged
+    progs = [p for p in started if getattr(p, "trace_path", None) is not None]
+    if len(progs) < 2 or not any("--election" in p.trace_args for p in progs):
+        return None
     paths = list(dict.fromkeys(p.trace_path for p in progs))  # a program restarted on the same trace: once
     epochs = {f"{p.trace_path.name}:{'master' if p.trace_prog == 'ev3-master' else 'agent'}": _epoch_of(p)
               for p in progs}
-    if _POOL is None:
-        _POOL = _cf.ThreadPoolExecutor(max_workers=2)
     losses = [int(p.trace_args[p.trace_args.index("--master-timeout-ms") + 1]) for p in progs
               if p.trace_prog == "ev3-agent" and "--master-timeout-ms" in p.trace_args[:-1]]
-    fut = _POOL.submit(merged.validate, paths, epochs, None, max(losses, default=merged.TLOSS))
+    return paths, epochs, max(losses, default=merged.TLOSS)
+
+
+class _WholeRun:
+    """The whole run of one test, for a test that checks more of it than the check at teardown."""
+
+    def __init__(self, item) -> None:
+        self.item = item
+
+    def inputs(self):
+        """(trace files, epochs at start, the agents' timeout) of the programs the test started so far,
+        as the check at teardown takes them (_merged_inputs)."""
+        got = _merged_inputs(getattr(self.item, "_ev3_started", []))
+        assert got, "no run to merge: fewer than two traced programs, or none with --election"
+        return got
+
+    def refused(self, planted: Path, epochs: dict, loss: int, invariant: str, naming: str) -> None:
+        """The run with a fault planted (merged.plant into directory @p planted) must be refused naming
+        @p invariant and @p naming (the record planted): checked by TLC in the background pool as the other checks (at once with sync);
+        anything else fails the test at teardown."""
+        global _POOL
+        from ev3conformance import merged
+        if _POOL is None:
+            _POOL = _cf.ThreadPoolExecutor(max_workers=2)
+        fut = _POOL.submit(merged.validate, [planted], epochs, None, loss)
+        kind = ("refused", invariant, naming)
+        if _MODE == "sync":
+            r = fut.result()
+            _count(r, kind)
+            bad = _refused(r, kind)
+            assert bad is None, bad
+            return
+        _PENDING.append((self.item.nodeid, f"the whole run planted ({invariant})", kind, fut))
+
+
+@pytest.fixture
+def merged_run(request) -> _WholeRun:
+    return _WholeRun(request.node)
+
+
+def _submit_merged(nodeid: str, started: list) -> None:
+    """Whole-run validation (docs/spec.md "Whole-run traces"): when the test ran programs with
+    --election, the traces of all the programs it started are merged into one behaviour (each receive
+    after its send) and checked by TLC against System's and Election's invariants (ev3conformance.merged)."""
+    global _POOL
+    run = _merged_inputs(started) if _MODE != "0" else None
+    if run is None:
+        return
+    from ev3conformance import merged
+    paths, epochs, loss = run
+    if _POOL is None:
+        _POOL = _cf.ThreadPoolExecutor(max_workers=2)
+    fut = _POOL.submit(merged.validate, paths, epochs, None, loss)
     name = f"the whole run ({len(paths)} traces merged)"
     if _MODE == "sync":
         r = fut.result()
@@ -327,12 +389,13 @@ def pytest_sessionfinish(session, exitstatus):
     for nodeid, name, master, fut in _PENDING:
         r = fut.result()
         _count(r, master)
-        if r.ok:
+        why = _refused(r, master) if isinstance(master, tuple) else (
+            None if r.ok else f"trace of {name} does not conform to the spec: {r.message}")
+        if why is None:
             continue
         bad += 1
         rep = TestReport(nodeid=nodeid, location=(nodeid.split("::")[0], None, nodeid), keywords={},
-                         outcome="failed", longrepr=f"trace of {name} does not conform to the spec: {r.message}",
-                         when="teardown")
+                         outcome="failed", longrepr=why, when="teardown")
         session.config.hook.pytest_runtest_logreport(report=rep)
     waited = _time.monotonic() - t0
     tr = session.config.pluginmanager.get_plugin("terminalreporter")
@@ -345,7 +408,7 @@ def pytest_sessionfinish(session, exitstatus):
                       f"{_STATS['election_masters']} masters (MasterLogic + Election's PC), "
                       f"{_STATS['election_agent_masters']} agent-masters' Master cores; whole runs merged "
                       f"and checked: {_STATS['merged_runs']} ({_STATS['merged_records']} records, "
-                      f"{_STATS['merged_seconds']:.0f} s); "
+                      f"{_STATS['merged_seconds']:.0f} s), with a fault planted and refused: {_STATS['planted']}; "
                       f"TLC {_STATS['seconds'] + _STATS['master_seconds']:.0f} s (masters "
                       f"{_STATS['master_seconds']:.0f} s) in 2 parallel runs, {waited:.0f} s waited at the end")
     if bad:

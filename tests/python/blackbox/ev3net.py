@@ -5,6 +5,7 @@ the programs under test as subprocesses.
 - `TestMaster`: a Python master (id 1) that drives `ev3-agent`: sync, commands, auto-PONG.
 - `FakeAgent`: a Python agent that drives `ev3-master`: AGENT, ACK, PING, answers to commands.
 - `Program`: `ev3-agent` / `ev3-master` started with a log file, stopped with SIGTERM.
+- `Links`: one program's links to its peers through the test, which can lose datagrams of chosen types.
 - `wait_until`: a bounded wait for a condition (no sleeps as assertions).
 """
 
@@ -12,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import selectors
 import signal
 import socket
 import subprocess
@@ -242,6 +244,83 @@ class FakeAgent(Node):
                 except OSError:
                     return
             time.sleep(HB / 1000)
+
+
+class Links:
+    """Program X's links to @p n peers through the test, on loopback: peer k sends to X at
+    to_x(k's port) and X sends to k at to_peer(k's port); each datagram is passed on unchanged from
+    the link's other face, so either end answers through the link. While `drop` names message types
+    (wire names), datagrams of those types on their way to X are lost, counted by type in `dropped`.
+    The faces are bound at once (before the programs' ports are picked); connect() starts the links."""
+
+    def __init__(self, n: int) -> None:
+        self.faces = []  # per peer: (the face the peer sends to, the face X sends to)
+        for _ in range(n):
+            pair = tuple(socket.socket(socket.AF_INET, socket.SOCK_DGRAM) for _ in range(2))
+            for s in pair:
+                s.bind(("127.0.0.1", 0))
+            self.faces.append(pair)
+        self.drop: set[str] = set()
+        self.dropped: dict[str, int] = {}
+        self._stop = False
+        self._thread: threading.Thread | None = None
+
+    def connect(self, x: int, peers: list[int]) -> None:
+        assert len(peers) == len(self.faces), (peers, len(self.faces))
+        self.x, self.peers = x, list(peers)
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def to_x(self, peer: int) -> int:
+        return self.faces[self.peers.index(peer)][0].getsockname()[1]
+
+    def to_peer(self, peer: int) -> int:
+        return self.faces[self.peers.index(peer)][1].getsockname()[1]
+
+    def port(self, sender: int, receiver: int) -> int:
+        """The port @p sender sends to to reach @p receiver (ports of the programs)."""
+        if receiver == self.x and sender in self.peers:
+            return self.to_x(sender)
+        if sender == self.x and receiver in self.peers:
+            return self.to_peer(receiver)
+        return receiver
+
+    def _run(self) -> None:
+        sel = selectors.DefaultSelector()
+        for k, (from_peer, from_x) in enumerate(self.faces):
+            sel.register(from_peer, selectors.EVENT_READ, (k, True))
+            sel.register(from_x, selectors.EVENT_READ, (k, False))
+        while not self._stop:
+            for key, _ in sel.select(0.05):
+                k, towards_x = key.data
+                try:
+                    data = key.fileobj.recv(65536)
+                except OSError:
+                    continue
+                if towards_x:
+                    try:
+                        t = decode(data).type_name or "?"
+                    except DecodeError:
+                        t = "?"
+                    if t in self.drop:
+                        self.dropped[t] = self.dropped.get(t, 0) + 1
+                        continue
+                    out, to = self.faces[k][1], self.x
+                else:
+                    out, to = self.faces[k][0], self.peers[k]
+                try:
+                    out.sendto(data, ("127.0.0.1", to))
+                except OSError:
+                    pass  # the program is down (the PC killed): lost, as on a network
+        sel.close()
+
+    def close(self) -> None:
+        self._stop = True
+        if self._thread is not None:
+            self._thread.join(timeout=1)
+        for pair in self.faces:
+            for s in pair:
+                s.close()
 
 
 class Program:

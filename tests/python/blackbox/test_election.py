@@ -2,8 +2,11 @@
 ev3-master and three ev3-agent, all with --election; the master is killed (SIGKILL); the agents
 elect one of them master of epoch 5 (the lowest --score; the PC published the membership one agent
 per epoch while the three synced, issue 13: epochs 2, 3, 4), the others follow it, and its
---master-script commands take effect. With broadcast lists that make a line (#1 and #3 do not hear
-each other), #3 gets through #2's relay and answers the new master's PINGs and commands through it.
+--master-script commands take effect; then the PC comes back from its state file and takes the fleet
+back: agent #1's datagrams go through the test (ev3net.Links), which loses the PC's ELECT on its way
+to #1, so the agent-master hears of the newer epoch from the PC's LEADER and hands over (HANDOVER).
+With broadcast lists that make a line (#1 and #3 do not hear each other), #3 gets through #2's relay
+and answers the new master's PINGs and commands through it.
 
 These runs pass `--trace=FILE` themselves; conftest validates the agents' traces against AgentLogic
 composed with Election.tla's per-agent rules (docs/spec.md "Election traces") and the master's against
@@ -17,7 +20,10 @@ import signal
 import time
 from pathlib import Path
 
-from ev3net import Program, free_ports, read_status, wait_until
+import pytest
+from ev3conformance import merged
+
+from ev3net import Links, Program, free_ports, read_status, wait_until
 
 HB, LOSS, PAUSED = 100, 600, 1200          # ms; back-off before standing: 3000 + score x 100
 SCORES = (1, 20, 40)
@@ -40,21 +46,30 @@ def trace(tmp: Path, name: str) -> list[dict]:
     return [json.loads(l) for l in lines if l.strip()]
 
 
-def start_fleet(master_exe, agent_exe, programs, tmp: Path, hears: dict[int, list[int]]):
+def start_fleet(master_exe, agent_exe, programs, tmp: Path, hears: dict[int, list[int]], links: Links | None = None):
+    """The PC master and three agents with --election (agent i broadcasts to the PC and the agents
+    hears[i]); with @p links, every datagram of agent #1 goes through them. Returns the agents' ids
+    and a function that starts the PC master (again) with the trace and log NAME.nd / NAME.log."""
     mport, *aports = free_ports(4)
+    if links:
+        links.connect(aports[0], [mport, *aports[1:]])
+    port = links.port if links else (lambda _sender, receiver: receiver)
     status = tmp / "status.json"
-    master = Program(master_exe, ["--port", str(mport), "--bind", "127.0.0.1", "--election",
-                                  "--state-file", str(tmp / "master.state"), "--status-json", str(status),
-                                  *sum((["--broadcast", f"127.0.0.1:{p}"] for p in aports), []),
-                                  f"--trace={tmp / 'master.nd'}", "--log-file", str(tmp / "master.log")],
-                     tmp, "master")
+
+    def pc(name: str) -> Program:
+        return Program(master_exe, ["--port", str(mport), "--bind", "127.0.0.1", "--election",
+                                    "--state-file", str(tmp / "master.state"), "--status-json", str(status),
+                                    *sum((["--broadcast", f"127.0.0.1:{port(mport, p)}"] for p in aports), []),
+                                    f"--trace={tmp / f'{name}.nd'}", "--log-file", str(tmp / f"{name}.log")],
+                       tmp, name)
+    master = pc("master")
     script = tmp / "script.txt"
     script.write_text("wait 1.5\nbehaviour all wait seconds=0.5\nstart all\n")
     for i, p in enumerate(aports):
         (tmp / f"s{i + 1}").mkdir()
         programs.append(Program(agent_exe, [
             "--port", str(p), "--bind", "127.0.0.1",
-            *sum((["--broadcast", f"127.0.0.1:{q}"] for q in [mport] + [aports[j] for j in hears[i]]), []),
+            *sum((["--broadcast", f"127.0.0.1:{port(p, q)}"] for q in [mport] + [aports[j] for j in hears[i]]), []),
             "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
             "--election", "--score", str(SCORES[i]), "--state-dir", str(tmp / f"s{i + 1}"),
             "--master-script", str(script), "--sysfs-root", str(tmp / "nosys"),
@@ -73,15 +88,30 @@ def start_fleet(master_exe, agent_exe, programs, tmp: Path, hears: dict[int, lis
                                for r in trace(tmp, f"agent{i + 1}")) for i in range(3)), 3, "LEADER with the members")
     master.stop(signal.SIGKILL)  # the PC dies
     master.close()
-    return ids
+    return ids, pc
 
 
 def winner_of(tmp: Path) -> list[tuple[int, str]]:
     return [(i, l) for i in range(3) for l in log_lines(tmp, f"agent{i + 1}") if "election: won epoch" in l]
 
 
-def test_election_after_the_master_is_killed(master_exe, agent_exe, programs, tmp_path):
-    ids = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1, 2], 1: [0, 2], 2: [0, 1]})
+@pytest.fixture
+def links():
+    """Agent #1's links to the PC and its peers through the test (ev3net.Links)."""
+    lk = Links(3)
+    yield lk
+    lk.close()
+
+
+def test_election_after_the_master_is_killed(master_exe, agent_exe, programs, tmp_path, links, merged_run):
+    """The agents elect #1 when the PC is killed; then the PC takes the fleet back from it: with the
+    PC's ELECT (and any EPOCH_STALE) lost on their way to agent #1, the agent-master first hears of
+    the PC's newer epoch from its LEADER, so its Master core hands the fleet over (HANDOVER) and
+    steps down (Election HandleHeartbeat, System MasterHandover); the PC takes the ids HANDOVER brought. The whole run's
+    merged check (conftest) then holds a real HANDOVER: the test asserts the merged behaviour has the
+    step-down record and the PC's MasterHandover after it, and that the same run with that Master
+    core planted to stay master after its HANDOVER is refused naming HandoverStepsDownInv."""
+    ids, pc = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1, 2], 1: [0, 2], 2: [0, 1]}, links)
     t0 = time.monotonic()
     wait_until(lambda: winner_of(tmp_path), 12, "an agent to win an election")
     won = winner_of(tmp_path)
@@ -111,11 +141,59 @@ def test_election_after_the_master_is_killed(master_exe, agent_exe, programs, tm
                if r["action"] == "ApplyCommand" and r["args"]["msg"].split(":")[4] == str(WON)]
     assert applied and all(r["args"]["msg"].split(":")[0] == str(leader) for r in applied)
     assert time.monotonic() - t0 < 15
+    handover(pc, programs, links, leader, [ids[1], ids[2]], tmp_path, merged_run)
+
+
+def handover(pc, programs, links, leader: int, others: list[int], tmp: Path, merged_run) -> None:
+    """The PC comes back (same --state-file) while agent #1 (id @p leader) is master of epoch WON and
+    ELECT / EPOCH_STALE are lost on their way to it: see test_election_after_the_master_is_killed."""
+    pc_epoch = int(dict(line.split("=", 1) for line in (tmp / "master.state").read_text().splitlines())["epoch"])
+    links.drop = {"ELECT", "EPOCH_STALE"}
+    t0 = time.monotonic()
+    programs.append(pc("master2"))
+    core = f"master:{leader}:{WON}"
+
+    def handed():
+        down = next((r for r in trace(tmp, "agent1") if r["node"] == core and r["action"] == "HandleHeartbeat"
+                     and r["changed"].get("life") == "STEPPED_DOWN"), None)
+        took = next((r for r in trace(tmp, "master2") if r["action"] == "MasterHandover"), None)
+        return down and took and (down, took)
+    down, took = wait_until(handed, 10, f"agent-master {leader} to hand the fleet over to the PC (HANDOVER)")
+    links.drop = set()
+    print(f"\nthe PC back (from epoch {pc_epoch}): agent-master {leader} handed the fleet over after "
+          f"{time.monotonic() - t0:.1f} s; lost on the way to it: {links.dropped}")
+    assert links.dropped.get("ELECT"), links.dropped  # it never heard the PC's ELECT
+    # the PC's LEADER of its new epoch made the Master core send HANDOVER (its msgid moved) and step down
+    lead = down["args"]["msg"].split(":")
+    e = int(lead[4])
+    assert lead[0] == "1" and lead[3] == "29" and e > WON and down["changed"]["epoch"] == e, down
+    assert "msgid" in down["changed"], down
+    # the PC took HANDOVER(its new epoch, the agent-master's fleet) from it
+    h = took["args"]["msg"].split(":")
+    assert h[0] == str(leader) and h[3] == "32" and int(h[4]) == e and set(others) <= {int(x) for x in h[5:]}, took
+    wait_until(lambda: any("(HANDOVER sent to the new master)" in l for l in log_lines(tmp, "agent1")), 2,
+               "agent #1 to log its HANDOVER")
+    # The run ends here (SIGTERM, exit 0; a longer one only makes every trace check at teardown slower).
+    for p in programs:
+        assert p.stop() == 0, p.name
+    # The merged behaviour the teardown check walks holds both: the PC's receive paired with the send.
+    paths, epochs, loss = merged_run.inputs()
+    assert epochs["master2.nd:master"] == pc_epoch
+    m = merged.merge(paths, epochs)
+    at = {(m.files[x.file].name, x.r["action"], x.r["args"].get("msg"), x.node): (i, x) for i, x in enumerate(m.order)}
+    i_down, _ = at[("agent1.nd", "HandleHeartbeat", down["args"]["msg"], core)]
+    i_took, x_took = at[("master2.nd", "MasterHandover", took["args"]["msg"], "master")]
+    assert i_down < i_took and (x_took.file, x_took.k) in m.paired
+    # The check bites on this run: its Master core planted to stay master after its HANDOVER must be
+    # refused naming HandoverStepsDownInv (TLC, in the background as the checks at teardown).
+    where = merged.plant(paths, tmp / "planted", "handover-keeps-master", loss)
+    assert where.startswith("agent1.nd record ") and f"node {core} handed over to epoch {e}" in where, where
+    merged_run.refused(tmp / "planted", epochs, loss, "HandoverStepsDownInv", where.split(" (")[0] + " ")
 
 
 def test_relay_for_an_agent_that_hears_only_a_peer(master_exe, agent_exe, programs, tmp_path):
     # #1 and #3 do not hear each other: #3 reaches the new master (#1) only through #2.
-    ids = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1], 1: [0, 2], 2: [1]})
+    ids, _ = start_fleet(master_exe, agent_exe, programs, tmp_path, {0: [1], 1: [0, 2], 2: [1]})
     leader, relay, far = ids[0], ids[1], ids[2]
     wait_until(lambda: any(f"following master {leader} (epoch {WON}) through the relay of agent {relay}" in l
                            for l in log_lines(tmp_path, "agent3")), 14, "agent3 to follow through agent2's relay")
