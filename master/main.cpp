@@ -143,6 +143,7 @@ class Program {
     if (r.taken()) {
       log_.log(kDebug, "recv %s from %s: %s", d.c_str(), from.str().c_str(),
                std::string(to_string(r.action)).c_str());
+      if (r.action == ev3proto::Action::MasterHandover) handovers_++;
       pump(now);
     }
   }
@@ -386,8 +387,8 @@ class Program {
       say("election: " + std::string(to_string(r)) + " of epoch " + std::to_string(seen_epoch_) + " (members" +
           (members.empty() ? " none" : members) + " of epoch " + std::to_string(master_->published_epoch()) + ")");
     }
-    if (master_->handed_over() && !seen_handover_) {
-      seen_handover_ = true;
+    if (handovers_ != seen_handovers_) {  // (handed_over() is an elected agent's side: never the PC's)
+      seen_handovers_ = handovers_;
       say("election: the elected agent handed the fleet over (HANDOVER)");
     }
   }
@@ -413,7 +414,8 @@ class Program {
   std::uint32_t saved_epoch_ = 0, msgid_limit_ = 0;
   std::uint64_t saved_rev_ = 0;
   std::string saved_members_;
-  bool state_warned_ = false, seen_handover_ = false;
+  bool state_warned_ = false;
+  std::uint32_t handovers_ = 0, seen_handovers_ = 0;  // HANDOVERs taken, and said
   ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;
   std::uint32_t seen_epoch_ = 0;
 };

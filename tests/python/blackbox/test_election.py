@@ -173,6 +173,8 @@ def handover(pc, programs, links, leader: int, others: list[int], tmp: Path, mer
     assert h[0] == str(leader) and h[3] == "32" and int(h[4]) == e and set(others) <= {int(x) for x in h[5:]}, took
     wait_until(lambda: any("(HANDOVER sent to the new master)" in l for l in log_lines(tmp, "agent1")), 2,
                "agent #1 to log its HANDOVER")
+    wait_until(lambda: "election: the elected agent handed the fleet over (HANDOVER)" in (tmp / "master2.out").read_text(),
+               2, "the PC to say it took the HANDOVER")
     # The run ends here (SIGTERM, exit 0; a longer one only makes every trace check at teardown slower).
     for p in programs:
         assert p.stop() == 0, p.name
