@@ -22,7 +22,8 @@ Phases (each a function):
   5. command    the new master runs its --master-script: `behaviour all wait seconds=2`, `start
                 all`; both followers (#3 through the relay) go WORKING and report ACTION_OK
   6. handover   the PC master comes back with its --state-file: it stands in a newer epoch (score 0),
-                the agent-master steps down and hands the fleet over (HANDOVER)
+                the agent-master steps down (on the PC's ELECT; it hands the fleet over, HANDOVER,
+                only when the PC's LEADER reaches it first: tests/python/blackbox/test_election.py)
 Then a summary: the timeline with times, the picture of the robots' paths (ev3-sim's --snapshot,
 written when it stops: build/demo/paths.svg), and the NDJSON traces validated by TLC against the spec: the
 three agents' (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
@@ -527,8 +528,12 @@ class Demo:
         self.event(f"restarted ev3-master with its state file (pid {self.master.pid})")
 
         def back(lines):
-            if any(self.name(self.winner) and "stepped down" in t for i, t in lines if i == self.winner):
-                self.event(f"agent {self.name(self.winner)} stepped down (HANDOVER to the PC)")
+            down = [t for i, t in lines if i == self.winner and "stepped down" in t]
+            if down:
+                # an agent-master that hears the PC's ELECT first steps down on it, without HANDOVER
+                how = ("handed the fleet over (HANDOVER)" if "HANDOVER sent" in down[0]
+                       else "no HANDOVER: the PC's ELECT came first")
+                self.event(f"agent {self.name(self.winner)} stepped down ({how})")
                 self.stepped = True
             ags = self.status().get("agents", [])
             return getattr(self, "stepped", False) and len(ags) == 3 and all(a["state"] != "SYNCING" for a in ags)
