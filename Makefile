@@ -66,7 +66,7 @@ demo: build
 
 # Spec -> implementation: MCAgent's state graph replayed against `ev3-agent --driver` (every edge,
 # except that of the edges where the agent ignores a datagram or answers a duplicate, 78 % of them,
-# the first of each class and one in 8 of the rest: --sample 8; conformance-full replays them all),
+# one of each class and one in 8 of the rest: --sample 8; conformance-full replays them all),
 # every edge of MCMaster's against `ev3-master --driver`, and 40 seeded TLC -simulate traces of the
 # fleet (MCFleetSim: 3 agents, losses, duplicates, crashes) against one master and three agent
 # drivers talking to each other (docs/driver.md, docs/spec.md "Conformance"; the fleet ~25-60 s).

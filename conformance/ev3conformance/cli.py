@@ -10,7 +10,7 @@
     ev3-conformance replay [--model agent|master] [--driver CMD] [--known CLASS] [--sample N]
                                                   replay every edge against the driver (docs/driver.md);
                                                   agent --sample N: one in N of the ignored/duplicate
-                                                  datagram edges (and the first of each class)
+                                                  datagram edges (and one of each class)
     ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D]
                                                   TLC -simulate traces of the fleet replayed against
                                                   one master and one agent driver per agent
@@ -337,7 +337,7 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--driver", help="driver command line (default: $EV3_BIN/ev3-agent --driver, ev3-master --driver)")
     rp.add_argument("--sample", type=int, default=1, metavar="N",
                     help="agent: replay one in N of the edges where the agent ignores a datagram or"
-                         " answers a duplicate, and the first of each class of them (default 1: all)")
+                         " answers a duplicate, and one of each class of them (default 1: all)")
     rp.add_argument("--seed", type=int, default=1, help="fleet: TLC -seed of the simulation (default 1)")
     rp.add_argument("--num", type=int, default=30, help="fleet: traces to simulate and replay (default 30)")
     rp.add_argument("--depth", type=int, default=300, help="fleet: states per trace (TLC -depth, default 300)")

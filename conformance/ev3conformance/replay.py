@@ -53,7 +53,7 @@ class Figures(gr.WalkFigures):
             lines.insert(3, f"  edges unreachable for the core   {self.unreachable}")
         if self.sample > 1:
             lines.insert(3, f"  edges left out by the sample     {self.left_out}  (--sample {self.sample}: of the"
-                            f" {'/'.join(sorted(SAMPLED))} edges, the first of each class and one in"
+                            f" {'/'.join(sorted(SAMPLED))} edges, one of each class and one in"
                             f" {self.sample} of the rest are replayed; every other edge is)")
         return "\n".join(lines)
 
