@@ -71,6 +71,9 @@ class Stream:
     node: str
     ids: set[int]
     sends: list[tuple[int | None, int, int]] = field(default_factory=list)  # (from or None, to, rec k)
+    # a master's records that send again a msgid sent before (a MASTER re-sent to an agent that
+    # announced itself again, a resend): (rec k, the node's epoch at it, the msgids pending in it)
+    resends: list[tuple[int, int, set[int]]] = field(default_factory=list)
 
 
 @dataclass
@@ -153,11 +156,19 @@ def _streams(fi: int, recs: list[Rec]) -> dict[str, Stream]:
             ids = set()
         s = Stream(fi, node, ids)
         prev = None
+        epoch = int(node.split(":")[2]) if kind == "core" else 1
         for x in mine:
-            m = x.r.get("changed", {}).get("msgid")
+            ch = x.r.get("changed", {})
+            m = ch.get("msgid")
             if isinstance(m, int):
                 s.sends.append((prev, m, x.k))
                 prev = m
+            epoch = ch.get("epoch", epoch) if isinstance(ch.get("epoch", epoch), int) else epoch
+            if kind in ("pc", "core") and x.r.get("action") in ("MasterSync", "MasterTick"):
+                again = {e["mid"] for e in ch.get("reg", ()) if isinstance(e, dict) and e.get("pending")
+                         and isinstance(e.get("mid"), int)}
+                if again:
+                    s.resends.append((x.k, epoch, again))
         out[node] = s
     return out
 
@@ -180,6 +191,24 @@ def _sender(streams: list[Stream], src: int, msgid: int) -> tuple[Stream, int] |
     if len(cands) > 1:
         return "; ".join(f"node {s.node} of file #{s.file + 1} record {k + 1}" for s, k in cands)
     return cands[0] if cands else None
+
+
+def _resent_at(s: Stream, k: int, d: wire.Message) -> int:
+    """The record that sent datagram @p d, first sent by record @p k of @p s: an EPOCH_CMD carries
+    the epoch its sender was master of when it sent it; sent first in an older epoch, this copy
+    was sent again (same msgid) by the first later record of @p s that re-sent it in that epoch.
+    Pairing it with its first send would let the merge put its receive before the sender's
+    election of that epoch."""
+    if d.type_name != "EPOCH_CMD" or not d.params:
+        return k
+    try:
+        e = int(d.params[0])
+    except ValueError:
+        return k
+    for rk, epoch, again in s.resends:
+        if rk > k and epoch == e and d.msgid in again:
+            return rk
+    return k
 
 
 def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
@@ -246,7 +275,7 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
             if isinstance(s, str):
                 raise MergeError(f"datagram {d.sender}:{d.msgid} received by {m.where(x)} could have been sent by "
                                  f"more than one traced node: {s}")
-            src = (s[0].file, s[1])
+            src = (s[0].file, _resent_at(s[0], s[1], d))
             succ.setdefault(src, []).append((fi, x.k))
             npred[(fi, x.k)] += 1
             m.pairs += 1
