@@ -163,7 +163,8 @@ def _streams(fi: int, recs: list[Rec]) -> dict[str, Stream]:
             if isinstance(m, int):
                 s.sends.append((prev, m, x.k))
                 prev = m
-            epoch = ch.get("epoch", epoch) if isinstance(ch.get("epoch", epoch), int) else epoch
+            if isinstance(ch.get("epoch"), int):
+                epoch = ch["epoch"]
             if kind in ("pc", "core") and x.r.get("action") in ("MasterSync", "MasterTick"):
                 again = {e["mid"] for e in ch.get("reg", ()) if isinstance(e, dict) and e.get("pending")
                          and isinstance(e.get("mid"), int)}
