@@ -385,10 +385,17 @@ StartElectionNext(n, s) ==
     [s EXCEPT !.epoch = @ + 1, !.votedFor = IF n = PC THEN @ ELSE n,
               !.votes = IF n = PC THEN {} ELSE {n}, !.life = "CANDIDATE",
               !.prevotes = IF n = PC THEN @ ELSE {}]
+\* The PC stands with a copy of its membership (LEADER(mepoch, 0, members),
+\* broadcast: here one copy per agent): a voter that missed the LEADERs of
+\* the PC's epoch learns the list (LearnMembers) and can grant (Knows).
+Teach(n) ==
+    IF n = PC /\ Fixed /\ members[PC] # {}
+    THEN {MH(PC, a, mepoch[PC], NoNode, members[PC]) : a \in Agents}
+    ELSE {}
 StartElection(n) ==
     /\ StartElectionOk(n, Loc(n))
     /\ SetLoc(n, StartElectionNext(n, Loc(n)))
-    /\ net' = net \cup {MK("ELECT", n, NoNode, epoch[n] + 1, mepoch[n])}
+    /\ net' = net \cup {MK("ELECT", n, NoNode, epoch[n] + 1, mepoch[n])} \cup Teach(n)
     /\ lastAction' = <<"StartElection", n, epoch[n] + 1>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
@@ -401,10 +408,19 @@ StartElection(n) ==
 \*  - otherwise v adopts e (stepping down if it acts in an older epoch) and
 \*    grants its one vote of epoch e to c if it has not voted in e yet and c
 \*    is not stronger than v (VOTE).
+\* A voter grants the PC only if it knows a membership at least as new as the
+\* one the PC counts its votes against (epoch k, ELECT's third parameter):
+\* so its floor never rises above the list it knows, and whoever voted for
+\* the PC can still stand if the PC dies before its next list reached anyone
+\* (issue 13).  With BUG "VoteUnknown" it grants without knowing it (the rule
+\* before: a vote raised the floor past any list the voter knew).  A record
+\* without a membership (a single-agent trace of an older core) knows it.
+Knows(s, k) == BUG = "VoteUnknown" \/ ~("mepoch" \in DOMAIN s) \/ s.mepoch >= k
 ElectGrant(s, m, sc, sv) ==
     /\ m.e > s.epoch \/ s.votedFor \in {NoNode, m.src} \/ BUG = "DoubleVote"
     /\ sc <= sv
     /\ m.src = PC \/ ~Fixed \/ Get(m, "k", 0) >= Get(s, "floor", 0)
+    /\ m.src = PC /\ Fixed => Knows(s, Get(m, "k", 0))
 \* A vote for the PC (its ELECT carries the epoch k of its membership): no
 \* membership older than k is current any more (the PC may be replacing it).
 Voted(s, m, grant) == IF grant /\ m.src = PC /\ Fixed THEN Raised(s, Get(m, "k", 0)) ELSE s
