@@ -137,8 +137,15 @@ def _kind(node: str) -> str:
     return "other"
 
 
-def _streams(fi: int, recs: list[Rec]) -> dict[str, Stream]:
-    """The sending nodes of one file: their ids and the msgid ranges of their records."""
+def _start_epoch(node: str, label: str, epochs: dict[str, int] | None) -> int:
+    """A node's epoch before its first record: @p epochs' entry for its label (a PC restarted with
+    --epoch), else the epoch a Master core's name gives, else 1."""
+    return (epochs or {}).get(label, int(node.split(":")[2]) if _kind(node) == "core" else 1)
+
+
+def _streams(fi: int, recs: list[Rec], label, epochs: dict[str, int] | None) -> dict[str, Stream]:
+    """The sending nodes of one file: their ids and the msgid ranges of their records (@p label:
+    a node's label, for @p epochs)."""
     out: dict[str, Stream] = {}
     by_node: dict[str, list[Rec]] = {}
     for x in recs:
@@ -156,7 +163,7 @@ def _streams(fi: int, recs: list[Rec]) -> dict[str, Stream]:
             ids = set()
         s = Stream(fi, node, ids)
         prev = None
-        epoch = int(node.split(":")[2]) if kind == "core" else 1
+        epoch = _start_epoch(node, label(node), epochs)
         for x in mine:
             ch = x.r.get("changed", {})
             m = ch.get("msgid")
@@ -236,11 +243,11 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
         per_file.append([Rec(fi, k, str(r.get("node", "")), r) for k, r in enumerate(tf.records)])
     streams: list[Stream] = []
     for fi, recs in enumerate(per_file):
-        for node, s in _streams(fi, recs).items():
+        for node, s in _streams(fi, recs, lambda n: _label(files[fi], n), epochs).items():
             streams.append(s)
             lab = _label(files[fi], node)
             kind = _kind(node)
-            ep = (epochs or {}).get(lab, int(node.split(":")[2]) if kind == "core" else 1)
+            ep = _start_epoch(node, lab, epochs)
             sid = min(s.ids) if kind in ("pc", "core") else (min(s.ids) if s.ids else 0)
             if kind == "agent":
                 sid = tracecheck.temp_id_of([x.r for x in recs if x.node == node])

@@ -209,3 +209,16 @@ def test_a_command_sent_again_in_a_newer_epoch_is_received_after_that_send(tmp_p
     m = merged.merge([tmp_path])
     assert m.pairs == 1
     assert [(m.files[x.file].name, x.k) for x in m.order][-1] == ("a.ndjson", 0)   # after m.ndjson record 4
+
+
+def test_a_restarted_pc_s_re_sends_are_in_the_epoch_it_restarted_in(tmp_path):
+    # a PC restarted with --epoch 3 re-sends MASTER #10 before any record changes its epoch: the
+    # re-send is of epoch 3 (the stream's bookkeeping once started every PC at epoch 1).
+    pending = {"reg": [{"ann": 52260, "id": 5, "pending": True, "mid": 10}]}
+    write(tmp_path / "m.ndjson", [_rec("master", "MasterSync", "52260:0:7:1:A", dict(pending, msgid=11)),
+                                  _rec("master", "MasterSync", "52260:0:8:1:A", pending)])
+    recs = [merged.Rec(0, k, r["node"], r) for k, r in enumerate(json.loads(line) for line in
+                                                                 (tmp_path / "m.ndjson").read_text().splitlines())]
+    label = lambda n: f"m.ndjson:{n}"
+    assert [e for _, e, _ in merged._streams(0, recs, label, {"m.ndjson:master": 3})["master"].resends] == [3, 3]
+    assert [e for _, e, _ in merged._streams(0, recs, label, None)["master"].resends] == [1, 1]
