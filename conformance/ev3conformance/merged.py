@@ -43,7 +43,7 @@ FIRST_SPAN = 64      # a node's first sending record: the msgids it may have sen
 GLOBAL_VARS = ("id", "epoch", "leader", "following", "life", "via", "relays", "votedFor")
 TLOSS = tracecheck.DEFAULTS["TLoss"]   # the agents' heartbeat timeout (ms): ev3-agent's default
 TRACE_GLOBS = ("*.ndjson", "*.nd")
-_NONE_EM = {"t": "NONE", "src": 0, "e": 0}
+_NONE_EM = {"t": "NONE", "src": 0, "e": 0, "x": 0}
 _NONE_M = {"t": "NONE", "src": 0}
 
 
@@ -345,7 +345,7 @@ def _item(m: Merged, x: Rec, idx: dict[str, int]) -> dict:
         if d is not None:
             if (d.type_name or "") in tracecheck._EL_TYPES:
                 e, _inner, _members = tracecheck._el_msg(text)
-                em = {"t": e["t"], "src": e["src"], "e": e["e"]}
+                em = {"t": e["t"], "src": e["src"], "e": e["e"], "x": e["x"]}
             else:
                 bm = {"t": d.type_name or "?", "src": d.sender}
     ticks = r.get("args", {}).get("ticks", 0) if r.get("action") == "Tick" else 0

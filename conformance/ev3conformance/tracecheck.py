@@ -374,7 +374,8 @@ def jobs_default() -> int:
 
 MASTER_RECV = ["MasterSync", "MasterAnswer", "MasterPing", "MasterReport"]
 ELECTION_MASTER_ACTIONS = {"Heartbeat", "StartElection", "HandleVote", "BecomeMaster", "HandleElect",
-                           "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover", "Reconfigure"}
+                           "HandleHeartbeat", "HandleStale", "MasterRoute", "MasterHandover", "Reconfigure",
+                           "LearnMembers"}
 # TDrop has no default (the driver's and the program's differ); TResend 1 is the driver's.
 MASTER_DEFAULTS = {"TResend": 1, "MaxResends": 10, "Behaviours": ["wait"], "NextId": 2}
 
@@ -549,6 +550,9 @@ def _el_msg(text: str) -> tuple[dict, dict | None, list[int]]:
     if t in ("ROFFER", "RACCEPT"):
         d["x"] = _num(ps, 1)
     if t == "HB":
+        # the leader: a master's LEADER names its sender, a copy of a membership 0 (Election.tla
+        # reads no x of a LEADER: its copies are told apart by their receiver)
+        d["x"] = _num(ps, 1)
         members = [_num(ps, i) for i in range(2, len(ps))]
         d["mem"] = frozenset(x for x in members if 2 <= x <= 49999)
     if t == "CMD" and len(ps) > 1:

@@ -25,6 +25,15 @@ inline constexpr std::uint32_t kAutoScore = ~std::uint32_t{0};
 /// Most fleet members a membership holds (LEADER carries at most 30 besides epoch and leader).
 inline constexpr std::size_t kMaxMembership = kMaxParams - 2;
 
+/// LEADER @p m is a copy of a membership (leader 0: no master claimed) node @p me may learn: a
+/// peer's or the PC's to it (ShareMembers), or the PC's broadcast as it stands (Election Teach:
+/// one copy per agent in the spec). A master's LEADER names its sender as leader.
+inline bool membership_copy(const Message& m, std::uint16_t me) noexcept {
+  if (m.type != MsgType::LEADER || m.param_u16(1) != std::uint16_t{0}) return false;
+  if (m.receiver == me) return is_assigned_id(m.sender) || m.sender == kMasterId;
+  return m.receiver == kBroadcastId && m.sender == kMasterId;
+}
+
 /// What the firmware must keep on stable storage (Election's epoch and votedFor, and the
 /// membership the agent knows: members, mepoch, floor; issue 13): write it before sending the
 /// datagrams polled after the call that changed it.
@@ -282,13 +291,17 @@ class AgentElection {
     return leader == sender && following == e && e == epoch;
   }
   /// Election ElectGrant: not voted in the epoch yet (or for this candidate: its ELECT again,
-  /// docs/core.md deviation 2), the candidate is not stronger than us, and an agent candidate's
-  /// membership (of epoch @p k, ELECT's members_epoch) is not older than our floor.
+  /// docs/core.md deviation 2), the candidate is not stronger than us, an agent candidate's
+  /// membership (of epoch @p k, ELECT's members_epoch) is not older than our floor, and we know a
+  /// membership at least as new as the one the PC counts against (Knows: our floor never rises
+  /// above the list we know; issue 13).
   bool ElectGrant(std::uint16_t candidate, std::uint32_t e, std::uint32_t its_score, std::uint32_t my_score,
                   std::uint32_t k) const noexcept {
     return (e > epoch || voted_for == 0 || voted_for == candidate) && its_score <= my_score &&
-           (candidate == kMasterId || k >= floor);
+           (candidate == kMasterId ? Knows(k) : k >= floor);
   }
+  /// Election Knows(s, k): we know a membership at least as new as epoch @p k.
+  bool Knows(std::uint32_t k) const noexcept { return mepoch >= k; }
 
   // ------------------------------------------------------------ enabling conditions (XOk)
 
@@ -398,13 +411,12 @@ class AgentElection {
            m.sender != me.id && is_assigned_id(me.id) && me.state != State::IDLE && role != Role::master &&
            mepoch > m.param_u32(2).value_or(0);
   }
-  /// Election LearnMembersOk: a copy of a LEADER (leader 0: no master claimed) to us, of a newer
-  /// membership than ours.
+  /// Election LearnMembersOk: a copy of a LEADER (leader 0: no master claimed) of a newer
+  /// membership than ours: a peer's to us (ShareMembers), or the PC's broadcast as it stands (Teach:
+  /// Election.tla sends one copy per agent).
   bool LearnMembersOk(const Message& m, const Lifecycle& me) const noexcept {
     const auto e = m.param_u32(0);
-    const auto l = m.param_u16(1);
-    return ToMe(m, me) && me.state != State::IDLE && is_assigned_id(m.sender) && e && l && *l == 0 &&
-           *e > mepoch;
+    return is_assigned_id(me.id) && membership_copy(m, me.id) && me.state != State::IDLE && e && *e > mepoch;
   }
   /// Election HandleStaleOk: a newer epoch than ours.
   bool HandleStaleOk(const Message& m, const Lifecycle& me) const noexcept {

@@ -586,12 +586,15 @@ class Master {
     if (via == 0 && !copies_.first_time(m.sender, m.msgid)) return ignored(MasterIgnored::duplicate);
     if (cfg_.election) {
       if (m.sender == self_) return ignored(MasterIgnored::own_broadcast);
+      bool ruled = false;  // a rule takes this type (LEADER has two, whose guards exclude each other)
       for (const ElectionRule& r : kElectionRules) {
         if (r.type != m.type) continue;
-        if (!(this->*r.ok)(m)) return ignored(MasterIgnored::not_enabled);
+        ruled = true;
+        if (!(this->*r.ok)(m)) continue;
         (this->*r.run)(m, from);
         return taken(r.action);  // after HandleVote, BecomeMaster is a step of its own (take)
       }
+      if (ruled) return ignored(MasterIgnored::not_enabled);
       if (m.type == MsgType::RELAY) {
         // A relayed agent's datagram, forwarded unchanged inside RELAY(master, datagram).
         const auto target = m.param_u16(0);
@@ -875,12 +878,17 @@ class Master {
   /// of the epoch, fixed for the whole epoch (issue 13).
   void Heartbeat() {
     hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
-    std::vector<std::string> p{std::to_string(epoch_), std::to_string(self_)};
+    broadcast(MsgType::LEADER, leader_params(epoch_, self_));
+  }
+  /// LEADER's parameters: epoch @p e, leader @p leader (0 in a copy: no master claimed), and the
+  /// membership of the master's epoch.
+  std::vector<std::string> leader_params(std::uint32_t e, std::uint16_t leader) const {
+    std::vector<std::string> p{std::to_string(e), std::to_string(leader)};
     for (std::uint16_t id : members_) {
       if (p.size() == kMaxParams) break;
       p.push_back(std::to_string(id));
     }
-    broadcast(MsgType::LEADER, p);
+    return p;
   }
 
   /// StartElection is due at @p now (CANDIDATE).
@@ -889,10 +897,14 @@ class Master {
   }
   /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, epoch of its membership)
   /// broadcast (a voter's floor rises to it); again after the candidate timeout without a majority.
+  /// With a membership, a copy of it goes first (Election Teach): LEADER(mepoch, 0, members...)
+  /// broadcast, so a voter that missed the LEADERs of that epoch learns the list (LearnMembers)
+  /// and can grant (a voter grants the PC only if it knows a list at least as new: Knows).
   void StartElection() {
     ++epoch_;
     votes_.clear();
     cand_at_ = now_ + cfg_.timers[Timer::candidate];
+    if (self_ == kMasterId && !members_.empty()) broadcast(MsgType::LEADER, leader_params(mepoch_, 0));
     broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", std::to_string(mepoch_)});
   }
 
@@ -970,11 +982,13 @@ class Master {
     become_stepped_down();
   }
 
-  /// LEADER of an older epoch (while we have not stepped down: it is told), a newer one, or our own
-  /// epoch's other master while an elected agent that has not handed over yet.
+  /// A master's LEADER (it names its sender as leader: a copy, leader 0, claims no master and is
+  /// the agent core's, LearnMembers) of an older epoch (while we have not stepped down: it is
+  /// told), a newer one, or our own epoch's other master while an elected agent that has not
+  /// handed over yet.
   bool HandleHeartbeatOk(const Message& m) const {
     const auto e = m.param_u32(0);
-    if (!e) return false;
+    if (!e || m.param_u16(1) != m.sender) return false;
     if (*e < epoch_) return role_ != MasterRole::stepped_down;
     return *e > epoch_ || (role_ != MasterRole::master && self_ != kMasterId && !handed_over_);
   }
@@ -1004,6 +1018,18 @@ class Master {
     }
     become_stepped_down();
   }
+
+  /// A copy of a LEADER (leader 0: no master claimed; the PC's broadcast as it stands, or a peer's
+  /// to us) of an epoch newer than ours, to an elected agent's master that has not stepped down.
+  bool LearnMembersOk(const Message& m) const {
+    const auto e = m.param_u32(0);
+    return self_ != kMasterId && role_ != MasterRole::stepped_down && membership_copy(m, self_) && e &&
+           *e > epoch_;
+  }
+  /// Spec LearnMembers, the master node's part: Election's LearnMembersNext of a newer epoch is
+  /// HandleStale's rule (the node steps down; the list is its agent core's). No HANDOVER: a copy
+  /// names no master to hand the registry to.
+  void LearnMembers(const Message& m, Peer from) { HandleStale(m, from); }
 
   /// EPOCH_STALE to us naming a newer epoch.
   bool HandleStaleOk(const Message& m) const {
@@ -1091,6 +1117,7 @@ class Master {
       {MsgType::ELECT, Action::HandleElect, &Master::HandleElectOk, &Master::HandleElect},
       {MsgType::VOTE, Action::HandleVote, &Master::HandleVoteOk, &Master::HandleVote},
       {MsgType::LEADER, Action::HandleHeartbeat, &Master::HandleHeartbeatOk, &Master::HandleHeartbeat},
+      {MsgType::LEADER, Action::LearnMembers, &Master::LearnMembersOk, &Master::LearnMembers},
       {MsgType::EPOCH_STALE, Action::HandleStale, &Master::HandleStaleOk, &Master::HandleStale},
       {MsgType::RELAY_ROUTE, Action::MasterRoute, &Master::MasterRouteOk, &Master::MasterRoute},
       {MsgType::HANDOVER, Action::MasterHandover, &Master::MasterHandoverOk, &Master::MasterHandover},

@@ -85,6 +85,11 @@ Follow(a, s2, heard) ==
     IN IF heard THEN [b EXCEPT !.silence = 0] ELSE b
 \* RELAY's x: the relayed agent (the target, or the sender when it goes to the master).
 FwdMsg(m, s) == IF m.tgt = s.leader THEN [m EXCEPT !.x = m.src] ELSE [m EXCEPT !.x = m.tgt]
+\* A LEADER's x is the leader it names (Election.tla reads none): a master's names its sender; a
+\* copy of a membership names none (0).  The PC's broadcast copy as it stands is Election's copy to
+\* each agent (Teach): to agent me.
+Leads(m) == m.x = m.src
+CopyTo(m, me) == IF m.dst = E!NoNode /\ m.src = E!PC THEN [m EXCEPT !.dst = me] ELSE m
 \* The agent's Election step for record r from s (its id me, its score sv): the set of new local
 \* states, empty when the action is not enabled on the agent's own state.  A receive handler not
 \* enabled there must be a stutter (the core answering a copy again: a VOTE re-sent, a LEADER of
@@ -108,10 +113,12 @@ ElSteps(r, s, me, sv) ==
            {IF E!HandleElectOk(me, s, m, m.sc, sv) THEN E!HandleElectNext(me, s, m, m.sc, sv) ELSE s}
       [] r.a = "HandleVote" -> {IF E!HandleVoteOk(me, s, m) THEN E!HandleVoteNext(s, m) ELSE s}
       [] r.a = "HandleHeartbeat" ->
-           {IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(s, m) ELSE s}
+           IF ~Leads(m) THEN {}
+           ELSE {IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(s, m) ELSE s}
       [] r.a = "HandleStale" -> {IF E!HandleStaleOk(me, s, m) THEN E!HandleStaleNext(me, s, m) ELSE s}
       [] r.a = "ShareMembers" -> IfOk(E!ShareMembersOk(me, s, m), s)
-      [] r.a = "LearnMembers" -> IfOk(E!LearnMembersOk(me, s, m), E!LearnMembersNext(me, s, m))
+      [] r.a = "LearnMembers" ->
+           IfOk(m.x = E!NoNode /\ E!LearnMembersOk(me, s, CopyTo(m, me)), E!LearnMembersNext(me, s, CopyTo(m, me)))
       [] OTHER -> {}
 \* Following master c in epoch e after a MASTER (bare: the PC, epoch 1; inside EPOCH_CMD: its sender
 \* and epoch): Election's rule for hearing c's heartbeat; the lifecycle gives the state.

@@ -26,10 +26,13 @@
 (*     (state unchanged), a newer one is HandleStale's rule with the       *)
 (*     LEADER's epoch.  HandleElect: the PC ignores ELECT (Election has no *)
 (*     HandleElect of the PC).  Every datagram the core sends draws a      *)
-(*     msgid (LEADER, ELECT, EPOCH_STALE).                                 *)
+(*     msgid (LEADER, ELECT, EPOCH_STALE): the PC's StartElection two when *)
+(*     it has a membership (its copy first, Teach; Stood). HandleHeartbeat *)
+(*     takes a master's LEADER only (it names its sender: Leads).          *)
 (*   - An agent-master (Self # PC): its step-down is Election's rule of    *)
 (*     node Self (HandleElect, HandleHeartbeat: HANDOVER sent once,        *)
-(*     HandleStale); the trace's STEPPED_DOWN is any life but MASTER.      *)
+(*     HandleStale, LearnMembers of a copy of a newer epoch); the trace's  *)
+(*     STEPPED_DOWN is any life but MASTER.                                *)
 (*   - Time: Heartbeat and StartElection come from the core's deadlines    *)
 (*     like MasterTick (nothing of the registry due before their ms; at    *)
 (*     the same ms the heartbeat goes first).                              *)
@@ -95,6 +98,15 @@ Claimed(r, ms) == [reg |-> IF "reg" \in DOMAIN r.ch THEN r.ch.reg ELSE ms.reg,
                    msgid |-> [k \in {0} |-> IF "msgid" \in DOMAIN r.ch THEN r.ch.msgid ELSE ms.msgid[0]]]
 \* A datagram the election side sends (LEADER, ELECT, EPOCH_STALE) draws a msgid.
 Drawn(ms) == [ms EXCEPT !.msgid[0] = @ + 1]
+\* StartElection's datagrams: ELECT, and first the PC's copy of its membership when it has one
+\* (Election Teach: LEADER(mepoch, 0, members...) broadcast).  An older trace (WithMembers FALSE:
+\* the check's membership may not be the core's) may have drawn one or two.
+Stood(ms, mem) ==
+    IF Self # PC THEN {Drawn(ms)}
+    ELSE IF ~WithMembers THEN {Drawn(ms), Drawn(Drawn(ms))}
+    ELSE IF mem # {} THEN {Drawn(Drawn(ms))} ELSE {Drawn(ms)}
+\* A LEADER's x is the leader it names: a master's names its sender, a copy of a membership none.
+Leads(m) == m.x = m.src
 
 \* --- master-side extensions (not in MasterLogic; Election abstracts them) ---
 \* A member registered without MASTER (it follows our LEADER): synced, desired unknown.
@@ -187,7 +199,8 @@ Act(r, s, s0) ==
        \* Election's Heartbeat(n): life[n] = "MASTER"
        IF el.life = "MASTER" THEN ElTo(r, s, s0, Drawn(s0), el, mem, {}) ELSE {}
     ELSE IF r.a = "StartElection" THEN
-       IF EP!StartElectionOk(Self, el) THEN ElTo(r, s, s0, Drawn(s0), EP!StartElectionNext(Self, el), mem, {})
+       IF EP!StartElectionOk(Self, el)
+       THEN UNION {ElTo(r, s, s0, ms2, EP!StartElectionNext(Self, el), mem, {}) : ms2 \in Stood(s0, mem)}
        ELSE {}
     ELSE IF r.a = "HandleVote" THEN
        IF em.src \in mem /\ EP!HandleVoteOk(Self, el, em) THEN ElTo(r, s, s0, s0, EP!HandleVoteNext(el, em), mem, {})
@@ -212,7 +225,7 @@ Act(r, s, s0) ==
        ELSE {}
     ELSE IF r.a = "HandleHeartbeat" THEN
        LET stale == [em EXCEPT !.t = "STALE", !.dst = PC] IN
-       IF ~(em.t = "HB" /\ em.src # Self) THEN {}
+       IF ~(em.t = "HB" /\ em.src # Self /\ Leads(em)) THEN {}
        ELSE IF em.e < el.epoch THEN
           IF View(el.life) # "STEPPED_DOWN" THEN ElTo(r, s, s0, Drawn(s0), el, mem, {}) ELSE {}
        ELSE IF Self = PC THEN
@@ -222,6 +235,15 @@ Act(r, s, s0) ==
        \* Master core hands the registry over once (HANDOVER: a msgid)
        ELSE IF EP!HandleHeartbeatOk(Self, el, em)
        THEN ElTo(r, s, s0, IF s.handed THEN s0 ELSE Drawn(s0), EP!HandleHeartbeatNext(el, em), mem, {})
+       ELSE {}
+    ELSE IF r.a = "LearnMembers" THEN
+       \* an agent-master hears a copy of a membership (leader 0: the PC's broadcast as it stands, or
+       \* a peer's) of a newer epoch: Election's LearnMembers of node Self, whose rule for a newer
+       \* epoch is HandleStale's (its Master core steps down, no HANDOVER; the list is its agent core's)
+       LET stale == [em EXCEPT !.t = "STALE", !.dst = Self] IN
+       IF Self # PC /\ em.t = "HB" /\ em.x = 0 /\ em.dst \in {0, Self} /\ (em.dst = 0 => em.src = PC)
+          /\ View(el.life) # "STEPPED_DOWN" /\ EP!HandleStaleOk(Self, el, stale)
+       THEN ElTo(r, s, s0, s0, EP!HandleStaleNext(Self, el, stale), mem, {})
        ELSE {}
     ELSE IF r.a = "HandleElect" THEN
        \* an agent-master steps down on a newer ELECT (Election's HandleElect of node Self; the vote

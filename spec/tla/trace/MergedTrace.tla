@@ -42,7 +42,8 @@
 (*                                                                         *)
 (* A record: [n |-> its node, a |-> action, ch |-> the fields it changed   *)
 (* (some of id, epoch, leader, following, life, via, relays, votedFor),    *)
-(* em |-> [t, src, e] of an Election datagram (t "NONE": none), m |->      *)
+(* em |-> [t, src, e, x] of an Election datagram (t "NONE": none; x: a     *)
+(* LEADER's leader, 0 in a copy of a membership), m |->                    *)
 (* [t, src] of a bare datagram (t "NONE": none), cmd |-> ApplyCommand's    *)
 (* inner handler, g |-> the receive was paired with its send, sent |-> the *)
 (* record sent a datagram, ticks |-> time a Tick record let pass].         *)
@@ -86,10 +87,13 @@ CmdEpoch(r) == IF r.a = "ApplyCommand" THEN r.em.e ELSE 1
 Src(r) == IF r.em.t # "NONE" THEN r.em.src ELSE r.m.src
 
 \* Record r brought agent r.n (fields l2 after it) a genuine datagram of the master it follows,
-\* in the epoch it follows (a bare datagram carries none).
+\* in the epoch it follows (a bare datagram carries none).  A copy of a membership (LEADER with
+\* leader 0: the PC's as it stands) is not one: System's heard restarts on a master's LEADER
+\* (HandleHeartbeat, Refresh) or command, and Election's copies go to one agent each.
 FromMaster(r, l2) ==
     /\ r.g /\ l2.leader # 0 /\ Src(r) = l2.leader
     /\ r.em.t = "NONE" \/ r.em.e = l2.following
+    /\ ~(r.em.t = "HB" /\ r.em.x = 0)
 
 -----------------------------------------------------------------------------
 (* The run as System's state.                                              *)

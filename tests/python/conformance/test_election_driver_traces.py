@@ -89,3 +89,44 @@ def test_the_driver_refuses_a_damaged_membership(membership, said):
     cfg = {"type": "config", "election": {"enabled": True, "epoch": 3, **membership}}
     out = _drive([cfg])
     assert said in out[0].get("error", ""), out
+
+
+def _teach_trace(tmp_path: Path) -> Path:
+    """agent 7 follows the PC (list 7, 8, 9 of epoch 1); the PC's ELECT of epoch 3 counts against the
+    list of epoch 2, which 7 never heard: no vote (Election Knows); the PC's broadcast copy of that
+    list, LEADER(2, 0, 7, 8, 9, 10), teaches it (LearnMembers of Election's copy to 7: Teach); the
+    PC's ELECT of epoch 4 gets its vote."""
+    trace = tmp_path / "teach.ndjson"
+    cfg = {"type": "config", "timers": mutate.ELECTION_TIMERS, "behaviours": [{"name": "wait", "devices": 0}],
+           "temp_id": 50001, "election": {"enabled": True, "score": 5}}
+    rx = lambda text: {"type": "recv", "from": int(text.split("->")[0]),  # noqa: E731
+                       "text": mutate.datagram(text).decode("latin-1")}
+    inp = [cfg, {"type": "advance", "ms": 100}, rx("1->7 MASTER #20 50001"), rx("1->0 LEADER #21 1 1 7 8 9"),
+           rx("1->0 ELECT #25 3 0 2"), rx("1->0 LEADER #26 2 0 7 8 9 10"), rx("1->0 ELECT #27 4 0 2")]
+    p = subprocess.run([str(BIN / "ev3-agent"), "--driver", "--trace", str(trace)],
+                       input="\n".join(json.dumps(i) for i in inp) + "\n", text=True, capture_output=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    out = [json.loads(line) for line in p.stdout.splitlines()]
+    assert all("error" not in o for o in out), out
+    assert [s["text"] for s in out[-3]["sent"]] == []  # ELECT of epoch 3: no VOTE
+    assert any(":28:4:1" in s["text"] for s in out[-1]["sent"])  # VOTE(4, 1)
+    return trace
+
+
+def test_the_pc_teaches_its_membership_before_a_vote(tmp_path):
+    """The agent's trace of Knows and Teach conforms; the same trace with the copy broadcast by an
+    agent (Election has none: only the PC broadcasts its list) or with a vote for the PC's ELECT of
+    epoch 3 (a list the agent does not know) is rejected at that record."""
+    trace = _teach_trace(tmp_path)
+    recs = [json.loads(line) for line in trace.read_text().splitlines()]
+    assert [r["action"] for r in recs][-3:] == ["HandleElect", "LearnMembers", "HandleElect"]
+    r = tracecheck.validate(trace, mutate.ELECTION_CONSTS, workdir=tmp_path)
+    assert r.ok, r.message
+    n = len(recs)
+    for k, edit in ((n - 2, lambda x: x["args"].update(msg="9" + x["args"]["msg"][1:])),
+                    (n - 3, lambda x: x["changed"].update(votedFor=1))):
+        bad = json.loads(json.dumps(recs))
+        edit(bad[k])
+        trace.write_text("".join(json.dumps(x) + "\n" for x in bad))
+        r = tracecheck.validate(trace, mutate.ELECTION_CONSTS, workdir=tmp_path)
+        assert not r.ok and f"record {k + 1} of {n}" in r.message, r.message

@@ -242,22 +242,52 @@ def test_agent_master_heartbeat_after_stepping_down_is_rejected(tmp_path):
     rejected_at(check_agent_master(tmp_path, recs), len(recs), len(recs))
 
 
-def reconfigured(added: list[int]) -> list[dict]:
+def taught(recs: list[dict], first: int = 4101) -> list[dict]:
+    """@p recs (a PC's records, msgids from @p first) as a core since the PC stands with a copy of
+    its membership (Election Teach) writes them: each StartElection draws the copy's msgid before
+    ELECT's, so every msgid of the PC from then on is one higher per StartElection before it (the
+    next msgid, msgid_from, the entries' pending mid, and the ACK / NOT answering one)."""
+    stood = [r["changed"]["msgid"] - 1 for r in recs if r["action"] == "StartElection"]  # ELECT's old msgid
+
+    def new(m: int) -> int:
+        return m + sum(1 for x in stood if x <= m) if m >= first else m
+
+    out = copy.deepcopy(recs)
+    for r in out:
+        ch = r["changed"]
+        if "msgid" in ch:
+            ch["msgid"] = new(ch["msgid"] - 1) + 1
+        if "msgid_from" in r:
+            r["msgid_from"] = new(r["msgid_from"]) - (1 if r["action"] == "StartElection" else 0)
+        for e in ch.get("reg", []):
+            e["mid"] = new(e["mid"])
+        msg = r.get("args", {}).get("msg")
+        if msg:
+            f = msg.split(":")
+            if f[3] in ("3", "4") and f[1] == "1":  # ACK / NOT to the PC: its first param is our msgid
+                f[4] = str(new(int(f[4])))
+                r["args"]["msg"] = ":".join(f)
+    return out
+
+
+def reconfigured(added: list[int], teach: bool = True) -> list[dict]:
     """master2 as a core since issue 13 writes it (its BecomeMaster records the membership's epoch,
-    mepoch 3), then HANDOVER(2, 6, 5) from the agent-master of epoch 2: the PC wants 5 and 6 besides
-    its list 2, 3, 4, stands in epoch 4 (Reconfigure, StartElection), gets the votes of 2 and 3 and
-    publishes 2, 3, 4 and @p added (BecomeMaster)."""
-    recs = copy.deepcopy(records(2))
+    mepoch 3; each StartElection sends a copy of the membership first: taught), then HANDOVER(2, 6, 5)
+    from the agent-master of epoch 2: the PC wants 5 and 6 besides its list 2, 3, 4, stands in epoch 4
+    (Reconfigure, StartElection: the copy and ELECT), gets the votes of 2 and 3 and publishes 2, 3, 4
+    and @p added (BecomeMaster). Without @p teach its last StartElection sends ELECT alone (the core
+    before Teach)."""
+    recs = taught(records(2))
     recs[nth(recs, "BecomeMaster")]["changed"]["mepoch"] = 3
     now, mid = recs[-1]["now"], last_msgid(recs)
     extra = [
         {"action": "MasterHandover", "args": {"msg": "2:1:373755700:32:2:6:5"}, "changed": {}},
         {"action": "Reconfigure", "args": {}, "changed": {"life": "CANDIDATE"}},
-        {"action": "StartElection", "args": {}, "changed": {"msgid": mid + 1, "epoch": 4, "votes": []}},
+        {"action": "StartElection", "args": {}, "changed": {"msgid": mid + 1 + int(teach), "epoch": 4, "votes": []}},
         {"action": "HandleVote", "args": {"msg": "2:1:900637500:28:4:1"}, "changed": {"votes": [2]}},
         {"action": "HandleVote", "args": {"msg": "3:1:900637501:28:4:1"}, "changed": {"votes": [2, 3]}},
         {"action": "BecomeMaster", "args": {},
-         "changed": {"msgid": mid + 2, "life": "MASTER", "members": [2, 3, 4] + added, "mepoch": 4}},
+         "changed": {"msgid": mid + 2 + int(teach), "life": "MASTER", "members": [2, 3, 4] + added, "mepoch": 4}},
     ]
     return recs + [dict(r, node="master", now=now) for r in extra]
 
@@ -272,3 +302,11 @@ def test_reconfigure_publishes_the_lowest_wanted_id(tmp_path):
     for bad in ([6], []):
         recs = reconfigured(bad)
         rejected_at(check(tmp_path, 2, recs), len(recs), len(recs))
+
+
+def test_the_pc_stands_with_a_copy_of_its_membership(tmp_path):
+    """The PC with a membership stands with a copy of it, LEADER(mepoch, 0, members...), before its
+    ELECT (Election Teach): its StartElection draws two msgids (MasterElectionTrace Stood). A core
+    that sends ELECT alone is rejected at that StartElection."""
+    recs = reconfigured([5], teach=False)
+    rejected_at(check(tmp_path, 2, recs), nth(recs, "StartElection", -1) + 1, len(recs))
