@@ -388,8 +388,9 @@ StartElectionNext(n, s) ==
 \* The PC stands with a copy of its membership (LEADER(mepoch, 0, members),
 \* broadcast: here one copy per agent): a voter that missed the LEADERs of
 \* the PC's epoch learns the list (LearnMembers) and can grant (Knows).
+\* With BUG "VoteUnknown" (the rule before, see Knows) it sends none.
 Teach(n) ==
-    IF n = PC /\ Fixed /\ members[PC] # {}
+    IF n = PC /\ Fixed /\ BUG # "VoteUnknown" /\ members[PC] # {}
     THEN {MH(PC, a, mepoch[PC], NoNode, members[PC]) : a \in Agents}
     ELSE {}
 StartElection(n) ==
@@ -412,8 +413,9 @@ StartElection(n) ==
 \* one the PC counts its votes against (epoch k, ELECT's third parameter):
 \* so its floor never rises above the list it knows, and whoever voted for
 \* the PC can still stand if the PC dies before its next list reached anyone
-\* (issue 13).  With BUG "VoteUnknown" it grants without knowing it (the rule
-\* before: a vote raised the floor past any list the voter knew).  A record
+\* (issue 13).  With BUG "VoteUnknown" it grants without knowing it and the PC
+\* sends no copy of its list (Teach): the rule before, where a vote raised
+\* the floor past any list the voter knew.  A record
 \* without a membership (a single-agent trace of an older core) knows it.
 Knows(s, k) == BUG = "VoteUnknown" \/ ~("mepoch" \in DOMAIN s) \/ s.mepoch >= k
 ElectGrant(s, m, sc, sv) ==
@@ -797,6 +799,23 @@ StaleMasterFencedInv ==
 \* that never times out in WORKING fails it (FreezeOnLoss, MCElectionLive).
 MasterGoneLeavesWorkingProp ==
     \A a \in Agents : (life[a] = "WORKING" /\ ~HeartbeatOK(a)) ~> life[a] # "WORKING"
+
+\* A voter never raises its floor above the membership it knows (Knows): so
+\* whoever can vote can also stand (StartElectionOk needs mepoch >= floor)
+\* once the PC is gone.  VoteUnknown breaks it (election_member).
+FloorKnownInv == \A a \in Agents : floor[a] <= mepoch[a]
+
+\* The one case left in which the fleet waits for the PC: nobody knows a
+\* membership that lists an agent, and then the PC's own list has at most
+\* one agent: its first step, which needs no vote (BecomeMaster of a fresh
+\* PC).  Every later step needs the vote of a majority of the list before,
+\* and a voter knows that list (Knows), so it has a list to stand with.
+\* Holds from the start of a fresh fleet (Init); a model that starts with a
+\* longer list published but unknown (MCElectionLiveUnheard2.cfg: {2, 3} at
+\* epoch 1, Informed <- Unheard) starts outside it.  VoteUnknown breaks it
+\* (election_fresh).
+OnlyFirstStepUnknownInv ==
+    (\A a \in Agents : members[a] = {}) => Cardinality(members[PC]) <= 1
 
 \* Lifecycle rules kept by the abstraction: a WORKING agent is supervised
 \* (it follows a master in its current epoch); a master does not work.

@@ -8,6 +8,8 @@
 (*                        timeouts, no pre-vote: double votes (make spec)  *)
 (*   MCElectionMember.cfg 2 agents, one joining late, the PC changing the *)
 (*                        membership, then crashing (make spec, issue 13)  *)
+(*   MCElectionFresh.cfg  2 agents, a fresh fleet: the PC's first two      *)
+(*                        steps, heard or not (make spec, issue 13)        *)
 (*   MCElectionFull.cfg   3 agents, cuts, the PC master returning          *)
 (*                        (make spec-full)                                 *)
 (*   MCElectionRelay.cfg  2 agents, PC up, cuts PC-2 and PC-3, MaxMsgs 7:  *)
@@ -47,6 +49,15 @@ CutBound == NetBound /\ down \subseteq CutLinks
 VoteBound ==
     /\ NetBound
     /\ \A m \in net : m.t \notin {"ROFFER", "RACCEPT", "RDROP", "RELAY", "CMD"}
+
+\* State constraint of the fresh-fleet model (MCElectionFresh.cfg): only the election's own
+\* datagrams (ELECT, VOTE, LEADER and its copies, EPOCH_STALE): no RELAY_REQ, so no agent gets a
+\* pre-vote (PreVote = TRUE: nobody stands but the PC) and no peer shares its list.  What is left
+\* is the PC's reconfigurations and what each agent hears of them, in any order.  It only prunes
+\* behaviours, so a violation found under it is a violation of the unconstrained spec.
+FreshBound ==
+    /\ NetBound
+    /\ \A m \in net : m.t \in {"ELECT", "VOTE", "HB", "STALE"}
 
 \* The view of every model: the state without lastAction (the name of the step that
 \* led to it, kept for traces and the conformance replay).  No invariant reads it, so
