@@ -137,7 +137,12 @@ StandOK(n) ==
             Linked(a, n) => life[a] = "DOWN" \/ (life[a] \in Followers /\ HeartbeatOK(a))
        /\ life[n] = "CANDIDATE" => Stalled(n)
 
-Stand(n) == StartElection(n) /\ StandOK(n)
+\* The last epoch the PC stands in (a bound like MaxEpoch, cfg PCLastEpoch <- ..): a model
+\* whose PC competes with the agents for the last epochs bounds the PC's retries below the
+\* agents', so that a split of the PC's last election is not a split in the model's last epoch
+\* (nobody could stand again: a stop of the model, not of the protocol).
+PCLastEpoch == MaxEpoch
+Stand(n) == StartElection(n) /\ StandOK(n) /\ (n = PC => epoch[PC] < PCLastEpoch)
 
 \* Timeout as Election has it; the broken variant FreezeOnLoss (the name of the
 \* same broken rule in AgentLogic) never times out in WORKING: it must fail
@@ -207,6 +212,49 @@ LiveInit == Init /\ took = {} /\ dups = 0
 Unheard == {}
 UnheardNet == {MH(PC, NoNode, 1, NoNode, InitMembers)}
 PCDown == {PC}
+
+\* The PC is reconfiguring (issue 13: two reconfigurations in a row, the LEADER of the first lost or
+\* in flight; cfg Init <- ReconfInit): every agent knows the list of epoch 1 (Agents), the PC has
+\* won epoch 2 with the votes of both (their floor: 1) and published the list without the
+\* strongest agent (ReconfL2), whose LEADER is in flight or lost (ReconfNet); the dropped agent
+\* has synced again, so the PC wants it back (want = Agents, no change left) and is about to stand
+\* in epoch 3 to publish it (CANDIDATE: Reconfigure); it may die at any moment (MaxFaults).  The
+\* state TLC reaches from Init by DropMember, Reconfigure, StartElection, both HandleElect and
+\* HandleVote, BecomeMaster, AddMember and Reconfigure, but for the datagrams of epoch 2 that
+\* nothing can take any more (its ELECT and VOTEs, already counted; the PC's copies of the list of
+\* epoch 1, which every agent knows).  An agent that hears the LEADER of epoch 2 now follows the
+\* PC and times out, as one that heard it before the PC stood again.  The PC stands in no epoch
+\* after 3 (cfg PCLastEpoch <- ReconfPCLast), the agents up to 4 (MaxEpoch).
+ReconfPCLast == 3
+ReconfDropped == CHOOSE a \in Agents : \A b \in Agents : Score[b] <= Score[a]
+ReconfL2 == Agents \ {ReconfDropped}
+\* The LEADER of epoch 2 in flight (cfg ReconfNet <- ReconfLost: lost already, a loss that
+\* MaxLoss, the losses after the start, does not count).
+ReconfNet == {MH(PC, NoNode, 2, NoNode, ReconfL2)}
+ReconfLost == {}
+ReconfInit ==
+    /\ life = [n \in Nodes |-> IF n = PC THEN "CANDIDATE" ELSE "ACTIVE"]
+    /\ epoch = [n \in Nodes |-> 2]
+    /\ votedFor = [a \in Agents |-> PC]
+    /\ votes = [n \in Nodes |-> IF n = PC THEN Agents ELSE {}]
+    /\ leader = [a \in Agents |-> NoNode]
+    /\ following = [a \in Agents |-> 0]
+    /\ via = [a \in Agents |-> NoNode]
+    /\ relays = [a \in Agents |-> {}]
+    /\ offered = [a \in Agents |-> {}]
+    /\ prevotes = [a \in Agents |-> {}]
+    /\ net = ReconfNet
+    /\ down = {}
+    /\ faults = 0
+    /\ lost = 0
+    /\ elected = {<<1, PC>>, <<2, PC>>}
+    /\ applied = {}
+    /\ members = [n \in Nodes |-> IF n = PC THEN ReconfL2 ELSE Agents]
+    /\ mepoch = [n \in Nodes |-> IF n = PC THEN 2 ELSE 1]
+    /\ floor = [a \in Agents |-> 1]
+    /\ want = Agents
+    /\ changes = MaxChanges
+    /\ lastAction = <<"Init">>
 
 \* The view of the liveness models: MCElection's (the state without lastAction, which no
 \* property reads and no step depends on: two states that differ only in it have the same
