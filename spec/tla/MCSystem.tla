@@ -21,8 +21,13 @@ SysView == <<StateView, silence, heard, told, obeyed, hnet, handed>>
 SysViewNoCmd == <<StateView, silence, hnet, handed>>
 
 \* State constraint: at most MaxMsgs datagrams sent (delivery keeps them: duplication), and so
-\* at most as many HANDOVERs (one per elected agent that hears a newer LEADER).
-SysBound == Cardinality(net) <= MaxMsgs
+\* at most as many HANDOVERs (one per elected agent that hears a newer LEADER).  The copies of a
+\* list (a LEADER to one agent: the PC's with its ELECT, Election.tla Teach, a peer's on a
+\* RELAY_REQ) do not count: the PC's is one broadcast in the code, one datagram per agent here,
+\* and there are at most as many as agents per list (here one list: MaxChanges 0, every agent
+\* knows it), so the budget stays the one of the protocol's other datagrams.
+Copies == {m \in net : m.t = "HB" /\ m.dst # NoNode}
+SysBound == Cardinality(net \ Copies) <= MaxMsgs
 
 \* State constraint of the handover model: no relay traffic and no commands (RELAY_REQ stays:
 \* it is also the pre-vote), as MCElection's VoteBound.  It only prunes behaviours.
