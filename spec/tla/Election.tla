@@ -54,7 +54,6 @@ CONSTANTS
 PC == 1
 Nodes == {PC} \cup Agents
 NoNode == 0
-Quorum(S) == 2 * Cardinality(S) > Cardinality(Agents)
 \* A strict majority of membership L (issue 13): an empty membership has none.
 QuorumOf(S, L) == L # {} /\ 2 * Cardinality(S \cap L) > Cardinality(L)
 InitMembers == Agents \ Joiners
