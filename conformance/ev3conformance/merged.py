@@ -143,9 +143,9 @@ def _start_epoch(node: str, label: str, epochs: dict[str, int] | None) -> int:
     return (epochs or {}).get(label, int(node.split(":")[2]) if _kind(node) == "core" else 1)
 
 
-def _streams(fi: int, recs: list[Rec], label, epochs: dict[str, int] | None) -> dict[str, Stream]:
-    """The sending nodes of one file: their ids and the msgid ranges of their records (@p label:
-    a node's label, for @p epochs)."""
+def _streams(fi: int, recs: list[Rec], start) -> dict[str, Stream]:
+    """The sending nodes of one file: their ids and the msgid ranges of their records (@p start:
+    a node's epoch before its first record)."""
     out: dict[str, Stream] = {}
     by_node: dict[str, list[Rec]] = {}
     for x in recs:
@@ -163,7 +163,7 @@ def _streams(fi: int, recs: list[Rec], label, epochs: dict[str, int] | None) -> 
             ids = set()
         s = Stream(fi, node, ids)
         prev = None
-        epoch = _start_epoch(node, label(node), epochs)
+        epoch = start(node)
         for x in mine:
             ch = x.r.get("changed", {})
             m = ch.get("msgid")
@@ -243,7 +243,7 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
         per_file.append([Rec(fi, k, str(r.get("node", "")), r) for k, r in enumerate(tf.records)])
     streams: list[Stream] = []
     for fi, recs in enumerate(per_file):
-        for node, s in _streams(fi, recs, lambda n: _label(files[fi], n), epochs).items():
+        for node, s in _streams(fi, recs, lambda n: _start_epoch(n, _label(files[fi], n), epochs)).items():
             streams.append(s)
             lab = _label(files[fi], node)
             kind = _kind(node)

@@ -219,6 +219,6 @@ def test_a_restarted_pc_s_re_sends_are_in_the_epoch_it_restarted_in(tmp_path):
                                   _rec("master", "MasterSync", "52260:0:8:1:A", pending)])
     recs = [merged.Rec(0, k, r["node"], r) for k, r in enumerate(json.loads(line) for line in
                                                                  (tmp_path / "m.ndjson").read_text().splitlines())]
-    label = lambda n: f"m.ndjson:{n}"
-    assert [e for _, e, _ in merged._streams(0, recs, label, {"m.ndjson:master": 3})["master"].resends] == [3, 3]
-    assert [e for _, e, _ in merged._streams(0, recs, label, None)["master"].resends] == [1, 1]
+    start = lambda epochs: lambda n: merged._start_epoch(n, f"m.ndjson:{n}", epochs)
+    assert [e for _, e, _ in merged._streams(0, recs, start({"m.ndjson:master": 3}))["master"].resends] == [3, 3]
+    assert [e for _, e, _ in merged._streams(0, recs, start(None))["master"].resends] == [1, 1]
