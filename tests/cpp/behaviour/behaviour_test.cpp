@@ -277,6 +277,22 @@ TEST(Args, RandomAndFixedAngles) {
             "settle, seed)");
 }
 
+// An angle param whose unit only one end of its range carries: an argument without a unit keeps the
+// angle, and the compact form reads back to the same tables (found by fuzz_behaviour).
+TEST(Args, AnAngleArgumentSurvivesTheCompactForm) {
+  static Definition d, again;
+  Diagnostic g;
+  ASSERT_TRUE(parse("behaviour t\nparam angle = random 90..270deg\nstate s = turn $angle speed=100 -> end\n", d, g))
+      << bhvtest::diag_line(g);
+  for (const std::string_view a : {"angle=random 1..2", "angle=45"}) {
+    ASSERT_TRUE(apply_args(d, &a, 1, g)) << bhvtest::diag_line(g);
+    EXPECT_EQ(d.params[0].lo.dim, Dim::angle) << a;
+    const std::string text = bhvtest::with_text([&](Text& t) { compact(t, d); });
+    ASSERT_TRUE(parse(text, again, g)) << text << ": " << bhvtest::diag_line(g);
+    EXPECT_TRUE(equivalent(d, again)) << a << " -> " << text;
+  }
+}
+
 // ---- What the runtime reads ------------------------------------------------------------------------
 
 TEST(Runtime, ReactionsConditionsAndValues) {

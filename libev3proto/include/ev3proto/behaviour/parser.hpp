@@ -1169,6 +1169,12 @@ inline bool apply_args(Definition& def, const std::string_view* args, std::size_
     if (!same(q.lo.dim) || (q.random && !same(q.hi.dim)))
       return fail([&](Text& m) { m << key << " takes " << detail::describe(p.dim()) << ", not '" << val << "'"; });
     q.lo.dim = q.hi.dim = p.dim();
+    // A unitless number of an angle param ("angle=45" over `random 90..270deg`) is written back with
+    // its unit: a bare "45" would read back as a plain number (compact() must parse to the same tables).
+    if (p.dim() == Dim::angle) {
+      if (q.lo.unit == Unit::none) q.lo.unit = Unit::deg;
+      if (q.random && q.hi.unit == Unit::none) q.hi.unit = Unit::deg;
+    }
     if (key == "seed" && q.lo.value < 0) return fail([&](Text& m) { m << "seed is 0 or more"; });
     p = q;
   }
