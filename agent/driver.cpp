@@ -156,8 +156,35 @@ class Driver {
     s += ",\"controls\":" + controls;
     const Millis d = core_->next_deadline();
     s += ",\"deadline\":" + (d == AgentCore::kNever ? std::string("null") : std::to_string(d));
-    s += ",\"vars\":" + vars_json(core_->vars(), *core_) + "}";
-    return s;
+    s += ",\"vars\":" + vars_json(core_->vars(), *core_);
+    if (core_->vars().election) s += ",\"election\":" + election_json(*core_);
+    return s + "}";
+  }
+
+  /// The agent's Election.tla variables after the input (docs/driver.md "Output"): life (the
+  /// state, or CANDIDATE / MASTER by the election role), epoch, votedFor, votes, leader, following,
+  /// via, relays, offered, prevotes, members, mepoch, floor (0 = NoNode / none).
+  static std::string election_json(const AgentCore& c) {
+    auto ids = [](std::size_t n, auto at) {
+      std::string s = "[";
+      for (std::size_t i = 0; i < n; ++i) s += (i ? "," : "") + std::to_string(at(i));
+      return s + "]";
+    };
+    const ev3proto::Role r = c.role();
+    const std::string life = r == ev3proto::Role::master      ? "MASTER"
+                             : r == ev3proto::Role::candidate ? "CANDIDATE"
+                                                              : std::string(to_string(c.vars().state));
+    return "{\"life\":\"" + life + "\",\"epoch\":" + std::to_string(c.epoch()) +
+           ",\"votedFor\":" + std::to_string(c.durable().voted_for) +
+           ",\"votes\":" + ids(c.vote_count(), [&](std::size_t i) { return c.vote(i); }) +
+           ",\"leader\":" + std::to_string(c.leader()) + ",\"following\":" + std::to_string(c.following()) +
+           ",\"via\":" + std::to_string(c.via()) +
+           ",\"relays\":" + ids(c.relay_count(), [&](std::size_t i) { return c.relayed(i); }) +
+           ",\"offered\":" + ids(c.offered_count(), [&](std::size_t i) { return c.offered(i); }) +
+           ",\"prevotes\":" + ids(c.prevote_count(), [&](std::size_t i) { return c.prevote(i); }) +
+           ",\"members\":" + ids(c.member_count(), [&](std::size_t i) { return c.member(i); }) +
+           ",\"mepoch\":" + std::to_string(c.members_epoch()) + ",\"floor\":" + std::to_string(c.members_floor()) +
+           ",\"master_epoch\":" + std::to_string(c.master_epoch()) + "}";
   }
 
  private:

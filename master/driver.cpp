@@ -61,6 +61,22 @@ std::string vars_json(const Core& m) {
   return s + "]}";
 }
 
+std::string ids_json(const std::vector<std::uint16_t>& ids) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < ids.size(); ++i) s += (i ? "," : "") + std::to_string(ids[i]);
+  return s + "]";
+}
+
+/// The master node's Election.tla variables after the input: life (MASTER, CANDIDATE,
+/// STEPPED_DOWN), epoch, votes, members / mepoch (the membership of its epoch), want (members()),
+/// handed_over (HANDOVER sent), self (its id).
+std::string election_json(const Core& m) {
+  return "{\"life\":\"" + std::string(to_string(m.role())) + "\",\"self\":" + std::to_string(m.self_id()) +
+         ",\"epoch\":" + std::to_string(m.epoch()) + ",\"votes\":" + ids_json(m.votes()) +
+         ",\"members\":" + ids_json(m.published()) + ",\"mepoch\":" + std::to_string(m.published_epoch()) +
+         ",\"want\":" + ids_json(m.members()) + ",\"handed_over\":" + (m.handed_over() ? "true" : "false") + "}";
+}
+
 /// Trace sink: every spec action with its message and the variables after it.
 struct MasterSink {
   static constexpr bool enabled = true;
@@ -119,6 +135,7 @@ class Driver {
     c.max_resends = static_cast<std::uint32_t>(in["max_resends"].num(10));
     c.next_id = static_cast<std::uint16_t>(in["next_id"].num(ev3proto::kFirstAssignedId));
     c.next_msgid = static_cast<std::uint32_t>(in["next_msgid"].num(1));
+    if (!configure_election(in, c, err)) return false;
     const Millis now = static_cast<Millis>(in["now"].num(0));
     core_.emplace(c, now, &sink_);
     sink_.core = &*core_;
@@ -127,6 +144,50 @@ class Driver {
                  static_cast<unsigned long long>(c.timers[ev3proto::Timer::resend]),
                  static_cast<unsigned long long>(c.timers[ev3proto::Timer::drop]), c.max_resends,
                  static_cast<unsigned long long>(now));
+    return true;
+  }
+
+  /// config's "election" object (Election.tla's master node, docs/driver.md "Master driver"): the PC
+  /// (self_id 1: epoch, membership and candidate as ev3-master restores them from its state file) or an
+  /// elected agent's Master core (self_id > 1: MasterConfig::for_elected_agent, as node.hpp runs it).
+  /// timers.leader_heartbeat and timers.candidate are the election's periods.
+  static bool configure_election(const Json& in, ev3proto::MasterConfig& c, std::string& err) {
+    const Json& t = in["timers"];
+    if (t.has("leader_heartbeat"))
+      c.timers.set(ev3proto::Timer::leader_heartbeat, static_cast<Millis>(t["leader_heartbeat"].num(1)));
+    if (t.has("candidate")) c.timers.set(ev3proto::Timer::candidate, static_cast<Millis>(t["candidate"].num(1)));
+    const Json& el = in["election"];
+    if (!el["enabled"].boolean(false)) return true;
+    std::vector<std::uint16_t> members;
+    if (el.has("members")) {
+      if (el["members"].kind != Json::Kind::array) {
+        err = "election: members must be an array of agent ids";
+        return false;
+      }
+      for (const Json& m : el["members"].a) {
+        const long long id = m.num(0);
+        if (!ev3proto::is_assigned_id(static_cast<std::uint16_t>(id)) || id > 0xffff) {
+          err = "election: member " + std::to_string(id) + " is not an agent id";
+          return false;
+        }
+        members.push_back(static_cast<std::uint16_t>(id));
+      }
+    }
+    const auto epoch = static_cast<std::uint32_t>(el["epoch"].num(1));
+    const long long self = el["self_id"].num(ev3proto::kMasterId);
+    if (self != ev3proto::kMasterId) {
+      if (self > 0xffff || !ev3proto::is_assigned_id(static_cast<std::uint16_t>(self))) {
+        err = "election: self_id " + std::to_string(self) + " is neither 1 (the PC) nor an agent id";
+        return false;
+      }
+      c = ev3proto::MasterConfig::for_elected_agent(c.timers, static_cast<std::uint16_t>(self), epoch, members);
+      return true;
+    }
+    c.election = true;
+    c.epoch = epoch;
+    c.members = members;
+    c.members_epoch = static_cast<std::uint32_t>(el["members_epoch"].num(0));
+    c.candidate = el["candidate"].boolean(false);
     return true;
   }
 
@@ -200,8 +261,9 @@ class Driver {
     }
     const Millis d = core_->next_deadline();
     s += "],\"deadline\":" + (d == Core::kNever ? std::string("null") : std::to_string(d));
-    s += ",\"vars\":" + vars_json(*core_) + "}";
-    return s;
+    s += ",\"vars\":" + vars_json(*core_);
+    if (core_->election()) s += ",\"election\":" + election_json(*core_);
+    return s + "}";
   }
 
  private:

@@ -545,6 +545,10 @@ class Master {
   std::uint64_t members_rev() const noexcept { return members_rev_; }
   /// True once this (elected agent's) master handed its registry over (HANDOVER sent).
   bool handed_over() const noexcept { return handed_over_; }
+  /// Relay and election on (MasterConfig::election).
+  bool election() const noexcept { return cfg_.election; }
+  /// The votes counted as a candidate in this epoch (Election votes[n]).
+  std::vector<std::uint16_t> votes() const { return std::vector<std::uint16_t>(votes_.begin(), votes_.end()); }
 
  private:
   // ------------------------------------------------ receive: the spec's Handler(m)
