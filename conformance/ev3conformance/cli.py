@@ -11,9 +11,14 @@
                                                   replay every edge against the driver (docs/driver.md);
                                                   agent --sample N: one in N of the ignored/duplicate
                                                   datagram edges (and one of each class)
-    ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D]
+    ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D] [--election-num N]
+                                   [--election-depth D]
                                                   TLC -simulate traces of the fleet replayed against
-                                                  one master and one agent driver per agent
+                                                  one master and one agent driver per agent, then
+                                                  those of the whole system (System.tla: the PC's
+                                                  epochs, relay, pre-vote, election, HANDOVER) against
+                                                  the PC's, the agents' and the elected agents'
+                                                  Master cores' drivers (--election-num 0: none)
     ev3-conformance validate TRACE... [--heartbeat MS ...] [--score N --epoch E --voted-for V]
                                                   check NDJSON traces (--trace) against the spec with TLC;
                                                   an --election agent's against AgentLogic + Election
@@ -176,8 +181,26 @@ def _cmd_replay_fleet(args: argparse.Namespace) -> int:
         print(rep)
     print(f"seed {args.seed}, {args.num} traces of depth <= {args.depth} ({args.cfg})")
     print(f.summary())
-    print("replay: conforms" if not f.classes else "replay: FAIL")
-    return 1 if f.classes else 0
+    bad = bool(f.classes)
+    if args.election_num > 0:
+        from ev3conformance import system_replay
+        try:
+            e = system_replay.replay_simulation(args.seed, args.election_num, args.election_depth, agent, master,
+                                                args.election_cfg)
+        except driver.DriverError as x:
+            print(f"driver failed: {x}")
+            return 2
+        except RuntimeError as x:
+            print(x)
+            return 2
+        for (act, flds), (n, rep) in sorted(e.classes.items(), key=lambda kv: -kv[1][0]):
+            print(f"MISMATCH (election): {act} differs in [{', '.join(flds)}] in {n} traces; first one:")
+            print(rep)
+        print(f"seed {args.seed}, {args.election_num} traces of depth <= {args.election_depth} ({args.election_cfg})")
+        print(e.summary())
+        bad = bad or bool(e.classes)
+    print("replay: conforms" if not bad else "replay: FAIL")
+    return 1 if bad else 0
 
 
 def _cmd_replay(args: argparse.Namespace) -> int:
@@ -342,6 +365,13 @@ def _parser() -> argparse.ArgumentParser:
     rp.add_argument("--num", type=int, default=30, help="fleet: traces to simulate and replay (default 30)")
     rp.add_argument("--depth", type=int, default=300, help="fleet: states per trace (TLC -depth, default 300)")
     rp.add_argument("--cfg", default="MCFleetSim.cfg", help="fleet: the simulation's cfg (spec/tla/ or a path)")
+    rp.add_argument("--election-num", type=int, default=40,
+                    help="fleet: traces of the whole system (MCSystemSim: the election) to simulate and replay "
+                         "after the fleet's (default 40; 0: none)")
+    rp.add_argument("--election-depth", type=int, default=150,
+                    help="fleet: states per trace of the whole system (default 150)")
+    rp.add_argument("--election-cfg", default="MCSystemSim.cfg",
+                    help="fleet: the whole system's simulation cfg (spec/tla/ or a path)")
     rp.add_argument("--agent-driver", help="fleet: agent driver command line (default: --driver, else ev3-agent --driver)")
     rp.add_argument("--master-driver", help="fleet: master driver command line (default: ev3-master --driver)")
     rp.add_argument("--known", action="append", choices=["pending-resend"],
