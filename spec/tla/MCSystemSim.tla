@@ -25,6 +25,10 @@
 (* HandleElect ignores it only while the master's heartbeat gets through   *)
 (* (HeartbeatOK, an oracle of the environment).  The core grants fewer     *)
 (* votes than the spec allows, never more.                                 *)
+(* One step is added: IgnoreElect, an ELECT delivered to a voter that     *)
+(* voted for another candidate in its epoch, which changes nothing but     *)
+(* lastAction (System takes no step on it): the replay's probe of the      *)
+(* one-vote-per-epoch rule.                                                *)
 (* The models of manifest.json do not use this module.                     *)
 (***************************************************************************)
 EXTENDS MCSystem
@@ -68,5 +72,17 @@ Patience ==
               life[lastAction'[2]] # "MASTER" \/ lastAction'[3].src # PC
         /\ lastAction'[1] = "HandleStale" => lastAction'[2] = PC \/ life[lastAction'[2]] # "MASTER"
 
-SimNext == SysNext /\ Eager /\ CoreHears /\ Patience /\ UNCHANGED patient
+\* The one step added: voter v, which has voted in epoch m.e for another candidate, receives the
+\* ELECT m of that epoch.  HandleElectOk is false (one vote per epoch): System takes no step, no
+\* variable but lastAction changes (a stuttering step of System's state).  The replay delivers it,
+\* so that an implementation that grants a second vote (or takes any step) is caught.
+IgnoreElect(v, m) ==
+    /\ m.t = "ELECT" /\ m.src # v /\ life[v] # "DOWN" /\ Linked(m.src, v)
+    /\ m.e = epoch[v] /\ votedFor[v] \notin {NoNode, m.src}
+    /\ lastAction' = <<"IgnoreElect", v, m>>
+    /\ UNCHANGED <<evars, sysvars>>
+
+SimNext ==
+    /\ SysNext \/ \E m \in net, v \in Agents : IgnoreElect(v, m)
+    /\ Eager /\ CoreHears /\ Patience /\ UNCHANGED patient
 =============================================================================
