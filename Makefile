@@ -69,12 +69,16 @@ demo: build
 # one of each class and one in 8 of the rest: --sample 8; conformance-full replays them all),
 # every edge of MCMaster's against `ev3-master --driver`, and 40 seeded TLC -simulate traces of the
 # fleet (MCFleetSim: 3 agents, losses, duplicates, crashes) against one master and three agent
-# drivers talking to each other (docs/driver.md, docs/spec.md "Conformance"; the fleet ~25-60 s).
+# drivers talking to each other, then 40 of the whole system (MCSystemSim: the PC lost and back,
+# relay, pre-vote, elections, HANDOVER; --election-num, --election-depth) against the PC's, the
+# agents' and the elected agents' Master cores' drivers (docs/driver.md, docs/spec.md
+# "Conformance"; the fleet ~25-60 s, the election ~25-30 s more).
 AGENT_SAMPLE := 8
 conformance: build
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model agent --sample $(AGENT_SAMPLE)
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model master
-	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model fleet --seed 1 --num 40 --depth 300
+	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model fleet --seed 1 --num 40 --depth 300 \
+		--election-num 40 --election-depth 150
 
 # The same with every edge of MCAgent's graph replayed (not part of make test; ~3 min more).
 conformance-full:

@@ -223,6 +223,8 @@ class SystemFigures:
     pc_elected: int = 0        # BecomeMaster of the PC (after a crash), matched
     handovers: int = 0         # MasterHandover matched (the PC took an elected agent's HANDOVER)
     handed: int = 0            # HANDOVERs sent (steps that add to hnet), matched
+    late: int = 0              # deliveries of a datagram of an epoch older than the receiver's
+    again: int = 0             # deliveries of a datagram the receiver got before (duplicates)
     classes: dict = field(default_factory=dict)
 
     def summary(self) -> str:
@@ -232,6 +234,8 @@ class SystemFigures:
                  f"  steps not replayed (after a mismatch) {self.not_replayed}",
                  f"  agents elected {self.elected}, the PC elected again {self.pc_elected}, HANDOVERs sent "
                  f"{self.handed}, taken by the PC {self.handovers} (copies included)",
+                 f"  deliveries of an older epoch than the receiver's {self.late}, of a datagram delivered "
+                 f"before {self.again}",
                  f"  driver inputs {self.inputs}  clock wakes {self.wakes}  datagrams held back {self.held} "
                  f"(used later {self.held_used})  not modelled, not delivered: "
                  + (", ".join(f"{k} {n}" for k, n in sorted(self.dropped.items())) or "-"),
@@ -727,6 +731,7 @@ class SystemReplay:
         self.fig.steps += steps
         t = _Trace(self, idx, path, states)
         t.ahead_sent = {}
+        got_before = set()
         try:
             t.start()
             for k in range(1, len(states)):
@@ -735,6 +740,14 @@ class SystemReplay:
                 self.fig.matched += 1
                 self.fig.actions[step_key(states[k]["lastAction"])] += 1
                 self.fig.handed += len(set(states[k]["hnet"]) - set(states[k - 1]["hnet"]))
+                la = states[k]["lastAction"]
+                if len(la) > 2 and isinstance(la[2], dict) and "e" in la[2]:
+                    self.fig.late += la[2]["e"] < at(states[k - 1]["epoch"], la[1])
+                    self.fig.again += (la[1], la[2]) in got_before
+                    got_before.add((la[1], la[2]))
+                elif la[0] == "MasterHandover":
+                    self.fig.again += (PC, la[1]) in got_before
+                    got_before.add((PC, la[1]))
             return True
         except SystemMismatch as m:
             self.fig.mismatched_traces += 1
