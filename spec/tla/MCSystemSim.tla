@@ -13,8 +13,8 @@
 (* other, as the implementation does:                                      *)
 (*  - a candidate holding a quorum becomes master at its next step         *)
 (*    (the cores run BecomeMaster on the VOTE that completes the quorum);  *)
-(*  - the PC back from a crash stands at its next step (its core stands    *)
-(*    as it starts: MasterConfig::candidate);                              *)
+(*  - the PC back from a crash, or told of a newer epoch (EPOCH_STALE),    *)
+(*    stands at its next step (its core stands at once: become_candidate); *)
 (*  - ShareMembers(p, m) is taken after p answered m (OfferRelay or        *)
 (*    GrantPreVote), not before (the agent core shares its list on the     *)
 (*    same RELAY_REQ it answers, after the answer).                        *)
@@ -25,10 +25,9 @@
 (* HandleElect ignores it only while the master's heartbeat gets through   *)
 (* (HeartbeatOK, an oracle of the environment).  The core grants fewer     *)
 (* votes than the spec allows, never more.                                 *)
-(* One step is added: IgnoreElect, an ELECT delivered to a voter that     *)
-(* voted for another candidate in its epoch, which changes nothing but     *)
-(* lastAction (System takes no step on it): the replay's probe of the      *)
-(* one-vote-per-epoch rule.                                                *)
+(* One step is added: Ignore, a datagram delivered that no rule of System *)
+(* takes, which changes nothing but lastAction: the replay's probe of the  *)
+(* guards (one vote per epoch, copies counted once, older offers refused). *)
 (* The models of manifest.json do not use this module.                     *)
 (***************************************************************************)
 EXTENDS MCSystem
@@ -42,7 +41,8 @@ Ready(n) ==
 
 Eager ==
     /\ \A n \in Nodes : Ready(n) => lastAction'[1] = "BecomeMaster" /\ lastAction'[2] = n
-    /\ lastAction = <<"Restart", PC>> => lastAction'[1] = "StartElection" /\ lastAction'[2] = PC
+    /\ lastAction[1] \in {"Restart", "HandleStale"} /\ lastAction[2] = PC =>
+          lastAction'[1] = "StartElection" /\ lastAction'[2] = PC
     /\ lastAction'[1] = "ShareMembers" =>
           LET p == lastAction'[2]
               m == lastAction'[3]
@@ -62,8 +62,10 @@ CoreHears ==
 \* to a fleet an agent leads and takes it back: in those behaviours it crashes once, and an agent that is master
 \* hears the PC's LEADER before its ELECT or an EPOCH_STALE (else it steps down on those, and no
 \* HANDOVER is sent: MCSystemHandover's scenario).  It only filters System's behaviours.
-VARIABLE patient
-SimInit == SysInit /\ patient \in BOOLEAN
+VARIABLES
+    patient,  \* drawn at the start: see Patience
+    probed    \* history: the (node, datagram) pairs Ignore delivered (below)
+SimInit == SysInit /\ patient \in BOOLEAN /\ probed = {}
 Patience ==
     patient =>
         /\ lastAction'[1] = "Crash" => faults = 0
@@ -72,17 +74,42 @@ Patience ==
               life[lastAction'[2]] # "MASTER" \/ lastAction'[3].src # PC
         /\ lastAction'[1] = "HandleStale" => lastAction'[2] = PC \/ life[lastAction'[2]] # "MASTER"
 
-\* The one step added: voter v, which has voted in epoch m.e for another candidate, receives the
-\* ELECT m of that epoch.  HandleElectOk is false (one vote per epoch): System takes no step, no
-\* variable but lastAction changes (a stuttering step of System's state).  The replay delivers it,
-\* so that an implementation that grants a second vote (or takes any step) is caught.
-IgnoreElect(v, m) ==
-    /\ m.t = "ELECT" /\ m.src # v /\ life[v] # "DOWN" /\ Linked(m.src, v)
-    /\ m.e = epoch[v] /\ votedFor[v] \notin {NoNode, m.src}
-    /\ lastAction' = <<"IgnoreElect", v, m>>
+\* The one step added: node n receives datagram m and no rule takes it -- every receive rule's
+\* guard on n's own state (XOk) is false; their environment parts (a link, an answer not in
+\* flight yet: net is a set, so answering again changes nothing) are not asked -- under the
+\* agent core's rule for a peer's ELECT (CoreHears).  Nothing but lastAction changes (a
+\* stuttering step of System's state).  System's traces never deliver a datagram no rule takes;
+\* the replay delivers these so that an implementation that takes a step on one (a second vote,
+\* a copy counted again, an older offer taken, a pre-vote to a stronger asker) is caught.  The
+\* PC gets no LEADER here: System has no rule of the PC for one (docs/spec.md, the finding).
+\* The core also answers a repeated ELECT of the candidate it voted for in that epoch (its VOTE
+\* again: the same datagram, nothing changes), which HandleElect leaves out.
+ElectTaken(v, s, m) ==
+    /\ \/ HandleElectOk(v, s, m, Score[m.src], Score[v])
+       \/ m.t = "ELECT" /\ m.src # v /\ m.e = s.epoch /\ s.votedFor = m.src
+    /\ m.e < s.epoch \/ ~(s.life \in Followers /\ m.src # PC)
+Taken(n, m) ==
+    LET s == Loc(n) IN
+    \/ HandleVoteOk(n, s, m) \/ HandleStaleOk(n, s, m)
+    \/ n \in Agents /\ \/ OfferRelayOk(n, s, m) \/ AcceptRelayOk(n, s, m) \/ HandleAcceptOk(n, s, m)
+                       \/ RelayDroppedOk(n, s, m) \/ GrantPreVoteOk(n, s, m, Score[m.src], Score[n])
+                       \/ HandlePreVoteOk(n, s, m) \/ ElectTaken(n, s, m) \/ ShareMembersOk(n, s, m)
+                       \/ LearnMembersOk(n, s, m) \/ HandleHeartbeatOk(n, s, m) \/ RefreshOk(s, m)
+\* Each (node, datagram) is probed once, and never two probes in a row (history variable probed):
+\* the probes are many (every datagram in flight at every node), so that without these a random
+\* walk spends most of its steps on them.
+Ignore(n, m) ==
+    /\ <<n, m>> \notin probed /\ lastAction[1] # "Ignore"
+    /\ probed' = probed \cup {<<n, m>>}
+    /\ m.src # n /\ m.dst \in {NoNode, n} /\ life[n] # "DOWN" /\ Linked(m.src, n)
+    /\ m.t \in {"ELECT", "VOTE", "HB", "STALE", "RREQ", "ROFFER", "RACCEPT", "RDROP", "PREOK"}
+    /\ n = PC => m.t # "HB"
+    /\ ~Taken(n, m)
+    /\ lastAction' = <<"Ignore", n, m>>
     /\ UNCHANGED <<evars, sysvars>>
 
 SimNext ==
-    /\ SysNext \/ \E m \in net, v \in Agents : IgnoreElect(v, m)
+    /\ \/ SysNext /\ UNCHANGED probed
+       \/ \E m \in net, n \in Nodes : Ignore(n, m)
     /\ Eager /\ CoreHears /\ Patience /\ UNCHANGED patient
 =============================================================================

@@ -44,18 +44,19 @@ def test_election_traces_conform(traces):
     # The traces exercise the election, not only ticks: the PC lost and back, pre-votes, candidacies,
     # votes (and votes refused), agents and the PC elected, relays, HANDOVER sent and taken.
     for name in ("Crash", "Restart", "GrantPreVote", "HandlePreVote", "StartElection", "HandleElect",
-                 "HandleVote", "IgnoreElect", "BecomeMaster", "OfferRelay", "AcceptRelay", "HandleAccept",
+                 "HandleVote", "Ignore", "BecomeMaster", "OfferRelay", "AcceptRelay", "HandleAccept",
                  "ShareMembers", "MasterHandover", "Lose", "Timeout", "Tick", "Refresh"):
         assert f.actions[name] > 0, name
         assert f.actions[name] == _count(traces, name)
     assert f.elected > 0 and f.pc_elected > 0 and f.handed > 0 and f.handovers > 0
     # late datagrams: a datagram of an older epoch delivered (answered EPOCH_STALE)
-    assert any(s["lastAction"][0] == "HandleElect" and s["lastAction"][2]["e"] < t[k - 1]["epoch"][s["lastAction"][1] - 1]
+    assert any(s["lastAction"][0] == "HandleElect" and s["lastAction"][2]["e"] < sr.at(t[k - 1]["epoch"], s["lastAction"][1])
                for t in traces for k, s in enumerate(t) if k)
+    assert f.late > 0 and f.again > 0
 
 
 @pytest.mark.parametrize("fault, action, fields", [
-    ("double-vote", "IgnoreElect", ("emitted",)),
+    ("double-vote", "Ignore", ("emitted",)),
     ("ignore-epoch", "HandleElect", ("emitted",)),
 ])
 def test_a_broken_agent_is_caught(traces, fault, action, fields):
