@@ -6,9 +6,14 @@ elected master of an epoch, one `ev3-master --driver` for the Master core it run
 node.hpp runs it: MasterConfig::for_elected_agent), the drivers talking to each other.
 
 The traces come from MCSystemSim.tla (spec/tla/): System's SysNext, each step named by System's own
-`lastAction` (no wrapper variable), filtered where the cores take two of the spec's steps on one
-input (a candidate with a quorum becomes master at once, the PC back from a crash stands at once,
-a peer shares its membership after it answered the RELAY_REQ): a subset of System's behaviours.
+`lastAction` (no wrapper variable for the names), filtered where the cores take two of the spec's
+steps on one input (a candidate with a quorum becomes master at once, the PC back from a crash or
+told of a newer epoch stands at once, a peer shares its membership after it answered the
+RELAY_REQ), to the agent core's rule for a peer's ELECT at a follower (docs/spec.md, the finding),
+and per behaviour to a PC that stays down until an agent leads (so that it takes the fleet back:
+HANDOVER): a subset of System's behaviours. One step is added, Ignore(n, m): a datagram no receive
+rule takes, delivered; it changes none of System's variables (the probe of the guards: a second
+vote, a copy counted again, an older offer taken would show on it).
 The spec decides what happens: which datagram is delivered (again, late), lost, which timer fires,
 when the PC crashes and comes back. The implementations produce the datagrams: a delivery is a
 `recv` on the receiver's driver of the bytes the SENDER's driver emitted for that spec datagram
