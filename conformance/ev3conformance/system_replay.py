@@ -28,7 +28,9 @@ Mapping of the spec's steps (lastAction of the target state):
     Refresh, HandleHeartbeat, HandleElect, HandleVote, HandleStale, OfferRelay, AcceptRelay,
     HandleAccept, RelayDropped, GrantPreVote, HandlePreVote, LearnMembers, ShareMembers,
     MasterHandover            `recv` of the datagram's bytes on the receiver (the PC's driver for
-                              node 1, else the agent's driver and its Master core's, if one runs)
+                              node 1, else the agent's driver and its Master core's, if one runs);
+                              Refresh: the core takes the LEADER as HandleHeartbeat or as no action
+                              (its timer restarts either way: silence is compared)
     RequestRelay(a), StartElection(n), Heartbeat(n)
                               the timer the core has for it: the node's clock is advanced to its
                               next deadline until the core takes that action (at most MAX_WAKES
