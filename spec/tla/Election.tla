@@ -128,6 +128,10 @@ Drops(a) == {M("RDROP", a, r, epoch[a], NoNode) : r \in relays[a]}
 \* received stays: it may arrive again, unbounded duplication).  The liveness
 \* models override it (cfg: Received <- LiveReceived, MCElectionLive.tla).
 Received(m, N) == N
+\* A datagram x may be sent: no copy of it is in flight (a set holds one: sending it again would
+\* merge with that copy).  The liveness models override it (cfg: NotInFlight <- LiveNotInFlight,
+\* MCElectionLive.tla): a copy in flight that can never take effect again does not count.
+NotInFlight(x) == x \notin net
 
 -----------------------------------------------------------------------------
 (* One node's own variables as a record (its "local state"), and the      *)
@@ -262,7 +266,7 @@ Timeout(a) ==
 RequestRelayOk(s) == s.life \in {"PANIC", "CANDIDATE"}
 RequestRelay(a) ==
     /\ RequestRelayOk(Loc(a))
-    /\ MK("RREQ", a, NoNode, epoch[a], mepoch[a]) \notin net
+    /\ NotInFlight(MK("RREQ", a, NoNode, epoch[a], mepoch[a]))
     /\ net' = net \cup {MK("RREQ", a, NoNode, epoch[a], mepoch[a])}
     /\ lastAction' = <<"RequestRelay", a>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
@@ -279,7 +283,7 @@ OfferRelayOk(p, s, m) ==
 OfferRelayNext(s, m) == [s EXCEPT !.offered = @ \cup {m.src}]
 OfferRelay(p, m) ==
     /\ OfferRelayOk(p, Loc(p), m) /\ Linked(m.src, p)
-    /\ M("ROFFER", p, m.src, epoch[p], leader[p]) \notin net
+    /\ NotInFlight(M("ROFFER", p, m.src, epoch[p], leader[p]))
     /\ net' = Received(m, net) \cup {M("ROFFER", p, m.src, epoch[p], leader[p])}
     /\ SetLoc(p, OfferRelayNext(Loc(p), m))
     /\ lastAction' = <<"OfferRelay", p, m>>
@@ -347,7 +351,7 @@ GrantPreVoteOk(v, s, m, sa, sv) ==
     /\ m.e >= s.epoch /\ sa <= sv
 GrantPreVote(v, m) ==
     /\ GrantPreVoteOk(v, Loc(v), m, Score[m.src], Score[v]) /\ Linked(m.src, v)
-    /\ M("PREOK", v, m.src, m.e, NoNode) \notin net
+    /\ NotInFlight(M("PREOK", v, m.src, m.e, NoNode))
     /\ net' = Received(m, net) \cup {M("PREOK", v, m.src, m.e, NoNode)}
     /\ lastAction' = <<"GrantPreVote", v, m>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
@@ -444,7 +448,7 @@ HandleElect(v, m) ==
     IN
     /\ HandleElectOk(v, Loc(v), m, sc, Score[v]) /\ Linked(c, v)
     /\ IF m.e < epoch[v]
-       THEN /\ M("STALE", v, c, epoch[v], NoNode) \notin net
+       THEN /\ NotInFlight(M("STALE", v, c, epoch[v], NoNode))
             /\ net' = Received(m, net) \cup {M("STALE", v, c, epoch[v], NoNode)}
        ELSE /\ ~(life[v] \in Followers /\ HeartbeatOK(v) /\ c # PC)
             /\ net' = Received(m, net) \cup (IF m.e > epoch[v] THEN Drops(v) ELSE {})
@@ -503,7 +507,7 @@ BecomeMaster(n) ==
 \* A master re-sends its heartbeat (LEADER) when the last one was lost.
 Heartbeat(n) ==
     /\ life[n] = "MASTER"
-    /\ MH(n, NoNode, epoch[n], NoNode, members[n]) \notin net
+    /\ NotInFlight(MH(n, NoNode, epoch[n], NoNode, members[n]))
     /\ net' = net \cup {MH(n, NoNode, epoch[n], NoNode, members[n])}
     /\ lastAction' = <<"Heartbeat", n>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
@@ -536,7 +540,7 @@ HandleHeartbeatNext(s, m) ==
 HandleHeartbeat(v, m) ==
     /\ HandleHeartbeatOk(v, Loc(v), m) /\ Linked(m.src, v)
     /\ IF Stale(Loc(v), m)
-       THEN /\ M("STALE", v, m.src, epoch[v], NoNode) \notin net
+       THEN /\ NotInFlight(M("STALE", v, m.src, epoch[v], NoNode))
             /\ net' = Received(m, net) \cup {M("STALE", v, m.src, epoch[v], NoNode)}
        ELSE net' = Received(m, net) \cup (IF MasterChange(Loc(v), m) THEN Drops(v) ELSE {})
     /\ SetLoc(v, HandleHeartbeatNext(Loc(v), m))
@@ -582,7 +586,7 @@ ShareMembersOk(p, s, m) ==
     /\ Get(s, "mepoch", 0) > m.k
 ShareMembers(p, m) ==
     /\ ShareMembersOk(p, Loc(p), m) /\ Linked(m.src, p)
-    /\ MH(p, m.src, mepoch[p], NoNode, members[p]) \notin net
+    /\ NotInFlight(MH(p, m.src, mepoch[p], NoNode, members[p]))
     /\ net' = net \cup {MH(p, m.src, mepoch[p], NoNode, members[p])}
     /\ lastAction' = <<"ShareMembers", p, m>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
@@ -642,11 +646,11 @@ Reconfigure ==
 \* RELAY (the whole inner datagram travels on).
 SendCommand(s, a) ==
     /\ life[s] = "MASTER"
-    /\ \/ /\ M("CMD", s, a, epoch[s], NoNode) \notin net
+    /\ \/ /\ NotInFlight(M("CMD", s, a, epoch[s], NoNode))
           /\ net' = net \cup {M("CMD", s, a, epoch[s], NoNode)}
        \/ \E p \in Agents :
             /\ a \in relays[p] /\ leader[p] = s /\ following[p] = epoch[s]
-            /\ M("RELAY", s, p, epoch[s], a) \notin net
+            /\ NotInFlight(M("RELAY", s, p, epoch[s], a))
             /\ net' = net \cup {M("RELAY", s, p, epoch[s], a)}
     /\ lastAction' = <<"SendCommand", s, a>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
@@ -657,7 +661,7 @@ SendCommand(s, a) ==
 ForwardOk(p, s, m) == m.t = "RELAY" /\ m.dst = p /\ s.life \in Followers /\ m.x \in s.relays
 Forward(p, m) ==
     /\ ForwardOk(p, Loc(p), m) /\ Linked(m.src, p)
-    /\ M("CMD", m.src, m.x, m.e, p) \notin net
+    /\ NotInFlight(M("CMD", m.src, m.x, m.e, p))
     /\ net' = Received(m, net) \cup {M("CMD", m.src, m.x, m.e, p)}
     /\ lastAction' = <<"Forward", p, m>>
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,

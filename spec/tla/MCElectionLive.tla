@@ -126,7 +126,7 @@ Weaker(n) == {a \in Agents : Score[a] < Score[n]}
 \* Nothing can still bring candidate n a vote or make it master.
 Stalled(n) ==
     /\ ~ENABLED BecomeMaster(n)
-    /\ ~ENABLED (\E m \in net : m.t = "VOTE" /\ Take(n, m) /\ HandleVote(n, m))
+    /\ ~ENABLED (\E m \in net : m.t = "VOTE" /\ m.dst = n /\ Take(n, m) /\ HandleVote(n, m))
     /\ ~\E m \in net : m.t = "ELECT" /\ m.src = n /\ m.e = epoch[n]
                        /\ \E v \in Agents : ENABLED (Take(v, m) /\ HandleElect(v, m))
 
@@ -151,6 +151,7 @@ LiveTimeout(a) == Timeout(a) /\ (BUG = "FreezeOnLoss" => life[a] # "WORKING")
 
 \* Agent a receives its copy of m and the handler of its kind takes it.
 Deliver(a, m) ==
+    /\ m.dst \in {a, NoNode}   \* first: every handler needs it (so Take is not tried in vain)
     /\ Take(a, m)
     /\ \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
        \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
@@ -186,20 +187,20 @@ LiveNext ==
 Fairness ==
     /\ \A a \in Agents :
          /\ WF_lvars(Only(LiveTimeout(a))) /\ WF_lvars(LiveRequestRelay(a))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ OfferRelay(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ AcceptRelay(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandleAccept(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ RelayDropped(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ GrantPreVote(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandlePreVote(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandleElect(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ HandleHeartbeat(a, m))
-         /\ WF_lvars(\E m \in net : Share(a, m))
-         /\ WF_lvars(\E m \in net : Take(a, m) /\ LearnMembers(a, m))
+         /\ WF_lvars(\E m \in net : m.t = "RREQ" /\ Take(a, m) /\ OfferRelay(a, m))
+         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ AcceptRelay(a, m))
+         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ HandleAccept(a, m))
+         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ RelayDropped(a, m))
+         /\ WF_lvars(\E m \in net : m.t = "RREQ" /\ Take(a, m) /\ GrantPreVote(a, m))
+         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ HandlePreVote(a, m))
+         /\ WF_lvars(\E m \in net : m.t = "ELECT" /\ Take(a, m) /\ HandleElect(a, m))
+         /\ WF_lvars(\E m \in net : m.t = "HB" /\ Take(a, m) /\ HandleHeartbeat(a, m))
+         /\ WF_lvars(\E m \in net : m.t = "RREQ" /\ Share(a, m))
+         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ LearnMembers(a, m))
     /\ \A n \in Nodes :
          /\ WF_lvars(Only(Stand(n))) /\ WF_lvars(Only(BecomeMaster(n))) /\ WF_lvars(LiveHeartbeat(n))
-         /\ WF_lvars(\E m \in net : m.t = "VOTE" /\ Take(n, m) /\ HandleVote(n, m))
-         /\ WF_lvars(\E m \in net : m.t = "STALE" /\ Take(n, m) /\ HandleStale(n, m))
+         /\ WF_lvars(\E m \in net : m.t = "VOTE" /\ m.dst = n /\ Take(n, m) /\ HandleVote(n, m))
+         /\ WF_lvars(\E m \in net : m.t = "STALE" /\ m.dst = n /\ Take(n, m) /\ HandleStale(n, m))
     /\ WF_lvars(Only(Reconfigure))
 
 LiveInit == Init /\ took = {} /\ dups = 0
@@ -256,10 +257,73 @@ ReconfInit ==
     /\ changes = MaxChanges
     /\ lastAction = <<"Init">>
 
+(* Datagrams that can never take effect again (issue 13: the network of   *)
+(* the consuming models explodes with them).  A unicast datagram m is dead *)
+(* when the guard of every handler of it at its addressee r is false now  *)
+(* and can never be true again: it reads only quantities that never       *)
+(* decrease (epoch, mepoch: no step lowers them, a crash keeps them) or a  *)
+(* crash for good (the PC down with PCReturns = FALSE).                    *)
+(*   VOTE      HandleVoteOk needs m.e = epoch[r]                           *)
+(*   PREOK     HandlePreVoteOk needs m.e = epoch[r]                        *)
+(*   ROFFER    AcceptRelayOk needs m.e >= epoch[r]                         *)
+(*   RACCEPT   HandleAcceptOk needs following[r] = m.e, and following # 0  *)
+(*             is always epoch (FollowersAgreeInv: it is set with epoch   *)
+(*             and cleared whenever epoch grows)                           *)
+(*   STALE     HandleStaleOk needs m.e > epoch[r]                          *)
+(*   LEADER copy (dst r) LearnMembersOk needs m.e > mepoch[r]              *)
+(*   any, to the PC down for good: every handler needs it up               *)
+(* Not RDROP (RelayDroppedOk reads via, which comes back), nor broadcasts  *)
+(* (a LEADER or ELECT of an old epoch is answered with EPOCH_STALE), nor   *)
+(* commands (the work model is small).  A dead datagram is never enabled, *)
+(* never consumed (its handler never runs), never duplicated (Take goes    *)
+(* with a handler); Stalled reads ENABLED of handlers only.  What else     *)
+(* reads net: the send guards, which read NotInFlight (here:               *)
+(* LiveNotInFlight: a dead copy in flight does not hold back a send of the *)
+(* same datagram, which merges with it: the step is the same whether the   *)
+(* dead copy is there or not, but for dead copies), and Lose (a loss of a  *)
+(* dead datagram only uses up the loss budget, and a state with less      *)
+(* budget left has fewer behaviours; no fairness reads lost).  So two      *)
+(* states that differ only in dead datagrams have the same steps, to      *)
+(* states that differ only in dead datagrams, with the same fairness and   *)
+(* properties: LiveView leaves them out, and TLC explores one of them.     *)
+(* TLC checks the two facts the argument rests on, in the models that set *)
+(* LiveInvariants: DeadInertInv (no handler of a dead datagram is enabled) *)
+(* and DeadStaysDeadProp (a dead datagram stays dead).                     *)
+PCGone == life[PC] = "DOWN" /\ ~PCReturns
+\* Master x of epoch e is gone and r, not following it directly now, never will again: x is not
+\* master in e and never will be (BecomeMaster needs epoch > mepoch, and mepoch[x] >= e), so no
+\* LEADER of x in e is sent any more, and r has no copy of one still to take (r follows x in e
+\* directly only from such a copy: HandleHeartbeat; AcceptRelay sets a relay).
+LedNoMore(x, e, r) ==
+    /\ mepoch[x] >= e /\ ~(life[x] = "MASTER" /\ epoch[x] = e)
+    /\ ~(life[r] \in Followers /\ leader[r] = x /\ following[r] = e /\ via[r] = NoNode)
+    /\ ~\E m \in net : m.t = "HB" /\ m.dst = NoNode /\ m.src = x /\ m.e = e /\ <<m, r>> \notin took
+DeadFor(m, r) ==
+    \/ r = PC /\ PCGone
+    \/ m.t \in {"VOTE", "PREOK", "ROFFER", "RACCEPT"} /\ m.e < epoch[r]
+    \/ m.t = "RACCEPT" /\ LedNoMore(m.x, m.e, r)
+    \/ m.t = "STALE" /\ m.e <= epoch[r]
+    \/ m.t = "HB" /\ m.e <= mepoch[r]
+Dead(m) == m.dst # NoNode /\ DeadFor(m, m.dst)
+LiveNotInFlight(x) == x \notin net \/ Dead(x)
+LiveNet == {m \in net : ~Dead(m)}
+
+\* The checks of the argument above.  Every handler a dead datagram could have.
+Handles(r, m) ==
+    \/ Take(r, m) /\ (HandleVote(r, m) \/ HandleStale(r, m))
+    \/ r \in Agents /\ (Deliver(r, m) \/ Share(r, m))
+DeadInertInv == \A m \in net : Dead(m) => ~ENABLED Handles(m.dst, m)
+DeadStaysDeadProp == [][\A m \in net : Dead(m) => (m \in net' => Dead(m)')]_lvars
+
 \* The view of the liveness models: MCElection's (the state without lastAction, which no
 \* property reads and no step depends on: two states that differ only in it have the same
 \* successors) with the copies taken and the duplicates.
-LiveView == <<StateView, took, dups>>
+\* With consuming delivery (cfg NotInFlight <- LiveNotInFlight) the dead datagrams are left out
+\* (LiveNet, above); FullView keeps them (the check of the reduction).
+LiveView == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
+              members, mepoch, floor, want, changes,
+              LiveNet, down, faults, lost, elected, applied, took, dups>>
+FullView == <<StateView, took, dups>>
 LiveSpec == LiveInit /\ [][LiveNext]_lvars /\ Fairness
 
 \* A master exists and every agent that is up follows it, for ever after
