@@ -35,14 +35,17 @@
 (* sender and msgid), so Duplicate keeps none; a command a master sends   *)
 (* again is a new datagram.  Safety with unbounded duplication is checked *)
 (* by the other models (Election's Received keeps every datagram).        *)
+(* Every cfg of this module sets Received <- LiveReceived and             *)
+(* NotInFlight <- LiveNotInFlight, and VIEW LiveView: the datagrams that  *)
+(* can never take effect again are left out of the state TLC tells apart *)
+(* ("Dead", below, with the argument why that is sound).                  *)
 (* No state constraint: TLC would take a pruned state for a final one.     *)
 (***************************************************************************)
 EXTENDS MCElection
 
 CONSTANTS
     Backoff,  \* FALSE: no back-off (the broken variant NoBackoff)
-    MaxDup,   \* bound on duplicated deliveries (model checking)
-    Consume   \* TRUE: delivery consumes a datagram; FALSE: Election's network, filtered by Current
+    MaxDup    \* bound on duplicated deliveries (model checking)
 
 VARIABLES
     took,   \* <<m, a>>: agent a has taken its copy of broadcast m (m still in flight for others)
@@ -59,39 +62,10 @@ Deduped == {"CMD", "RELAY"}
 \* peer: what it does is answer, and each answer is a datagram of its own, consumed).
 Standing == {"RREQ"}
 
-(* Consume = FALSE: the network of Election, where every datagram stays  *)
-(* in flight for ever, filtered by Current (the models that cannot yet   *)
-(* afford consuming delivery, docs/election.md section 4).              *)
-\* The datagram is not a late copy of something its sender no longer means.
-\* A LEADER copy (ShareMembers) is always current: it only teaches a membership.
-Current(m) ==
-    CASE m.t = "HB" -> m.dst # NoNode \/ (life[m.src] = "MASTER" /\ epoch[m.src] = m.e)
-      [] m.t = "ROFFER" -> /\ life[m.src] \in Followers /\ via[m.src] = NoNode
-                           /\ leader[m.src] = m.x /\ following[m.src] = m.e
-      [] m.t = "RDROP" -> m.dst \notin relays[m.src]
-      [] m.t = "PREOK" -> life[m.src] \in {"PANIC", "CANDIDATE"} /\ epoch[m.src] <= m.e
-      [] OTHER -> TRUE
-
-\* A command takes effect at an agent at most once per master and epoch: a copy
-\* of one already applied is what the agent's dedupe window drops (Election's
-\* commands carry no msgid).  Without it an endless stream of copies of a dead
-\* master's command keeps an agent that has lost it going WORKING -> PAUSED ->
-\* WORKING, never reaching PANIC (TLC, election_live_work).  Commands are an
-\* option of the masters (no fairness), so this only drops behaviours.
-LiveApply(a, m) == \A r \in applied : ~(r.a = a /\ r.src = m.src /\ r.e = m.e)
-
-\* A LEADER of a master that has died since is delivered to an agent that
-\* does not know the membership it lists yet (it was in flight when the
-\* master died; the agent follows it, times out, and knows the membership):
-\* once per agent, so no endless stream of a dead master's heartbeats.
-Teaches(a, m) == m.t = "HB" /\ m.dst = NoNode /\ m.e > mepoch[a]
-CurrentFor(a, m) == Current(m) \/ Teaches(a, m)
-
 \* Agent (or PC) a receives its copy of m: with a Duplicate fault (d = 1) the copy stays for
 \* another delivery; otherwise a takes it, and a broadcast whose copies are all taken leaves
 \* the network with its record in took.  Before the handler: LiveReceived reads took', dups'.
 Take(a, m) ==
-    IF ~Consume THEN CurrentFor(a, m) /\ UNCHANGED <<took, dups>> ELSE
     /\ m.dst = NoNode => <<m, a>> \notin took
     /\ \E d \in IF m.t \in Deduped \cup Standing \/ dups = MaxDup THEN {0} ELSE {0, 1} :
          /\ dups' = dups + d
@@ -100,10 +74,9 @@ Take(a, m) ==
                          IF \A r \in Receivers(m) : <<m, r>> \in t
                          THEN t \ {<<m, r>> : r \in Receivers(m)} ELSE t
 \* Received's liveness meaning (cfg: Received <- LiveReceived): m leaves the network unless a
-\* duplicate was kept or other agents still have their copy of the broadcast coming (with
-\* Consume = FALSE it stays, as in Election).
+\* duplicate was kept or other agents still have their copy of the broadcast coming.
 LiveReceived(m, N) ==
-    IF ~Consume \/ dups' # dups \/ m.t \in Standing \/ (m.dst = NoNode /\ \E r \in Receivers(m) : <<m, r>> \in took')
+    IF dups' # dups \/ m.t \in Standing \/ (m.dst = NoNode /\ \E r \in Receivers(m) : <<m, r>> \in took')
     THEN N ELSE N \ {m}
 
 \* Sending again a broadcast datagram still in flight, some of whose copies were taken
@@ -157,7 +130,7 @@ Deliver(a, m) ==
        \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)
        \/ HandleElect(a, m) \/ HandleHeartbeat(a, m)
        \/ Forward(a, m) \/ LearnMembers(a, m)
-       \/ ApplyCommand(a, m) /\ (Consume \/ LiveApply(a, m))
+       \/ ApplyCommand(a, m)
 \* A peer that takes a RELAY_REQ also sends the asker a copy of its LEADER when it knows a
 \* newer membership: the same receipt (agent.hpp: a second step), so it does not take a copy.
 Share(a, m) == ShareMembers(a, m) /\ UNCHANGED <<took, dups>>
@@ -177,31 +150,6 @@ LiveNext ==
          \/ LiveLose(m)
          \/ m.t \in {"VOTE", "STALE"} /\ Take(m.dst, m) /\ (HandleVote(m.dst, m) \/ HandleStale(m.dst, m))
          \/ \E a \in Agents : Deliver(a, m) \/ Share(a, m)
-
-\* Weak fairness per node and kind of step (grouping all agents under one WF
-\* is too weak: one agent's steps would starve another's, and TLC finds such
-\* spurious loops at once).  Delivery is fair whatever the datagram: a late
-\* copy that a node can take is eventually taken, once.  Commands
-\* (SendCommand, ApplyCommand) are not fair: a model may send them
-\* (election_live_work), none has to.
-Fairness ==
-    /\ \A a \in Agents :
-         /\ WF_lvars(Only(LiveTimeout(a))) /\ WF_lvars(LiveRequestRelay(a))
-         /\ WF_lvars(\E m \in net : m.t = "RREQ" /\ Take(a, m) /\ OfferRelay(a, m))
-         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ AcceptRelay(a, m))
-         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ HandleAccept(a, m))
-         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ RelayDropped(a, m))
-         /\ WF_lvars(\E m \in net : m.t = "RREQ" /\ Take(a, m) /\ GrantPreVote(a, m))
-         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ HandlePreVote(a, m))
-         /\ WF_lvars(\E m \in net : m.t = "ELECT" /\ Take(a, m) /\ HandleElect(a, m))
-         /\ WF_lvars(\E m \in net : m.t = "HB" /\ Take(a, m) /\ HandleHeartbeat(a, m))
-         /\ WF_lvars(\E m \in net : m.t = "RREQ" /\ Share(a, m))
-         /\ WF_lvars(\E m \in net : m.dst = a /\ Take(a, m) /\ LearnMembers(a, m))
-    /\ \A n \in Nodes :
-         /\ WF_lvars(Only(Stand(n))) /\ WF_lvars(Only(BecomeMaster(n))) /\ WF_lvars(LiveHeartbeat(n))
-         /\ WF_lvars(\E m \in net : m.t = "VOTE" /\ m.dst = n /\ Take(n, m) /\ HandleVote(n, m))
-         /\ WF_lvars(\E m \in net : m.t = "STALE" /\ m.dst = n /\ Take(n, m) /\ HandleStale(n, m))
-    /\ WF_lvars(Only(Reconfigure))
 
 LiveInit == Init /\ took = {} /\ dups = 0
 
@@ -286,9 +234,9 @@ ReconfInit ==
 (* states that differ only in dead datagrams have the same steps, to      *)
 (* states that differ only in dead datagrams, with the same fairness and   *)
 (* properties: LiveView leaves them out, and TLC explores one of them.     *)
-(* TLC checks the two facts the argument rests on, in the models that set *)
-(* LiveInvariants: DeadInertInv (no handler of a dead datagram is enabled) *)
-(* and DeadStaysDeadProp (a dead datagram stays dead).                     *)
+(* TLC checks the two facts the argument rests on, on every step it takes *)
+(* in every model of this module: DeadInertProp (no handler guard of a     *)
+(* dead datagram holds) and DeadStaysDeadProp (a dead datagram stays dead).*)
 PCGone == life[PC] = "DOWN" /\ ~PCReturns
 \* Master x of epoch e is gone and r, not following it directly now, never will again: x is not
 \* master in e and never will be (BecomeMaster needs epoch > mepoch, and mepoch[x] >= e), so no
@@ -308,11 +256,17 @@ Dead(m) == m.dst # NoNode /\ DeadFor(m, m.dst)
 LiveNotInFlight(x) == x \notin net \/ Dead(x)
 LiveNet == {m \in net : ~Dead(m)}
 
-\* The checks of the argument above.  Every handler a dead datagram could have.
-Handles(r, m) ==
-    \/ Take(r, m) /\ (HandleVote(r, m) \/ HandleStale(r, m))
-    \/ r \in Agents /\ (Deliver(r, m) \/ Share(r, m))
-DeadInertInv == \A m \in net : Dead(m) => ~ENABLED Handles(m.dst, m)
+\* The checks of the argument above, as properties of every step TLC takes (a step into a
+\* state whose view it has seen already included: TLC explores one state of each view, so
+\* an invariant would be checked only on the states without the dead datagram).  Inert(m):
+\* the guard of every handler of a unicast datagram, at its addressee, is false.
+Inert(m) ==
+    LET r == m.dst
+        s == Loc(r)
+    IN ~ \/ HandleVoteOk(r, s, m) \/ HandleStaleOk(r, s, m) \/ AcceptRelayOk(r, s, m)
+         \/ HandleAcceptOk(r, s, m) \/ RelayDroppedOk(r, s, m) \/ HandlePreVoteOk(r, s, m)
+         \/ LearnMembersOk(r, s, m) \/ ForwardOk(r, s, m) \/ ApplyCommandOk(r, s, m)
+DeadInertProp == [][\A m \in net' : Dead(m)' => Inert(m)']_lvars
 DeadStaysDeadProp == [][\A m \in net : Dead(m) => (m \in net' => Dead(m)')]_lvars
 
 \* The view of the liveness models: MCElection's (the state without lastAction, which no
@@ -324,6 +278,42 @@ LiveView == <<life, epoch, votedFor, votes, leader, following, via, relays, offe
               members, mepoch, floor, want, changes,
               LiveNet, down, faults, lost, elected, applied, took, dups>>
 FullView == <<StateView, took, dups>>
+\* Weak fairness per node and kind of step (grouping all agents under one WF
+\* is too weak: one agent's steps would starve another's, and TLC finds such
+\* spurious loops at once).  Delivery is fair whatever the datagram: a late
+\* copy that a node can take is eventually taken, once.  Commands
+\* (SendCommand, ApplyCommand) are not fair: a model may send them
+\* (election_live_work), none has to.  The subscript is the view: a step
+\* counts for the fairness of its kind only if it changes what the view
+\* shows.  A step that changes nothing but dead datagrams or lastAction (an
+\* answer sent again whose copy in flight is dead: LiveNotInFlight lets it
+\* through, and it merges with that copy) does not discharge the fairness
+\* of its kind: with WF_lvars such a step, taken again and again (the view
+\* sees a self-loop), stood for "a RELAY_REQ is answered" while a live one
+\* never was (TLC, MCElectionLive.cfg: a candidate whose ELECT was lost
+\* never got the PREVOTE_OK it needed, a spurious loop).  Without the
+\* override (Election's guards) such a step can be taken at most once per
+\* dead datagram (the copy stays in flight and holds back the next one), so
+\* over infinite behaviours the two subscripts ask the same.
+Fairness ==
+    /\ \A a \in Agents :
+         /\ WF_LiveView(Only(LiveTimeout(a))) /\ WF_LiveView(LiveRequestRelay(a))
+         /\ WF_LiveView(\E m \in net : m.t = "RREQ" /\ Take(a, m) /\ OfferRelay(a, m))
+         /\ WF_LiveView(\E m \in net : m.dst = a /\ Take(a, m) /\ AcceptRelay(a, m))
+         /\ WF_LiveView(\E m \in net : m.dst = a /\ Take(a, m) /\ HandleAccept(a, m))
+         /\ WF_LiveView(\E m \in net : m.dst = a /\ Take(a, m) /\ RelayDropped(a, m))
+         /\ WF_LiveView(\E m \in net : m.t = "RREQ" /\ Take(a, m) /\ GrantPreVote(a, m))
+         /\ WF_LiveView(\E m \in net : m.dst = a /\ Take(a, m) /\ HandlePreVote(a, m))
+         /\ WF_LiveView(\E m \in net : m.t = "ELECT" /\ Take(a, m) /\ HandleElect(a, m))
+         /\ WF_LiveView(\E m \in net : m.t = "HB" /\ Take(a, m) /\ HandleHeartbeat(a, m))
+         /\ WF_LiveView(\E m \in net : m.t = "RREQ" /\ Share(a, m))
+         /\ WF_LiveView(\E m \in net : m.dst = a /\ Take(a, m) /\ LearnMembers(a, m))
+    /\ \A n \in Nodes :
+         /\ WF_LiveView(Only(Stand(n))) /\ WF_LiveView(Only(BecomeMaster(n))) /\ WF_LiveView(LiveHeartbeat(n))
+         /\ WF_LiveView(\E m \in net : m.t = "VOTE" /\ m.dst = n /\ Take(n, m) /\ HandleVote(n, m))
+         /\ WF_LiveView(\E m \in net : m.t = "STALE" /\ m.dst = n /\ Take(n, m) /\ HandleStale(n, m))
+    /\ WF_LiveView(Only(Reconfigure))
+
 LiveSpec == LiveInit /\ [][LiveNext]_lvars /\ Fairness
 
 \* A master exists and every agent that is up follows it, for ever after
