@@ -513,22 +513,38 @@ Heartbeat(n) ==
     /\ UNCHANGED <<mvars, life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes,
                    down, faults, lost, elected, applied>>
 
-\* Agent v hears the heartbeat of master s in epoch e over a direct link.
+\* Node n learns from EPOCH_STALE that a newer epoch exists: it adopts it;
+\* a master or candidate steps down (an agent to PANIC, the PC to stand
+\* again), a follower of an older master stops following it.
+HandleStaleOk(n, s, m) == m.t = "STALE" /\ m.dst = n /\ s.life # "DOWN" /\ m.e > s.epoch
+HandleStaleNext(n, s, m) ==
+    LET t == [s EXCEPT !.epoch = m.e, !.life = SteppedDown(n, s), !.votes = {}] IN
+    IF n = PC THEN t
+    ELSE [t EXCEPT !.votedFor = NoNode, !.prevotes = {}, !.leader = NoNode, !.following = 0,
+                   !.via = NoNode, !.relays = {}, !.offered = {}]
+
+\* Node v hears the heartbeat of master s in epoch e over a direct link.
 \*  - e older than v's epoch: v answers EPOCH_STALE (the old master steps
 \*    down when it gets it) and does not follow.
-\*  - otherwise v follows s directly in e: from PANIC, CANDIDATE or MASTER
-\*    (an older one: handover) it becomes ACTIVE; a WORKING agent whose
-\*    master changes is PAUSED until the new master resumes it.
+\*  - otherwise agent v follows s directly in e: from PANIC, CANDIDATE or
+\*    MASTER (an older one: handover) it becomes ACTIVE; a WORKING agent
+\*    whose master changes is PAUSED until the new master resumes it.
+\*  - the PC follows nobody: a LEADER of a newer epoch is HandleStale's rule
+\*    with its epoch (the PC adopts it and stands again, its votes of the
+\*    older epoch void); one of its own epoch changes nothing (master.hpp
+\*    HandleHeartbeat, the PC's part).
 Stale(s, m) == m.e < s.epoch /\ BUG # "NoEpochCheck"
 MasterChange(s, m) == s.leader # m.src \/ s.following # m.e
 NewMembers(s, m) == "members" \in DOMAIN s /\ (s.members # m.mem \/ s.mepoch # m.e)
 HandleHeartbeatOk(v, s, m) ==
     /\ m.t = "HB" /\ m.dst = NoNode /\ m.src # v /\ s.life # "DOWN"
+    /\ v = PC => m.e # s.epoch
     /\ ~Stale(s, m) =>
          /\ MasterChange(s, m) \/ s.via # NoNode \/ s.life \notin Followers \/ NewMembers(s, m)
          /\ s.life = "MASTER" => m.e > s.epoch
-HandleHeartbeatNext(s, m) ==
+HandleHeartbeatNext(v, s, m) ==
     IF Stale(s, m) THEN s
+    ELSE IF v = PC THEN HandleStaleNext(PC, s, m)
     ELSE LET t == [s EXCEPT !.life = CASE s.life \in {"PANIC", "CANDIDATE", "MASTER"} -> "ACTIVE"
                                        [] s.life = "WORKING" /\ MasterChange(s, m) -> "PAUSED"
                                        [] OTHER -> s.life,
@@ -542,20 +558,12 @@ HandleHeartbeat(v, m) ==
     /\ IF Stale(Loc(v), m)
        THEN /\ NotInFlight(M("STALE", v, m.src, epoch[v], NoNode))
             /\ net' = Received(m, net) \cup {M("STALE", v, m.src, epoch[v], NoNode)}
-       ELSE net' = Received(m, net) \cup (IF MasterChange(Loc(v), m) THEN Drops(v) ELSE {})
-    /\ SetLoc(v, HandleHeartbeatNext(Loc(v), m))
+       ELSE net' = Received(m, net) \cup (IF v # PC /\ MasterChange(Loc(v), m) THEN Drops(v) ELSE {})
+    /\ SetLoc(v, HandleHeartbeatNext(v, Loc(v), m))
     /\ lastAction' = <<"HandleHeartbeat", v, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
-\* Node n learns from EPOCH_STALE that a newer epoch exists: it adopts it;
-\* a master or candidate steps down (an agent to PANIC, the PC to stand
-\* again), a follower of an older master stops following it.
-HandleStaleOk(n, s, m) == m.t = "STALE" /\ m.dst = n /\ s.life # "DOWN" /\ m.e > s.epoch
-HandleStaleNext(n, s, m) ==
-    LET t == [s EXCEPT !.epoch = m.e, !.life = SteppedDown(n, s), !.votes = {}] IN
-    IF n = PC THEN t
-    ELSE [t EXCEPT !.votedFor = NoNode, !.prevotes = {}, !.leader = NoNode, !.following = 0,
-                   !.via = NoNode, !.relays = {}, !.offered = {}]
+\* Node n receives EPOCH_STALE (HandleStaleOk / HandleStaleNext above).
 HandleStale(n, m) ==
     /\ m.t = "STALE" /\ m.dst = n   \* first: Loc(n) needs a node
     /\ HandleStaleOk(n, Loc(n), m) /\ Linked(m.src, n)
@@ -756,7 +764,7 @@ Next ==
     \/ \E x, y \in Nodes : Cut(x, y) \/ Heal(x, y)
     \/ \E m \in net :
          \/ Lose(m)
-         \/ HandleVote(m.dst, m) \/ HandleStale(m.dst, m)
+         \/ HandleVote(m.dst, m) \/ HandleStale(m.dst, m) \/ HandleHeartbeat(PC, m)
          \/ \E a \in Agents :
               \/ OfferRelay(a, m) \/ AcceptRelay(a, m) \/ HandleAccept(a, m)
               \/ RelayDropped(a, m) \/ GrantPreVote(a, m) \/ HandlePreVote(a, m)

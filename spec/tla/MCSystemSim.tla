@@ -13,8 +13,9 @@
 (* other, as the implementation does:                                      *)
 (*  - a candidate holding a quorum becomes master at its next step         *)
 (*    (the cores run BecomeMaster on the VOTE that completes the quorum);  *)
-(*  - the PC back from a crash, or told of a newer epoch (EPOCH_STALE),    *)
-(*    stands at its next step (its core stands at once: become_candidate); *)
+(*  - the PC back from a crash, or told of a newer epoch (EPOCH_STALE or a *)
+(*    newer master's LEADER), stands at its next step (its core stands at  *)
+(*    once: become_candidate);                                             *)
 (*  - ShareMembers(p, m) is taken after p answered m (OfferRelay or        *)
 (*    GrantPreVote), not before (the agent core shares its list on the     *)
 (*    same RELAY_REQ it answers, after the answer).                        *)
@@ -41,7 +42,8 @@ Ready(n) ==
 
 Eager ==
     /\ \A n \in Nodes : Ready(n) => lastAction'[1] = "BecomeMaster" /\ lastAction'[2] = n
-    /\ lastAction[1] \in {"Restart", "HandleStale"} /\ lastAction[2] = PC =>
+    /\ lastAction[1] \in {"Restart", "HandleStale", "HandleHeartbeat"} /\ lastAction[2] = PC
+       /\ life[PC] = "CANDIDATE" =>
           lastAction'[1] = "StartElection" /\ lastAction'[2] = PC
     /\ lastAction'[1] = "ShareMembers" =>
           LET p == lastAction'[2]
@@ -80,8 +82,8 @@ Patience ==
 \* agent core's rule for a peer's ELECT (CoreHears).  Nothing but lastAction changes (a
 \* stuttering step of System's state).  System's traces never deliver a datagram no rule takes;
 \* the replay delivers these so that an implementation that takes a step on one (a second vote,
-\* a copy counted again, an older offer taken, a pre-vote to a stronger asker) is caught.  The
-\* PC gets no LEADER here: System has no rule of the PC for one (docs/spec.md, the finding).
+\* a copy counted again, an older offer taken, a pre-vote to a stronger asker, the PC
+\* standing again on a LEADER of its own epoch) is caught.
 \* The core also answers a repeated ELECT of the candidate it voted for in that epoch (its VOTE
 \* again: the same datagram, nothing changes), which HandleElect leaves out.
 ElectTaken(v, s, m) ==
@@ -90,11 +92,11 @@ ElectTaken(v, s, m) ==
     /\ m.e < s.epoch \/ ~(s.life \in Followers /\ m.src # PC)
 Taken(n, m) ==
     LET s == Loc(n) IN
-    \/ HandleVoteOk(n, s, m) \/ HandleStaleOk(n, s, m)
+    \/ HandleVoteOk(n, s, m) \/ HandleStaleOk(n, s, m) \/ HandleHeartbeatOk(n, s, m)
     \/ n \in Agents /\ \/ OfferRelayOk(n, s, m) \/ AcceptRelayOk(n, s, m) \/ HandleAcceptOk(n, s, m)
                        \/ RelayDroppedOk(n, s, m) \/ GrantPreVoteOk(n, s, m, Score[m.src], Score[n])
                        \/ HandlePreVoteOk(n, s, m) \/ ElectTaken(n, s, m) \/ ShareMembersOk(n, s, m)
-                       \/ LearnMembersOk(n, s, m) \/ HandleHeartbeatOk(n, s, m) \/ RefreshOk(s, m)
+                       \/ LearnMembersOk(n, s, m) \/ RefreshOk(s, m)
 \* Each (node, datagram) is probed once, and never two probes in a row (history variable probed):
 \* the probes are many (every datagram in flight at every node), so that without these a random
 \* walk spends most of its steps on them.
@@ -103,7 +105,6 @@ Ignore(n, m) ==
     /\ probed' = probed \cup {<<n, m>>}
     /\ m.src # n /\ m.dst \in {NoNode, n} /\ life[n] # "DOWN" /\ Linked(m.src, n)
     /\ m.t \in {"ELECT", "VOTE", "HB", "STALE", "RREQ", "ROFFER", "RACCEPT", "RDROP", "PREOK"}
-    /\ n = PC => m.t # "HB"
     /\ ~Taken(n, m)
     /\ lastAction' = <<"Ignore", n, m>>
     /\ UNCHANGED <<evars, sysvars>>

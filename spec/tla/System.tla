@@ -123,14 +123,15 @@ Refresh(a, m) ==
 -----------------------------------------------------------------------------
 (* HANDOVER.                                                               *)
 
-\* Agent v hears a LEADER (Election's HandleHeartbeat: its rule
+\* Node v hears a LEADER (Election's HandleHeartbeat: its rule
 \* HandleHeartbeatOk / HandleHeartbeatNext, the same environment part).  If v
 \* is an elected agent's master and the LEADER is of a newer epoch, v's master
 \* core hands its membership to the new master (HANDOVER(e, members...), once:
 \* v steps down with it) -- master.hpp HandleHeartbeat.  The broken variant
 \* HandoverKeepsMaster sends HANDOVER but keeps the node a master of its epoch
 \* (the master core not stopped).  v's timer restarts on a LEADER it takes (not
-\* on an older one, answered EPOCH_STALE).
+\* on an older one, answered EPOCH_STALE).  The PC has no timer and hands
+\* nothing over: a newer LEADER makes it stand again (Election).
 Hands(v, s, m) == v # PC /\ s.life = "MASTER" /\ ~Stale(s, m)
 SysHandleHeartbeat(v, m) ==
     LET s == Loc(v) IN
@@ -138,15 +139,15 @@ SysHandleHeartbeat(v, m) ==
     /\ IF Stale(s, m)
        THEN /\ M("STALE", v, m.src, epoch[v], NoNode) \notin net
             /\ net' = net \cup {M("STALE", v, m.src, epoch[v], NoNode)}
-       ELSE net' = IF MasterChange(s, m) THEN net \cup Drops(v) ELSE net
-    /\ SetLoc(v, IF Hands(v, s, m) /\ BUG = "HandoverKeepsMaster" THEN s ELSE HandleHeartbeatNext(s, m))
+       ELSE net' = IF v # PC /\ MasterChange(s, m) THEN net \cup Drops(v) ELSE net
+    /\ SetLoc(v, IF Hands(v, s, m) /\ BUG = "HandoverKeepsMaster" THEN s ELSE HandleHeartbeatNext(v, s, m))
     /\ hnet' = IF Hands(v, s, m)
                THEN hnet \cup {[src |-> v, dst |-> m.src, e |-> m.e, mem |-> members[v]]}
                ELSE hnet
     /\ handed' = IF Hands(v, s, m) THEN handed \cup {[src |-> v, e |-> m.e]} ELSE handed
-    /\ silence' = IF ~Stale(s, m) THEN [silence EXCEPT ![v] = 0] ELSE silence
-    /\ heard' = IF ~Stale(s, m) THEN [heard EXCEPT ![v] = 0] ELSE heard
-    /\ told' = [told EXCEPT ![v] = Max2(@, m.e)]
+    /\ silence' = IF v # PC /\ ~Stale(s, m) THEN [silence EXCEPT ![v] = 0] ELSE silence
+    /\ heard' = IF v # PC /\ ~Stale(s, m) THEN [heard EXCEPT ![v] = 0] ELSE heard
+    /\ told' = IF v # PC THEN [told EXCEPT ![v] = Max2(@, m.e)] ELSE told
     /\ lastAction' = <<"HandleHeartbeat", v, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied, obeyed>>
 
@@ -227,7 +228,8 @@ Follow ==
 SysNext ==
     \/ Tick
     \/ \E a \in Agents : SysTimeout(a)
-    \/ \E m \in net, a \in Agents : SysHandleHeartbeat(a, m) \/ Refresh(a, m)
+    \/ \E m \in net : \/ SysHandleHeartbeat(PC, m)
+                      \/ \E a \in Agents : SysHandleHeartbeat(a, m) \/ Refresh(a, m)
     \/ \E h \in hnet : MasterHandover(h) \/ LoseHandover(h)
     \/ ElectionStep /\ Follow
 

@@ -114,17 +114,17 @@ ElSteps(r, s, me, sv) ==
       [] r.a = "HandleVote" -> {IF E!HandleVoteOk(me, s, m) THEN E!HandleVoteNext(s, m) ELSE s}
       [] r.a = "HandleHeartbeat" ->
            IF ~Leads(m) THEN {}
-           ELSE {IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(s, m) ELSE s}
+           ELSE {IF E!HandleHeartbeatOk(me, s, m) THEN E!HandleHeartbeatNext(me, s, m) ELSE s}
       [] r.a = "HandleStale" -> {IF E!HandleStaleOk(me, s, m) THEN E!HandleStaleNext(me, s, m) ELSE s}
       [] r.a = "ShareMembers" -> IfOk(E!ShareMembersOk(me, s, m), s)
       [] r.a = "LearnMembers" ->
            IfOk(m.x = E!NoNode /\ E!LearnMembersOk(me, s, CopyTo(m, me)), E!LearnMembersNext(me, s, CopyTo(m, me)))
       [] OTHER -> {}
-\* Following master c in epoch e after a MASTER (bare: the PC, epoch 1; inside EPOCH_CMD: its sender
+\* Agent me following master c in epoch e after a MASTER (bare: the PC, epoch 1; inside EPOCH_CMD: its sender
 \* and epoch): Election's rule for hearing c's heartbeat; the lifecycle gives the state.
 \* (MASTER carries no membership: the agent keeps the one it knows.)
-Synced(s, c, e, st) ==
-    LET t == [E!HandleHeartbeatNext(s, E!M("HB", c, 0, e, 0)) EXCEPT !.life = LifeOf(st, s.life)] IN
+Synced(me, s, c, e, st) ==
+    LET t == [E!HandleHeartbeatNext(me, s, E!M("HB", c, 0, e, 0)) EXCEPT !.life = LifeOf(st, s.life)] IN
     IF WithMembers THEN [t EXCEPT !.members = s.members, !.mepoch = s.mepoch, !.floor = s.floor] ELSE t
 \* The rest of the agent's Election state when only the lifecycle moved to a2.
 Mirror(s, a2) == [s EXCEPT !.life = LifeOf(a2.state, s.life)]
@@ -160,7 +160,7 @@ ElectionStep(r, s) ==
                /\ Handled(ag, r.im, c) = r.cmd) THEN {}
           ELSE IF r.im.type = "MASTER"
           THEN IF r.em.e >= el.epoch
-               THEN To(r, s, a2, IF r.cmd = "RecvMaster" THEN Synced(el, c, r.em.e, a2.state) ELSE el)
+               THEN To(r, s, a2, IF r.cmd = "RecvMaster" THEN Synced(ag.id, el, c, r.em.e, a2.state) ELSE el)
                ELSE {}
           ELSE IF E!Obeys(el, r.em) THEN To(r, s, a2, Mirror(el, a2)) ELSE {}
     ELSE IF r.a \in ElectionActions THEN
@@ -176,7 +176,7 @@ ElectionStep(r, s) ==
        ELSE IF BareFenced(el, ag, r.m) THEN (IF r.a = "Ignore" THEN To(r, s, ag, el) ELSE {})
        ELSE IF Handled(ag, r.m, Cur(el)) # r.a THEN {}
        ELSE LET a2 == Received(r.a, ag, r.m, Cur(el), r.v) IN
-            To(r, s, a2, IF r.a = "RecvMaster" THEN Synced(el, Cur(el), 1, a2.state) ELSE Mirror(el, a2))
+            To(r, s, a2, IF r.a = "RecvMaster" THEN Synced(ag.id, el, Cur(el), 1, a2.state) ELSE Mirror(el, a2))
     ELSE IF ~IntOk(r, ag) THEN {}
     ELSE LET a2 == Internal(r, ag).ag IN
          IF r.a # "HeartbeatLost" THEN To(r, s, a2, Mirror(el, a2))

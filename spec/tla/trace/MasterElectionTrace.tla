@@ -21,10 +21,10 @@
 (*   - Election.tla's rules by its own operators (ElectionRules):          *)
 (*     StartElection, HandleVote (from a member), BecomeMaster (Quorum     *)
 (*     over mem), HandleStale; Heartbeat's guard (life MASTER: Election    *)
-(*     has no HeartbeatOk operator).  HandleHeartbeat of the PC            *)
-(*     (docs/core.md deviation 4): an older LEADER is answered EPOCH_STALE *)
-(*     (state unchanged), a newer one is HandleStale's rule with the       *)
-(*     LEADER's epoch.  HandleElect: the PC ignores ELECT (Election has no *)
+(*     has no HeartbeatOk operator).  HandleHeartbeat of the PC: an older  *)
+(*     LEADER is answered EPOCH_STALE (state unchanged), a newer one makes  *)
+(*     the PC stand again (Election's HandleHeartbeat of the PC, the rule   *)
+(*     of HandleStale).  HandleElect: the PC ignores ELECT (Election has no *)
 (*     HandleElect of the PC).  Every datagram the core sends draws a      *)
 (*     msgid (LEADER, ELECT, EPOCH_STALE): the PC's StartElection two when *)
 (*     it has a membership (its copy first, Teach; Stood). HandleHeartbeat *)
@@ -224,17 +224,17 @@ Act(r, s, s0) ==
        IF EP!HandleStaleOk(Self, el, em) THEN ElTo(r, s, s0, s0, EP!HandleStaleNext(Self, el, em), mem, {})
        ELSE {}
     ELSE IF r.a = "HandleHeartbeat" THEN
-       LET stale == [em EXCEPT !.t = "STALE", !.dst = PC] IN
        IF ~(em.t = "HB" /\ em.src # Self /\ Leads(em)) THEN {}
        ELSE IF em.e < el.epoch THEN
           IF View(el.life) # "STEPPED_DOWN" THEN ElTo(r, s, s0, Drawn(s0), el, mem, {}) ELSE {}
+       \* the PC: Election's HandleHeartbeat of the PC (it stands again in the newer epoch)
        ELSE IF Self = PC THEN
-          IF EP!HandleStaleOk(PC, el, stale) THEN ElTo(r, s, s0, s0, EP!HandleStaleNext(PC, el, stale), mem, {})
+          IF EP!HandleHeartbeatOk(PC, el, em) THEN ElTo(r, s, s0, s0, EP!HandleHeartbeatNext(PC, el, em), mem, {})
           ELSE {}
        \* an agent-master: Election's HandleHeartbeat of node Self (it follows the newer master); its
        \* Master core hands the registry over once (HANDOVER: a msgid)
        ELSE IF EP!HandleHeartbeatOk(Self, el, em)
-       THEN ElTo(r, s, s0, IF s.handed THEN s0 ELSE Drawn(s0), EP!HandleHeartbeatNext(el, em), mem, {})
+       THEN ElTo(r, s, s0, IF s.handed THEN s0 ELSE Drawn(s0), EP!HandleHeartbeatNext(Self, el, em), mem, {})
        ELSE {}
     ELSE IF r.a = "LearnMembers" THEN
        \* an agent-master hears a copy of a membership (leader 0: the PC's broadcast as it stands, or

@@ -24,7 +24,7 @@ FAKE = [sys.executable, str(Path(__file__).with_name("fake_election_driver.py"))
 
 @pytest.fixture(scope="module")
 def traces(tmp_path_factory):
-    files, _ = sr.simulate(seed=3, num=12, depth=150, out_dir=tmp_path_factory.mktemp("system-sim"))
+    files, _ = sr.simulate(seed=5, num=12, depth=150, out_dir=tmp_path_factory.mktemp("system-sim"))
     assert len(files) == 12
     return [read_trace(p) for p in files]
 
@@ -49,6 +49,8 @@ def test_election_traces_conform(traces):
         assert f.actions[name] > 0, name
         assert f.actions[name] == _count(traces, name)
     assert f.elected > 0 and f.pc_elected > 0 and f.handed > 0 and f.handovers > 0
+    # the PC hears an elected agent's LEADER (Election's HandleHeartbeat of the PC)
+    assert any(s["lastAction"][0] == "HandleHeartbeat" and s["lastAction"][1] == sr.PC for t in traces for s in t[1:])
     # late datagrams: a datagram of an older epoch delivered (answered EPOCH_STALE)
     assert any(s["lastAction"][0] == "HandleElect" and s["lastAction"][2]["e"] < sr.at(t[k - 1]["epoch"], s["lastAction"][1])
                for t in traces for k, s in enumerate(t) if k)
