@@ -138,6 +138,10 @@ Share(a, m) == ShareMembers(a, m) /\ UNCHANGED <<took, dups>>
 \* A step that takes no datagram: no copy taken, no duplicate.
 Only(A) == A /\ UNCHANGED <<took, dups>>
 
+\* Not here: the PC's HandleHeartbeat (Election: the PC stands again on a newer master's LEADER).
+\* A broadcast's copies are counted per agent (Receivers), so taking it would add a receiver to
+\* every LEADER; in the models where the PC lives no agent is master (relay) or the PC crashes
+\* for good (crash, member, work).  The safety models (election_*, system) have the rule.
 LiveNext ==
     \/ Only(\/ \E a \in Agents : LiveTimeout(a) \/ AddMember(a) \/ DropMember(a)
             \/ Reconfigure
