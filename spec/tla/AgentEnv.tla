@@ -1,7 +1,7 @@
 ------------------------------- MODULE AgentEnv -------------------------------
 (***************************************************************************)
-(* One agent (Agent.tla, unchanged) and what its environment really did   *)
-(* (issue 13): properties stated over what happened, not over the agent's *)
+(* One agent (Agent.tla, unchanged) and what its environment really did:  *)
+(* properties stated over what happened, not over the agent's             *)
 (* own bookkeeping.                                                        *)
 (*                                                                         *)
 (*  - heard: history of the environment, ticks since a genuine datagram of *)

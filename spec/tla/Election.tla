@@ -1,12 +1,12 @@
 ------------------------------ MODULE Election ------------------------------
 (***************************************************************************)
-(* Relay through a peer and vote-based master election for libev3proto     *)
-(* (issue 4).  See docs/election.md for the prose.                         *)
+(* Relay through a peer and vote-based master election for libev3proto.    *)
+(* See docs/election.md for the prose.                                     *)
 (*                                                                         *)
 (* Nodes: the PC master (id 1, PC) and the agents.  The fleet is the       *)
 (* membership the master of an epoch published with it (LEADER), one per   *)
-(* epoch, changed only by the PC one agent at a time (section Membership,  *)
-(* issue 13); a quorum is a strict majority of the list a node knows.      *)
+(* epoch, changed only by the PC one agent at a time (section             *)
+(* Membership); a quorum is a strict majority of the list a node knows.    *)
 (* Every master acts in an epoch; an                                        *)
 (* agent grants one vote per epoch (votedFor, kept on the SD card, like    *)
 (* Raft's), follows only the highest epoch it has seen, and obeys commands *)
@@ -54,7 +54,7 @@ CONSTANTS
 PC == 1
 Nodes == {PC} \cup Agents
 NoNode == 0
-\* A strict majority of membership L (issue 13): an empty membership has none.
+\* A strict majority of membership L: an empty membership has none.
 QuorumOf(S, L) == L # {} /\ 2 * Cardinality(S \cap L) > Cardinality(L)
 InitMembers == Agents \ Joiners
 
@@ -169,7 +169,7 @@ SetLoc(n, s) ==
     /\ floor' = Put(floor, n, s.floor)
     /\ UNCHANGED <<want, changes>>
 
-\* Membership (issue 13).  A node's record may lack the membership fields (the
+\* Membership.  A node's record may lack the membership fields (the
 \* single-agent trace checks, whose quorums count against the trace's fleet,
 \* Agents): Get reads a field with a default, Fleet(s) is the membership.
 Get(r, f, d) == IF f \in DOMAIN r THEN r[f] ELSE d
@@ -180,7 +180,7 @@ Raised(s, e) == IF "floor" \in DOMAIN s THEN [s EXCEPT !.floor = Max2(@, e)] ELS
 \* ... and after it learned that membership L is the one of epoch e.
 Learned(s, L, e) ==
     IF "members" \in DOMAIN s THEN Raised([s EXCEPT !.members = L, !.mepoch = e], e) ELSE s
-\* BUG "DynamicMembership" is the rule before issue 13 (the code's): the PC
+\* BUG "DynamicMembership" is the unsafe rule: the PC
 \* changes its list in place, LEADER carries the current one, each agent
 \* counts quorums against the list it last heard; no floor.
 Fixed == BUG # "DynamicMembership"
@@ -391,7 +391,7 @@ StartElectionNext(n, s) ==
 \* The PC stands with a copy of its membership (LEADER(mepoch, 0, members),
 \* broadcast: here one copy per agent): a voter that missed the LEADERs of
 \* the PC's epoch learns the list (LearnMembers) and can grant (Knows).
-\* With BUG "VoteUnknown" (the rule before, see Knows) it sends none.
+\* With BUG "VoteUnknown" (see Knows) it sends none.
 Teach(n) ==
     IF n = PC /\ Fixed /\ BUG # "VoteUnknown" /\ members[PC] # {}
     THEN {MH(PC, a, mepoch[PC], NoNode, members[PC]) : a \in Agents}
@@ -415,11 +415,11 @@ StartElection(n) ==
 \* A voter grants the PC only if it knows a membership at least as new as the
 \* one the PC counts its votes against (epoch k, ELECT's third parameter):
 \* so its floor never rises above the list it knows, and whoever voted for
-\* the PC can still stand if the PC dies before its next list reached anyone
-\* (issue 13).  With BUG "VoteUnknown" it grants without knowing it and the PC
-\* sends no copy of its list (Teach): the rule before, where a vote raised
-\* the floor past any list the voter knew.  A record
-\* without a membership (a single-agent trace of an older core) knows it.
+\* the PC can still stand if the PC dies before its next list reached
+\* anyone.  With BUG "VoteUnknown" it grants without knowing it and the PC
+\* sends no copy of its list (Teach): a vote then raises the floor past any
+\* list the voter knows.  A record without a membership (a single-agent
+\* trace of an older core) knows it.
 Knows(s, k) == BUG = "VoteUnknown" \/ ~("mepoch" \in DOMAIN s) \/ s.mepoch >= k
 ElectGrant(s, m, sc, sv) ==
     /\ m.e > s.epoch \/ s.votedFor \in {NoNode, m.src} \/ BUG = "DoubleVote"
@@ -573,7 +573,7 @@ HandleStale(n, m) ==
     /\ UNCHANGED <<down, faults, lost, elected, applied>>
 
 -----------------------------------------------------------------------------
-(* Membership (issue 13).  Every master publishes one membership for its    *)
+(* Membership.  Every master publishes one membership for its            *)
 (* whole epoch (LEADER); an agent keeps the last one it learned and the     *)
 (* epoch of the master that published it (mepoch), and counts quorums       *)
 (* against it.  Only the PC changes the membership, and only by winning a   *)

@@ -30,7 +30,7 @@
 (* that sends again a broadcast whose copies are partly taken (a master's *)
 (* heartbeat, a RELAY_REQ retry) gives every agent a fresh copy (Resend).  *)
 (* No filter on what is delivered: liveness rests only on the protocol's  *)
-(* rules (issue 13).  Commands: a copy of an EPOCH_CMD or RELAY is never  *)
+(* rules.  Commands: a copy of an EPOCH_CMD or RELAY is never             *)
 (* applied twice (the agent's dedupe window, agent.hpp Fresh, drops it by *)
 (* sender and msgid), so Duplicate keeps none; a command a master sends   *)
 (* again is a new datagram.  Safety with unbounded duplication is checked *)
@@ -157,8 +157,8 @@ LiveNext ==
 
 LiveInit == Init /\ took = {} /\ dups = 0
 
-\* The PC dies before any LEADER listing the membership reached anyone (issue 13, the failure of
-\* the real programs): the PC, master of epoch 1 with its membership, has sent its LEADER listing
+\* The PC dies before any LEADER listing the membership reached anyone (the PC
+\* killed right after its agents synced): the PC, master of epoch 1 with its membership, has sent its LEADER listing
 \* it (in flight: cfg InitNet <- UnheardNet) and no agent knows any list (Informed <- Unheard);
 \* the PC is already down (InitDown <- PCDown: it died right after sending).  Its copies still
 \* arrive, late, unless lost (MaxLoss).
@@ -166,7 +166,7 @@ Unheard == {}
 UnheardNet == {MH(PC, NoNode, 1, NoNode, InitMembers)}
 PCDown == {PC}
 
-\* The PC is reconfiguring (issue 13: two reconfigurations in a row, the LEADER of the first lost or
+\* The PC is reconfiguring (two reconfigurations in a row, the LEADER of the first lost or
 \* in flight; cfg Init <- ReconfInit): every agent knows the list of epoch 1 (Agents), the PC has
 \* won epoch 2 with the votes of both (their floor: 1) and published the list without the
 \* strongest agent (ReconfL2), whose LEADER is in flight or lost (ReconfNet); the dropped agent
@@ -209,7 +209,7 @@ ReconfInit ==
     /\ changes = MaxChanges
     /\ lastAction = <<"Init">>
 
-(* Datagrams that can never take effect again (issue 13: the network of   *)
+(* Datagrams that can never take effect again (the network of            *)
 (* the consuming models explodes with them).  A unicast datagram m is dead *)
 (* when the guard of every handler of it at its addressee r is false now  *)
 (* and can never be true again: it reads only quantities that never       *)

@@ -1,7 +1,7 @@
 ------------------------------- MODULE System -------------------------------
 (***************************************************************************)
-(* The whole fleet in one model (issue 13, point 4; docs/spec.md "The     *)
-(* whole system").  Election.tla gives the nodes and their rules: the PC   *)
+(* The whole fleet in one model (docs/spec.md "The whole system").        *)
+(* Election.tla gives the nodes and their rules: the PC                   *)
 (* master (id 1) with its epochs and membership, the agents with relay,    *)
 (* pre-vote, election and membership, crashes, cuts, and a network that    *)
 (* loses (Lose), duplicates (delivery keeps a datagram), reorders (any      *)
@@ -154,8 +154,8 @@ SysHandleHeartbeat(v, m) ==
 \* The PC, master, gets a HANDOVER of an epoch not newer than its own (master.hpp
 \* MasterHandoverOk): the agents it lists join its registry (want); the PC
 \* publishes them one at a time by reconfiguring (Election Reconfigure), never
-\* into the membership of its current epoch (with DynamicMembership, the rule
-\* before issue 13, the published list follows the registry at once).
+\* into the membership of its current epoch (with DynamicMembership, the unsafe
+\* rule, the published list follows the registry at once).
 MasterHandoverOk(s, h) == h.dst = PC /\ s.life = "MASTER" /\ h.e <= s.epoch
 MasterHandover(h) ==
     /\ MasterHandoverOk(Loc(PC), h) /\ Linked(h.src, PC)

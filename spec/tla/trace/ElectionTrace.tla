@@ -34,7 +34,7 @@ CONSTANTS
     InitMembers,   \* the membership it starts with (its --state-dir; none)
     InitMEpoch,    \* the epoch of that membership (0: none known)
     InitFloor,     \* its floor (0)
-    WithMembers    \* the records carry the membership (members, mepoch, floor: a core since issue 13);
+    WithMembers    \* the records carry the membership (members, mepoch, floor: every current core);
                    \* FALSE: an older trace, quorums count against Fleet
 
 E == INSTANCE ElectionRules WITH Agents <- Fleet
@@ -46,7 +46,7 @@ ElectionActions == {"RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay",
                     "GrantPreVote", "HandlePreVote", "StartElection", "HandleElect", "HandleVote",
                     "BecomeMaster", "HandleHeartbeat", "HandleStale", "Forward", "ApplyCommand",
                     "ShareMembers", "LearnMembers"}
-\* With the membership (issue 13): quorums count against the agent's own list (Election Fleet(s)).
+\* With the membership: quorums count against the agent's own list (Election Fleet(s)).
 ElVars == {"life", "epoch", "votedFor", "votes", "leader", "following", "via", "relays", "offered",
            "prevotes", "members", "mepoch", "floor"}
 \* votes is compared while the agent is a candidate: the core clears it when the candidacy ends

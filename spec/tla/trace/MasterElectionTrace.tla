@@ -61,8 +61,8 @@ CONSTANTS
     InitEpoch,    \* the epoch it starts in
     InitMembers,  \* the membership it starts with (Election members[Self])
     InitMEpoch,   \* the epoch that published it (Election mepoch[Self])
-    WithMembers   \* the records carry the membership when it changes (members, mepoch: a core
-                  \* since issue 13); FALSE: an older trace, the membership is the check's alone
+    WithMembers   \* the records carry the membership when it changes (members, mepoch: every
+                  \* current core); FALSE: an older trace, the membership is the check's alone
 
 PC == 1
 \* Election.tla's per-node operators for a membership F.  (Agents is a constant of Election: a
@@ -130,7 +130,7 @@ RouteTo(ms, a, from) ==
     ELSE [ms EXCEPT !.reg = @ \cup {Adopted(a, from)}]
 \* Election's BecomeMasterOk (a majority of the membership voted) over the membership mem.
 QuorumOk(el, mem) == \E F \in {mem} : E(F)!BecomeMasterOk(el)
-\* Election want (issue 13): the PC's membership and the ids handed over but those declared lost
+\* Election want: the PC's membership and the ids handed over but those declared lost
 \* (Election DropMember: MasterTick dropped them since they last synced), the agents registered and synced.
 SyncedIds(ms) == {x.id : x \in {y \in ms.reg : y.synced}}
 Want(s, ms) == ((s.mem \cup s.hand) \ s.lost) \cup SyncedIds(ms)
@@ -155,7 +155,7 @@ MasterElectionStart ==
      mem |-> InitMembers, mep |-> InitMEpoch, hand |-> {}, lost |-> {}, handed |-> FALSE, clock |-> 0,
      sent |-> [i \in {} |-> 0]]
 
-\* The membership the record claims (members, mepoch: a core since issue 13 records them when they
+\* The membership the record claims (members, mepoch: a core records them when they
 \* change) is the one of the step (the list mem2 of epoch mep2).
 FitsMem(r, s, mem2, mep2) ==
     WithMembers => (/\ IF "members" \in DOMAIN r.ech THEN mem2 = r.ech.members ELSE mem2 = s.mem
