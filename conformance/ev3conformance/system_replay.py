@@ -9,7 +9,7 @@ The traces come from MCSystemSim.tla (spec/tla/): System's SysNext, each step na
 `lastAction` (no wrapper variable for the names), filtered where the cores take two of the spec's
 steps on one input (a candidate with a quorum becomes master at once, the PC back from a crash or
 told of a newer epoch stands at once, a peer shares its membership after it answered the
-RELAY_REQ), to the agent core's rule for a peer's ELECT at a follower (docs/spec.md, the finding),
+RELAY_REQ), to the agent core's rule for a peer's ELECT at a follower (docs/spec.md "Not covered"),
 and per behaviour to a PC that stays down until an agent leads (so that it takes the fleet back:
 HANDOVER): a subset of System's behaviours. One step is added, Ignore(n, m): a datagram no receive
 rule takes, delivered; it changes none of System's variables (the probe of the guards: a second
