@@ -1,6 +1,7 @@
 # libev3proto: the front door. Every target installs what is missing first (`make deps`).
 #   make demo      a master and three agents on this machine: sync, behaviour, master lost, election (~30 s)
-#   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel
+#   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel,
+#                  the installed library and examples/robot (test-example)
 #   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec, ev3-behaviour)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS per target, default 1800)
 #   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
@@ -16,7 +17,7 @@
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
-.PHONY: help deps build demo test test-unit test-python test-blackbox test-fuzz test-arm fuzz fuzz-build \
+.PHONY: help deps build demo test test-unit test-python test-blackbox test-fuzz test-arm test-example fuzz fuzz-build \
         bench bench-master arm conformance conformance-full mutate \
         spec spec-full spec-mutate diagrams clean
 
@@ -32,7 +33,7 @@ CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDe
                 -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN)
 
 help:
-	@sed -n '2,11p' Makefile | sed 's/^# \{0,1\}//'
+	@sed -n '2,12p' Makefile | sed 's/^# \{0,1\}//'
 
 deps:
 	@bash tools/deps.sh
@@ -42,7 +43,7 @@ build: deps
 	@ninja -C build/native
 
 test: build
-	@$(MAKE) --no-print-directory test-unit test-python test-blackbox spec conformance test-fuzz test-arm
+	@$(MAKE) --no-print-directory test-unit test-python test-blackbox spec conformance test-fuzz test-arm test-example
 	@echo "make test: all suites passed"
 
 test-unit: build
@@ -52,9 +53,38 @@ test-python: build
 	@EV3_BIN=$(BIN) $(PY) -m pytest -q tests/python --ignore=tests/python/blackbox
 
 # ev3-agent and ev3-master over real UDP on loopback (tests/python/blackbox), including the static
-# armel ev3-agent under qemu-arm against the native ev3-master.
+# armel ev3-agent under qemu-arm against the native ev3-master (test_example.py is test-example's).
 test-blackbox: build arm
-	@EV3_BIN=$(BIN) EV3_ARM_BIN=$(CURDIR)/build/arm/bin $(PY) -m pytest -q tests/python/blackbox
+	@EV3_BIN=$(BIN) EV3_ARM_BIN=$(CURDIR)/build/arm/bin $(PY) -m pytest -q tests/python/blackbox \
+	   --ignore=tests/python/blackbox/test_example.py
+
+# The library as a firmware project out of this tree gets it (docs/embedding.md): `cmake --install`
+# into build/install (headers and package files: nothing is compiled), the installed headers checked
+# against libev3proto/include, then against that prefix alone, natively and static for armel with
+# the installed toolchain file: tests/package (find_package(ev3proto), ev3proto::ev3proto, one
+# header; run, the armel one under qemu-arm), the same header through pkg-config, and
+# examples/robot (minirobot), run against ev3-master (tests/python/blackbox/test_example.py: sync,
+# wait, the master killed, PAUSED, PANIC, elected; the armel build syncs and runs wait under qemu-arm).
+PREFIX_TEST := $(CURDIR)/build/install
+ARM_TOOLCHAIN_INSTALLED := $(PREFIX_TEST)/share/cmake/ev3proto/arm-linux-gnueabi.cmake
+test-example: build
+	@rm -rf $(PREFIX_TEST)
+	@cmake --install build/native --prefix $(PREFIX_TEST) >/dev/null
+	@diff <(cd libev3proto/include && find . -name '*.hpp' | sort) \
+	      <(cd $(PREFIX_TEST)/include && find . -name '*.hpp' ! -name builtins_text.hpp | sort)
+	@test -f $(PREFIX_TEST)/include/ev3proto/behaviour/builtins_text.hpp
+	@for t in tests/package:build/package examples/robot:build/example; do \
+	   cmake -S $${t%%:*} -B $${t#*:} -G Ninja -DCMAKE_PREFIX_PATH=$(PREFIX_TEST) >/dev/null; \
+	   cmake -S $${t%%:*} -B $${t#*:}-arm -G Ninja -DCMAKE_PREFIX_PATH=$(PREFIX_TEST) \
+	      -DCMAKE_TOOLCHAIN_FILE=$(ARM_TOOLCHAIN_INSTALLED) >/dev/null; \
+	   ninja -C $${t#*:} -j 2 >/dev/null; ninja -C $${t#*:}-arm -j 2 >/dev/null; \
+	 done
+	@build/package/package_check && qemu-arm build/package-arm/package_check
+	@g++ -std=c++17 $$(PKG_CONFIG_PATH=$(PREFIX_TEST)/share/pkgconfig pkg-config --cflags ev3proto) \
+	   tests/package/main.cpp -o build/package/pkgconfig_check && build/package/pkgconfig_check
+	@EV3_BIN=$(BIN) EV3_EXAMPLE=$(CURDIR)/build/example/minirobot EV3_EXAMPLE_ARM=$(CURDIR)/build/example-arm/minirobot \
+	   $(PY) -m pytest -q tests/python/blackbox/test_example.py
+	@echo "test-example: installed package, out-of-tree projects (native, armel, pkg-config) and minirobot passed"
 
 # A master and three agents on loopback, narrated (tools/demo.py): sync, a behaviour, the master
 # killed, an election (epoch 2) with a relay, the new master's commands, the PC taking over again

@@ -7,6 +7,7 @@ the programs under test as subprocesses.
 - `Program`: `ev3-agent` / `ev3-master` started with a log file, stopped with SIGTERM.
 - `Links`: one program's links to its peers through the test, which can lose datagrams of chosen types.
 - `wait_until`: a bounded wait for a condition (no sleeps as assertions).
+- `assert_static_armel`: the EV3 build is a static ARM executable.
 """
 
 from __future__ import annotations
@@ -14,6 +15,7 @@ from __future__ import annotations
 import json
 import os
 import selectors
+import shutil
 import signal
 import socket
 import subprocess
@@ -367,6 +369,13 @@ class Program:
             self.proc.stdin.close()
         self._out.close()
         self._err.close()
+
+
+def assert_static_armel(exe: Path) -> None:
+    """@p exe is a static ARM executable (the EV3 build), when `file` is there to say."""
+    if shutil.which("file"):
+        info = subprocess.run(["file", str(exe)], capture_output=True, text=True).stdout
+        assert "ARM" in info and "statically linked" in info, info
 
 
 def read_status(path: Path) -> dict | None:

@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import os
 import shutil
-import subprocess
 from pathlib import Path
 
 import pytest
 
-from ev3net import Program, free_ports, read_status, wait_until
+from ev3net import Program, assert_static_armel, free_ports, read_status, wait_until
 
 
 @pytest.fixture
@@ -24,10 +23,7 @@ def arm_agent_exe() -> Path:
 
 
 def test_armel_agent_syncs_and_beats_under_qemu(arm_agent_exe, master_exe, programs, tmp_path):
-    info = subprocess.run(["file", str(arm_agent_exe)], capture_output=True, text=True).stdout \
-        if shutil.which("file") else ""
-    if info:
-        assert "ARM" in info and "statically linked" in info, info
+    assert_static_armel(arm_agent_exe)
     mport, aport = free_ports(2)
     status = tmp_path / "status.json"
     script = tmp_path / "script.txt"

@@ -1,0 +1,387 @@
+// minirobot: one robot of the fleet on libev3proto's installed headers alone (docs/embedding.md
+// walks through it). The library decides everything: what to send, when, what the robot does and
+// what must be on stable storage. This program owns the I/O: one UDP socket, one poll loop, the
+// election state in a file, and the brick's status LEDs.
+//
+//   minirobot [--port N] [--bind ADDR] [--broadcast HOST:PORT] [--state FILE] [--leds DIR]
+//             [--timer NAME=MS ...]
+//
+// It drives no motor and reads no sensor, so it announces no devices and runs the one behaviour of
+// model A that needs none: `wait seconds=N`. With ev3dev's LEDs under --leds (on a brick,
+// /sys/class/leds) they show the lifecycle. It prints one line per thing that happens.
+#include <arpa/inet.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <signal.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cerrno>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <map>
+#include <memory>
+#include <string>
+#include <string_view>
+#include <vector>
+
+#include <ev3proto/node.hpp>
+#include <ev3proto/robot/behaviours.hpp>
+#include <ev3proto/robot_link.hpp>
+
+namespace {
+
+namespace robot = ev3proto::robot;
+using ev3proto::Durable;
+using ev3proto::Millis;
+using Node = ev3proto::Node<>;
+using Link = robot::RobotLink<Node>;
+using K = ev3proto::NodeEvent::Kind;
+
+volatile sig_atomic_t g_signal = 0;
+
+Millis now_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_MONOTONIC, &ts);
+  return static_cast<Millis>(ts.tv_sec) * 1000u + static_cast<Millis>(ts.tv_nsec) / 1000000u;
+}
+
+std::string str(std::string_view s) { return std::string(s); }
+
+// Model A's behaviours (robot/behaviours.hpp) as the agent core's table: the name, the devices needed.
+constexpr auto kBehaviours = [] {
+  std::array<ev3proto::BehaviourSpec, std::size(robot::kModelABehaviours)> t{};
+  for (std::size_t i = 0; i < t.size(); ++i)
+    t[i] = {robot::kModelABehaviours[i].name, robot::kModelABehaviours[i].devices};
+  return t;
+}();
+
+// ev3dev's four status LEDs, in the order of robot::led_dev(0..3).
+constexpr const char* kLedNames[robot::kLedCount] = {"led0:red:brick-status", "led0:green:brick-status",
+                                                     "led1:red:brick-status", "led1:green:brick-status"};
+
+struct Options {
+  sockaddr_in bind{};
+  sockaddr_in broadcast{};
+  std::string state = "minirobot.state";
+  std::string leds = "/sys/class/leds";
+  ev3proto::Timers timers;
+};
+
+bool parse_number(const std::string& s, unsigned long max, unsigned long& v) {
+  char* end = nullptr;
+  errno = 0;
+  v = std::strtoul(s.c_str(), &end, 10);
+  return !s.empty() && s[0] >= '0' && s[0] <= '9' && *end == '\0' && errno == 0 && v <= max;
+}
+
+// "HOST:PORT" (HOST an IPv4 address) into @p a.
+bool parse_endpoint(const std::string& s, sockaddr_in& a) {
+  const std::size_t colon = s.rfind(':');
+  unsigned long port = 0;
+  a.sin_family = AF_INET;
+  if (colon == std::string::npos || !parse_number(s.substr(colon + 1), 65535, port) ||
+      inet_pton(AF_INET, s.substr(0, colon).c_str(), &a.sin_addr) != 1)
+    return false;
+  a.sin_port = htons(static_cast<std::uint16_t>(port));
+  return true;
+}
+
+// ------------------------------------------------------------------------------ the durable state
+// What Durable holds (election.hpp), as the key=value lines ev3-agent's state file has too. Written
+// to FILE.tmp, flushed to the disk, renamed over FILE, and the directory flushed: after a crash the
+// file is the old state or the new one, never half of each.
+
+std::string members_text(const Durable& d) {
+  std::string s;
+  for (std::size_t i = 0; i < d.member_count; ++i) s += (i ? "," : "") + std::to_string(d.members[i]);
+  return s;
+}
+
+bool save_state(const std::string& path, const Durable& d) {
+  const std::string text = "epoch=" + std::to_string(d.epoch) + "\nvoted_for=" + std::to_string(d.voted_for) +
+                           "\nmembers=" + members_text(d) + "\nmembers_epoch=" + std::to_string(d.mepoch) +
+                           "\nfloor=" + std::to_string(d.floor) + "\n";
+  const std::string tmp = path + ".tmp";
+  const int fd = open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+  bool ok = fd >= 0 && write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) && fsync(fd) == 0;
+  if (fd >= 0) ok = close(fd) == 0 && ok;
+  ok = ok && rename(tmp.c_str(), path.c_str()) == 0;
+  const std::size_t slash = path.rfind('/');
+  const int dir = open(slash == std::string::npos ? "." : path.substr(0, slash + 1).c_str(), O_RDONLY | O_DIRECTORY);
+  if (dir >= 0) {
+    ok = fsync(dir) == 0 && ok;
+    close(dir);
+  }
+  return ok;
+}
+
+// 1: read into @p d; 0: no file (a robot's first start: the defaults); -1: unreadable or damaged.
+int load_state(const std::string& path, Durable& d) {
+  std::FILE* f = std::fopen(path.c_str(), "r");
+  if (f == nullptr) return errno == ENOENT ? 0 : -1;
+  std::map<std::string, std::string> kv;
+  char line[256];
+  while (std::fgets(line, sizeof line, f) != nullptr) {
+    std::string l(line);
+    if (!l.empty() && l.back() == '\n') l.pop_back();
+    const std::size_t eq = l.find('=');
+    if (eq != std::string::npos) kv[l.substr(0, eq)] = l.substr(eq + 1);
+  }
+  std::fclose(f);
+  unsigned long epoch = 0, voted = 0, mepoch = 0, floor = 0, id = 0;
+  if (!parse_number(kv["epoch"], 0xFFFFFFFFul, epoch) || epoch == 0 || !parse_number(kv["voted_for"], 65535, voted) ||
+      !parse_number(kv["members_epoch"], epoch, mepoch) || !parse_number(kv["floor"], epoch, floor) || floor < mepoch)
+    return -1;
+  const std::string& m = kv["members"];  // "7,8,9", or empty
+  for (std::size_t pos = 0, comma = 0; !m.empty() && comma != std::string::npos; pos = comma + 1) {
+    comma = m.find(',', pos);
+    const std::string one = m.substr(pos, comma == std::string::npos ? comma : comma - pos);
+    if (d.member_count == ev3proto::kMaxMembership || !parse_number(one, 49999, id) || id < 2) return -1;
+    d.members[d.member_count++] = static_cast<std::uint16_t>(id);
+  }
+  if (d.member_count > 0 && mepoch == 0) return -1;  // a membership names the epoch that published it
+  d.epoch = static_cast<std::uint32_t>(epoch);
+  d.voted_for = static_cast<std::uint16_t>(voted);
+  d.mepoch = static_cast<std::uint32_t>(mepoch);
+  d.floor = static_cast<std::uint32_t>(floor);
+  return 1;
+}
+
+// ------------------------------------------------------------------------------ the robot
+
+class Robot {
+ public:
+  Robot(const Options& o, const Durable& d, Millis now)
+      : opt_(o), rt_(robot::RuntimeConfig{}, now), link_(robot::announced_devices(false)), node_(config(d), now) {}
+
+  int run() {
+    fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
+    const int yes = 1;
+    if (fd_ < 0 || setsockopt(fd_, SOL_SOCKET, SO_BROADCAST, &yes, sizeof yes) != 0 ||
+        bind(fd_, reinterpret_cast<const sockaddr*>(&opt_.bind), sizeof opt_.bind) != 0) {
+      std::fprintf(stderr, "minirobot: cannot open the UDP socket: %s\n", std::strerror(errno));
+      return 1;
+    }
+    find_leds();
+    rt_.led(node_.agent().led());
+    sigset_t waiting;  // the signals are blocked except while the loop waits in ppoll
+    sigprocmask(SIG_SETMASK, nullptr, &waiting);
+    sigdelset(&waiting, SIGTERM);
+    sigdelset(&waiting, SIGINT);
+    pump(now_ms());
+    while (g_signal == 0 && !failed_) {
+      char buf[ev3proto::kMaxDatagram + 1];  // one byte more: a longer datagram is refused, not cut
+      sockaddr_in from{};
+      for (int i = 0; i < 64; ++i) {  // the datagrams waiting, then time
+        socklen_t len = sizeof from;
+        const ssize_t n = recvfrom(fd_, buf, sizeof buf, 0, reinterpret_cast<sockaddr*>(&from), &len);
+        if (n < 0) break;
+        node_.handle_datagram(std::string_view(buf, static_cast<std::size_t>(n)), peer_of(from), now_ms());
+        pump(now_ms());
+      }
+      const Millis now = now_ms();
+      if (now >= rt_.next_deadline()) rt_.tick(now);  // a robot with sensors reads them first
+      node_.advance(now);
+      pump(now);
+      const Millis next = std::min(node_.next_deadline(), rt_.next_deadline());
+      const Millis wait = next <= now ? 0 : std::min<Millis>(next - now, 1000);
+      const timespec ts{static_cast<time_t>(wait / 1000), static_cast<long>(wait % 1000) * 1000000L};
+      pollfd p{fd_, POLLIN, 0};
+      ppoll(&p, 1, &ts, &waiting);
+    }
+    if (rt_.busy()) rt_.control(ev3proto::ControlKind::stop, "", nullptr, 0, now_ms());
+    rt_.led(ev3proto::Led::DARK);
+    write_devices();
+    std::printf("stopped%s\n", failed_ ? ": the state file could not be written" : "");
+    close(fd_);
+    return failed_ ? 1 : 0;
+  }
+
+ private:
+  Node::Config config(const Durable& d) {
+    Node::Config c;
+    c.agent.caps = {"A", kBehaviours.data(), kBehaviours.size(), link_.announced(), robot::kModelADeviceNames,
+                    std::size(robot::kModelADeviceNames)};
+    c.agent.check = robot::behaviour_check(rt_);  // BEHAVIOUR is parsed and checked on receipt
+    c.agent.timers = opt_.timers;
+    std::uint64_t r = 0;  // the temporary id and the first msgid: random
+    const int fd = open("/dev/urandom", O_RDONLY | O_CLOEXEC);
+    if (fd < 0 || read(fd, &r, sizeof r) != static_cast<ssize_t>(sizeof r))
+      r = now_ms() ^ static_cast<unsigned>(getpid());
+    if (fd >= 0) close(fd);
+    c.agent.temp_id = static_cast<std::uint16_t>(ev3proto::kFirstTempId + r % 15536u);
+    c.agent.first_msgid = static_cast<std::uint32_t>(1 + (r >> 16) % 1000000000u);
+    c.agent.election.enabled = true;  // relay and election: a robot may become the fleet's master
+    c.agent.election.durable = d;
+    return c;
+  }
+
+  // Everything the last call into the node or the runtime gave: node events first (the durable
+  // state on disk before anything that call queued is sent), the runtime's writes, then datagrams.
+  void pump(Millis now) {
+    link_.settle(
+        node_, rt_, now, [this](const ev3proto::NodeEvent& e) { on_event(e); }, [this] { write_devices(); },
+        [this](const robot::LinkNote& n) { on_note(n); });
+    ev3proto::NodeTransmit t;
+    while (!failed_ && node_.poll_transmit(t)) {
+      const sockaddr_in* to = &opt_.broadcast;  // Dest::broadcast, or the master's address not known yet
+      if (t.dest != ev3proto::Dest::broadcast && t.peer >= 1 && t.peer <= peers_.size()) to = &peers_[t.peer - 1];
+      else if (t.dest == ev3proto::Dest::peer) continue;
+      for (int copy = 0; copy < 3; ++copy)  // 3 copies (docs/protocol.md "Duplicates and stale copies")
+        sendto(fd_, t.bytes.data(), t.bytes.size(), 0, reinterpret_cast<const sockaddr*>(to), sizeof *to);
+    }
+    ev3proto::OperatorEvent o;  // the Master core's, while this robot is the elected master
+    while (node_.poll_operator_event(o))
+      std::printf("master: agent %u %s %s\n", o.agent, str(to_string(o.kind)).c_str(), o.text.c_str());
+  }
+
+  void on_event(const ev3proto::NodeEvent& e) {
+    const auto& a = node_.agent();
+    switch (e.kind) {
+      case K::state: std::printf("state %s (id %u)\n", str(to_string(e.state)).c_str(), a.id()); break;
+      case K::durable:
+        if (!save_state(opt_.state, e.durable)) {
+          std::printf("error: cannot write %s: %s; sending nothing more\n", opt_.state.c_str(), std::strerror(errno));
+          failed_ = true;
+          break;
+        }
+        std::printf("durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u: written to %s\n",
+                    e.durable.epoch, e.durable.voted_for, members_text(e.durable).c_str(), e.durable.mepoch,
+                    e.durable.floor, opt_.state.c_str());
+        break;
+      case K::role: std::printf("election: role %s in epoch %u\n", str(to_string(e.role)).c_str(), e.epoch); break;
+      case K::leader:
+        if (e.leader != 0)
+          std::printf("following master %u (epoch %u)%s\n", e.leader, e.epoch,
+                      e.via != 0 ? (" through agent " + std::to_string(e.via)).c_str() : "");
+        break;
+      case K::master_started: std::printf("master of epoch %u: running a Master core\n", e.epoch); break;
+      case K::master_stopped: std::printf("master of epoch %u: stepped down\n", e.epoch); break;
+      default: break;  // led and control are the runtime's (robot_link.hpp); relays
+    }
+  }
+
+  void on_note(const robot::LinkNote& n) {
+    if (n.kind == robot::LinkNote::Kind::control)
+      std::printf("behaviour %s: %s\n", str(n.name).c_str(), str(to_string(n.control)).c_str());
+    else if (n.kind == robot::LinkNote::Kind::result)
+      std::printf("action %s%s%s\n", str(to_string(n.result.outcome)).c_str(), n.result.detail.empty() ? "" : ": ",
+                  str(n.result.detail.view()).c_str());
+  }
+
+  // The LEDs found under --leds go to the runtime with their max_brightness.
+  void find_leds() {
+    for (std::size_t i = 0; i < robot::kLedCount; ++i) {
+      const std::string dir = opt_.leds + "/" + kLedNames[i] + "/";
+      std::FILE* f = std::fopen((dir + "max_brightness").c_str(), "r");
+      int max = 0;
+      if (f == nullptr) continue;
+      if (std::fscanf(f, "%d", &max) == 1 && max > 0) {
+        rt_.led_present(robot::led_dev(i), max);
+        led_dirs_[i] = dir;
+      }
+      std::fclose(f);
+    }
+  }
+
+  // The runtime's device writes: here only LEDs (trigger, delay_on, delay_off, brightness).
+  void write_devices() {
+    robot::Write w;
+    while (rt_.poll_write(w)) {
+      if (!robot::is_led(w.dev)) continue;
+      const std::string& dir = led_dirs_[robot::index(w.dev) - robot::index(robot::led_dev(0))];
+      const std::string file = dir + str(robot::to_string(w.attr));
+      const int fd = open(file.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
+      if (fd < 0) continue;
+      if (write(fd, w.value.view().data(), w.value.view().size()) < 0) std::printf("LED write failed\n");
+      close(fd);
+    }
+  }
+
+  // A small number for each address heard from (0 is "none"): the node names peers by it.
+  ev3proto::Peer peer_of(const sockaddr_in& a) {
+    for (std::size_t i = 0; i < peers_.size(); ++i)
+      if (peers_[i].sin_addr.s_addr == a.sin_addr.s_addr && peers_[i].sin_port == a.sin_port)
+        return static_cast<ev3proto::Peer>(i + 1);
+    peers_.push_back(a);
+    return static_cast<ev3proto::Peer>(peers_.size());
+  }
+
+  Options opt_;
+  robot::Runtime rt_;
+  Link link_;
+  Node node_;
+  int fd_ = -1;
+  bool failed_ = false;
+  std::vector<sockaddr_in> peers_;
+  std::string led_dirs_[robot::kLedCount];
+};
+
+void on_signal(int s) { g_signal = s; }
+
+int usage(const char* bad) {
+  if (bad) std::fprintf(stderr, "minirobot: bad argument: %s\n", bad);
+  std::fprintf(bad ? stderr : stdout,
+               "usage: minirobot [--port N] [--bind ADDR] [--broadcast HOST:PORT] [--state FILE] [--leds DIR]\n"
+               "                 [--timer NAME=MS ...]   (NAME: sync, heartbeat, loss, paused, backoff, ...)\n");
+  return bad ? 2 : 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  std::setvbuf(stdout, nullptr, _IOLBF, 0);
+  Options o;
+  o.bind.sin_family = AF_INET;
+  o.bind.sin_port = htons(12345);
+  parse_endpoint("255.255.255.255:12345", o.broadcast);
+  for (int i = 1; i < argc; ++i) {
+    const std::string flag = argv[i];
+    if (flag == "--help") return usage(nullptr);
+    if (i + 1 == argc) return usage(argv[i]);
+    const std::string v = argv[++i];
+    unsigned long n = 0;
+    const std::size_t eq = v.find('=');
+    bool ok = true;
+    if (flag == "--port" && parse_number(v, 65535, n)) o.bind.sin_port = htons(static_cast<std::uint16_t>(n));
+    else if (flag == "--bind") ok = inet_pton(AF_INET, v.c_str(), &o.bind.sin_addr) == 1;
+    else if (flag == "--broadcast") ok = parse_endpoint(v, o.broadcast);
+    else if (flag == "--state") o.state = v;
+    else if (flag == "--leds") o.leds = v;
+    else if (flag == "--timer" && eq != std::string::npos && parse_number(v.substr(eq + 1), 3600000, n)) {
+      const auto t = std::find_if(ev3proto::kTimerTable.begin(), ev3proto::kTimerTable.end(),
+                                  [&](const ev3proto::TimerSpec& s) { return s.name == v.substr(0, eq); });
+      ok = t != ev3proto::kTimerTable.end() && (o.timers.set(t->timer, n), true);
+    } else ok = false;
+    if (!ok) return usage(argv[i]);
+  }
+  if (!o.timers.valid()) return usage("--timer: paused must be longer than loss");
+
+  Durable d;
+  const int loaded = load_state(o.state, d);
+  if (loaded < 0) {
+    std::fprintf(stderr, "minirobot: %s is unreadable or damaged; not starting with a guessed state\n",
+                 o.state.c_str());
+    return 2;
+  }
+  std::printf("minirobot: port %u, state %s: %s epoch %u, voted for %u, members [%s] of epoch %u, floor %u\n",
+              ntohs(o.bind.sin_port), o.state.c_str(), loaded ? "read back:" : "none yet, starting in", d.epoch,
+              d.voted_for, members_text(d).c_str(), d.mepoch, d.floor);
+  sigset_t block;  // SIGTERM and SIGINT only interrupt the loop's wait (no lost wake-up)
+  sigemptyset(&block);
+  sigaddset(&block, SIGTERM);
+  sigaddset(&block, SIGINT);
+  sigprocmask(SIG_BLOCK, &block, nullptr);
+  struct sigaction sa {};
+  sa.sa_handler = on_signal;
+  sigaction(SIGTERM, &sa, nullptr);
+  sigaction(SIGINT, &sa, nullptr);
+  auto r = std::make_unique<Robot>(o, d, now_ms());  // the node is large (84 KiB on armel): not on the stack
+  return r->run();
+}
