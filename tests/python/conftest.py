@@ -45,6 +45,21 @@ def _in_ci() -> bool:
 settings.load_profile("ci" if _in_ci() else "dev")
 
 
+# --- Tests that run TLC ------------------------------------------------------------------------
+
+# These run the model checker (the conformance checks replay, simulate and validate against the
+# spec): marked `tlc`, so that `make check` can leave them out with -m "not tlc".
+_TLC_TESTS = ("conformance", "test_replay_sample.py")
+
+
+def pytest_collection_modifyitems(items):
+    here = Path(__file__).resolve().parent
+    for item in items:
+        rel = Path(str(item.fspath)).resolve().relative_to(here)
+        if rel.parts and rel.parts[0] in _TLC_TESTS:
+            item.add_marker(pytest.mark.tlc)
+
+
 # --- The C++ codec tool ----------------------------------------------------------------------
 
 TOOL_TIMEOUT = 10.0  # seconds for one answer line
