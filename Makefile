@@ -26,7 +26,8 @@ JOBS ?= $(shell nproc)
 FUZZ_SECONDS ?= 1800
 FUZZ_SMOKE_SECONDS ?= 30
 BENCH_RUNS ?= 9
-# The last commit whose master core walked its registry for next_deadline() (issue 14).
+# The baseline of make bench-master: a commit whose master core finds its next deadline by walking
+# the whole registry after each datagram (docs/benchmarks.md, "Master at scale").
 MASTER_BASELINE ?= b1890d2
 CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
                 -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN)
