@@ -486,7 +486,7 @@ class Agent {
   Role role() const noexcept { return el_.role; }
   /// Highest epoch seen (Election epoch).
   std::uint32_t epoch() const noexcept { return el_.epoch; }
-  /// What to keep on stable storage (epoch, votedFor): write it when durable_rev() changed, before
+  /// What to keep on stable storage (epoch, votedFor, members, mepoch, floor): write it when durable_rev() changed, before
   /// sending what the call that changed it queued (a VOTE must not outlive a lost votedFor).
   Durable durable() const noexcept { return el_.durable(); }
   /// Changes whenever durable() changes.
