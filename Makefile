@@ -7,7 +7,7 @@
 #   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec, ev3-behaviour)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS per target, default 1800)
 #   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
-#   make bench-master  the master core per datagram at 100 and 10,000 agents, now and before (MASTER_BASELINE)
+#   make bench-master  the master core per datagram at 100 and 10,000 agents, and a baseline's (MASTER_BASELINE)
 #   make arm       static armel (EV3) build in build/arm/
 #   make spec      SANY + TLC on the small models, broken variants refuted, diagram up to date
 #   make spec-full the full models (minutes)
@@ -29,7 +29,8 @@ JOBS ?= $(shell nproc)
 FUZZ_SECONDS ?= 1800
 FUZZ_SMOKE_SECONDS ?= 30
 BENCH_RUNS ?= 9
-# The last commit whose master core walked its registry for next_deadline() (issue 14).
+# The baseline of make bench-master: a commit whose master core finds its next deadline by walking
+# the whole registry after each datagram (docs/benchmarks.md, "Master at scale").
 MASTER_BASELINE ?= b1890d2
 # -g1: line tables for backtraces and profilers, a third less compile time than -g.
 CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
@@ -102,9 +103,10 @@ test-example: build
 	   $(PY) -m pytest -q tests/python/blackbox/test_example.py
 	@echo "test-example: installed package, out-of-tree projects (native, armel, pkg-config) and minirobot passed"
 
-# A master and three agents on loopback, narrated (tools/demo.py): sync, a behaviour, the master
-# killed, an election (epoch 2) with a relay, the new master's commands, the PC taking over again
-# (epoch 3). Ends by itself in about 25 s, then validates the three agents' traces with TLC
+# A master and three agents on loopback, narrated (tools/demo.py): sync (the PC publishes its
+# membership in epochs 2-4), a behaviour, the master killed, an election (epoch 5) with a relay, the
+# new master's commands, the PC taking over again (epoch 6). The fleet's part takes about 30 s; then
+# it validates the three agents' traces with TLC
 # (AgentLogic composed with Election.tla's per-agent rules), the master's, and the whole run (every
 # trace merged by send/receive: ev3-conformance merged) and fails if one does not conform.
 demo: build

@@ -446,8 +446,8 @@ class Program {
 
   // ------------------------------------------------------------------ relay and election
   /// The election state file: DIR/ev3-agent.state (epoch, voted_for, and the membership the agent
-  /// knows: members, members_epoch, floor; a file written before issue 13 has none of the three: no
-  /// membership known); none without --state-dir.
+  /// knows: members, members_epoch, floor; a file without those three keys knows no membership);
+  /// none without --state-dir.
   bool load_state(ev3proto::ElectionConfig& e) {
     if (opt_.state_dir.empty()) return true;
     state_path_ = opt_.state_dir + "/ev3-agent.state";
@@ -467,7 +467,7 @@ class Program {
     ev3proto::Durable& d = e.durable;
     d.epoch = static_cast<std::uint32_t>(epoch);
     d.voted_for = static_cast<std::uint16_t>(voted);
-    ev3io::StoredMembership m;  // the rule ev3-master and the driver share (none kept: an older file)
+    ev3io::StoredMembership m;  // the rule ev3-master and the driver share (no keys: none known)
     if (!ev3io::read_membership(kv, d.epoch, true, m, err)) {
       std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: %s\n", state_path_.c_str(), err.c_str());
       return false;

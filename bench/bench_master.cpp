@@ -1,5 +1,5 @@
 // The master core's CPU per datagram at one datagram rate with 100 and with 10,000 registered agents
-// (issue 14: within 1.5x). docs/benchmarks.md, "Master at scale", has the figures and the command.
+// (the target: within 1.5x). docs/benchmarks.md, "Master at scale", has the figures and the command.
 //
 // Before the timed loop: N agents sync (AGENT, MASTER, ACK) and report ACTIVE once; 100 of them get a
 // BEHAVIOUR they never answer, so 100 commands are always pending (resent every 500 ms, failed after

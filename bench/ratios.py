@@ -9,7 +9,7 @@ that a slow minute of the shared VM falls on ours, the thesis-style decoder and 
 run's figure for a benchmark is the median of its R measurements, and a ratio is only taken
 between figures of the same run (ours against the thesis-style decoder and against the memchr
 floor, same datagram). The table gives, per datagram, the median of the per-run figures and their
-range. Target (issue 14): decode more than 10x faster than the thesis-style decoder, 0 allocations.
+range. Target: decode more than 10x faster than the thesis-style decoder, 0 allocations.
 
 The last table puts the PING decode next to the receive system call before it (recvfrom() of a
 queued loopback datagram, CPU time, same run) and gives both as a share of one core at the master's
@@ -48,7 +48,7 @@ def print_floors(runs, med):
     """The decode floors side by side: (b) a memchr() per ':', (c) one plain loop over the bytes (copy,
     note each ':', classify), (d) the copy and range check of ours (detail::copy_printable) alone. The
     (a)/X columns are the most any decoder doing at least that work could reach against the
-    thesis-style decoder (per-run ratios): issue 14 asks for more than 10x."""
+    thesis-style decoder (per-run ratios): the target is more than 10x."""
     print("\nDecode floors, median over %d runs (range of the runs); (a)/X = the most a decoder doing at least"
           " X's work could reach:" % len(runs))
     print("| datagram | ours ns/op | (b) memchr ns/op | (c) one plain pass ns/op | (d) copy+check ns/op "

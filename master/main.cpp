@@ -330,8 +330,8 @@ class Program {
     cfg.next_id = static_cast<std::uint16_t>(id);
     cfg.next_msgid = static_cast<std::uint32_t>(msgid);
     cfg.epoch = static_cast<std::uint32_t>(epoch);
-    // The membership of the epoch members_epoch (issue 13): what LEADER carried, what votes count
-    // against. A list without its epoch (a file of an older version) is refused: the floor of the
+    // The membership of the epoch members_epoch: what LEADER carried, what votes count
+    // against. A list without its epoch (no members_epoch key) is refused: the floor of the
     // agents' votes rests on it.
     const std::string members = kv["members"];
     ev3io::StoredMembership m;  // the rule ev3-agent shares (the PC keeps no floor)

@@ -325,14 +325,14 @@ def cmd_refute(args):
         raise SystemExit(1)
 
 
-# ------------------------------------------------------------------ spec mutations (issue 13.6)
+# ------------------------------------------------------------------ spec mutations
 # spec/tla/mutations.toml: textual mutations of the shipped spec, each applied to a copy of
 # spec/tla/ and checked with the models `make spec` runs (docs/spec.md "Spec mutations").  Not the
 # BUG variants above: a mutation changes the text of a rule, nothing in the spec switches it.
 MUTATIONS = os.path.join(SPEC, "mutations.toml")
 MUTATION_FIELDS = {"id", "module", "class", "from", "to", "breaks", "models", "expect"}
 MUTATION_OPTIONAL = {"only", "why", "timeout"}
-# The guard classes of issue 13 (each needs at least one mutation), and the other kinds of rule.
+# The guard classes (each needs at least one mutation), and the other kinds of rule.
 GUARD_CLASSES = {"sender", "epoch", "vote", "relay", "timeout", "dedupe"}
 OTHER_CLASSES = {"state", "registry", "bound", "reconcile"}
 MUTATION_TIMEOUT = 300   # seconds per TLC run unless the mutation says otherwise
@@ -578,7 +578,7 @@ def cmd_diagram(args):
     print("diagram: wrote docs/lifecycle.dot, docs/lifecycle.svg")
 
 
-# ------------------------------------------------------------------ relay and election (issue 4)
+# ------------------------------------------------------------------ relay and election
 # docs/election.md.  Figures and expectations in the "election" key of spec/tla/manifest.json:
 #   thesis     MCThesisElection must FAIL (exit 12) on its invariant (the thesis' split brain);
 #   models     exhaustive runs (size small: make spec; full: make spec-full), distinct/depth checked;
@@ -770,7 +770,7 @@ def main():
     {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
     if args.cmd == "check" and args.size != "quick":
         trace_modules()
-    election_main(args)  # relay and election (issue 4), after the lifecycle models
+    election_main(args)  # relay and election, after the lifecycle models
 
 
 if __name__ == "__main__":

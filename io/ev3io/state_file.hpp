@@ -25,7 +25,7 @@ bool parse_id_list(const std::string& s, std::vector<std::uint16_t>& out);
 /// The other way round: "7,8,9" ("" for none).
 std::string format_id_list(const std::vector<std::uint16_t>& ids);
 
-/// The membership a state file keeps (issue 13, docs/election.md section 6): the list, the epoch
+/// The membership a state file keeps (docs/election.md section 6): the list, the epoch
 /// that published it, and (the agent's) floor.
 struct StoredMembership {
   std::vector<std::uint16_t> members; ///< `members`: agent ids 2..49999, at most kMaxMembership.
@@ -35,7 +35,7 @@ struct StoredMembership {
 
 /// Reads and checks the membership of state file @p kv whose epoch is @p epoch, by one rule for
 /// ev3-agent (@p with_floor) and ev3-master (no floor): a key that is absent is empty / 0 (a file
-/// of an older version knows no membership). False with the bad key named in @p err
+/// without them knows no membership). False with the bad key named in @p err
 /// ("members_epoch: 7 is above epoch 5").
 bool read_membership(const std::map<std::string, std::string>& kv, std::uint32_t epoch, bool with_floor,
                      StoredMembership& out, std::string& err);

@@ -1,7 +1,7 @@
 """The catalogue of spec mutations (spec/tla/mutations.toml, docs/spec.md "Spec mutations") is
 sound without running TLC: it parses, every mutation point is found exactly once in the current
 spec (a point that moved or was edited fails here instead of silently passing `make
-spec-mutate`), every model it names is one `make spec` runs, every guard class of issue 13 has a
+spec-mutate`), every model it names is one `make spec` runs, every guard class has a
 mutation, and every property the make-spec models check is the expected killer of one mutation
 or is named in docs/spec.md as covered otherwise."""
 

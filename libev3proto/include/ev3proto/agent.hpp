@@ -171,7 +171,7 @@ struct AgentVars {
   std::uint32_t following = 0; ///< following
   std::uint16_t via = 0;     ///< via (0 = NoNode)
   std::uint32_t relay_rev = 0; ///< changes whenever relays / offered / votes change
-  std::uint32_t mepoch = 0;    ///< Election mepoch (issue 13)
+  std::uint32_t mepoch = 0;    ///< Election mepoch: the epoch that published the membership
   std::uint32_t floor = 0;     ///< Election floor
   std::uint32_t members_rev = 0; ///< changes whenever the membership (Election members) may change
   /// The next msgid (not a spec variable): a record that sent datagrams moved it, so the trace
@@ -486,7 +486,7 @@ class Agent {
   Role role() const noexcept { return el_.role; }
   /// Highest epoch seen (Election epoch).
   std::uint32_t epoch() const noexcept { return el_.epoch; }
-  /// What to keep on stable storage (epoch, votedFor): write it when durable_rev() changed, before
+  /// What to keep on stable storage (epoch, votedFor, members, mepoch, floor): write it when durable_rev() changed, before
   /// sending what the call that changed it queued (a VOTE must not outlive a lost votedFor).
   Durable durable() const noexcept { return el_.durable(); }
   /// Changes whenever durable() changes.

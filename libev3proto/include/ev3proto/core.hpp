@@ -128,7 +128,7 @@ enum class Action : std::uint8_t {
   GrantPreVote, HandlePreVote,
   // Master-side extensions the spec abstracts (docs/core.md): the route and the handover.
   MasterRoute, MasterHandover,
-  // Membership (Election.tla section Membership, issue 13): agent side, then the PC's.
+  // Membership (Election.tla section Membership): agent side, then the PC's.
   ShareMembers, LearnMembers, Reconfigure,
 };
 

@@ -7,8 +7,9 @@
 /// order of their last refresh, and a list in that order is all the structure they need (a timing
 /// wheel with a single slot per period): a refresh moves the key to the back, the front holds the
 /// earliest deadline, and taking due keys takes them from the front. Every operation is O(1); no
-/// search, no reordering, no walk of the keys (issue 14: walking the registry for the earliest
-/// deadline after every datagram was most of the master's time at thousands of agents).
+/// search, no reordering, no walk of the keys (walking the registry for the earliest deadline after
+/// every datagram would be most of the master's time at thousands of agents: docs/benchmarks.md,
+/// "Master at scale").
 /// The master runs on a PC: this allocates (a vector of links, indexed by key).
 #pragma once
 

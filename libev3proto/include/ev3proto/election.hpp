@@ -35,7 +35,7 @@ inline bool membership_copy(const Message& m, std::uint16_t me) noexcept {
 }
 
 /// What the firmware must keep on stable storage (Election's epoch and votedFor, and the
-/// membership the agent knows: members, mepoch, floor; issue 13): write it before sending the
+/// membership the agent knows: members, mepoch, floor): write it before sending the
 /// datagrams polled after the call that changed it.
 struct Durable {
   std::uint32_t epoch = 1;     ///< Highest epoch seen.
@@ -294,7 +294,7 @@ class AgentElection {
   /// docs/core.md deviation 2), the candidate is not stronger than us, an agent candidate's
   /// membership (of epoch @p k, ELECT's members_epoch) is not older than our floor, and we know a
   /// membership at least as new as the one the PC counts against (Knows: our floor never rises
-  /// above the list we know; issue 13).
+  /// above the list we know).
   bool ElectGrant(std::uint16_t candidate, std::uint32_t e, std::uint32_t its_score, std::uint32_t my_score,
                   std::uint32_t k) const noexcept {
     return (e > epoch || voted_for == 0 || voted_for == candidate) && its_score <= my_score &&

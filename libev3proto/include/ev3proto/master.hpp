@@ -879,7 +879,7 @@ class Master {
   /// Heartbeat is due at @p now (MASTER).
   bool HeartbeatOk(Millis now) const noexcept { return role_ == MasterRole::master && hb_at_ <= now; }
   /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat: the membership
-  /// of the epoch, fixed for the whole epoch (issue 13).
+  /// of the epoch, fixed for the whole epoch.
   void Heartbeat() {
     hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
     broadcast(MsgType::LEADER, leader_params(epoch_, self_));
@@ -1041,8 +1041,8 @@ class Master {
     return m.receiver == self_ && e && *e > epoch_;
   }
   /// Spec HandleStale: a newer epoch exists: the PC stands again (CANDIDATE), an elected agent's
-  /// master steps down. Votes of the older epoch do not count in the newer one (issue 13: TLC
-  /// found the PC winning the newer epoch with them).
+  /// master steps down. Votes of the older epoch do not count in the newer one (counted, they
+  /// would let the PC win the newer epoch: a TLC counterexample).
   void HandleStale(const Message& m, Peer) {
     epoch_ = *m.param_u32(0);
     votes_.clear();

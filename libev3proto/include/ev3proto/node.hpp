@@ -7,8 +7,8 @@
 /// the decoded Message). After every input the node compares what the agent core reports with
 /// what it reported last (the durable state by its revision, Agent::durable_rev()) and emits an
 /// event for each change, as etcd raft's Ready carries HardState
-/// and SoftState only when they changed: `durable` (epoch, votedFor: write them to stable storage
-/// before sending what the same call queued), `role`, `leader` (leader, following, via), `relays`,
+/// and SoftState only when they changed: `durable` (epoch, votedFor and the membership known:
+/// write them to stable storage before sending what the same call queued), `role`, `leader` (leader, following, via), `relays`,
 /// and `master_started` / `master_stopped` for the Master core. docs/core.md "The node".
 ///
 /// Memory: the agent core and the window are inline (no heap). The Master core allocates (its
@@ -59,7 +59,7 @@ struct NodeEvent {
     state,          ///< The agent's state changed (@c state).
     led,            ///< The LED pattern changed (@c led).
     control,        ///< The behaviour runner must act (@c control; start/restart run agent().behaviour()).
-    durable,        ///< Epoch or vote changed (@c durable, was @c previous): persist before sending.
+    durable,        ///< Epoch, vote or membership changed (@c durable, was @c previous): persist before sending.
     role,           ///< The election role changed (@c role; master: it won @c epoch).
     leader,         ///< The master followed changed (@c leader in epoch @c epoch, through @c via; 0 = none).
     relays,         ///< The agents this node relays for changed (agent().relayed(i)).
@@ -69,8 +69,8 @@ struct NodeEvent {
   State state = State::IDLE;               ///< state
   Led led = Led::YELLOW_BLINK;             ///< led
   ControlKind control = ControlKind::stop; ///< control
-  Durable durable;                         ///< durable: the new epoch and vote
-  Durable previous;                        ///< durable: the ones before
+  Durable durable;                         ///< durable: the new epoch, vote and membership
+  Durable previous;                        ///< durable: the one before
   Role role = Role::none;                  ///< role
   std::uint16_t leader = 0;                ///< leader
   std::uint16_t via = 0;                   ///< leader

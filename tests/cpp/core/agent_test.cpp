@@ -149,7 +149,7 @@ TEST(ActionNames, EverySpecActionOfANodeIsACppAction) {
     ++election;
   }
   EXPECT_GE(election, 14u);
-  EXPECT_EQ(spec.count("ShareMembers") + spec.count("LearnMembers"), 2u);  // issue 13's membership rules
+  EXPECT_EQ(spec.count("ShareMembers") + spec.count("LearnMembers"), 2u);  // the membership rules
   for (const auto& n : spec) EXPECT_EQ(cpp.count(n), 1u) << "spec action " << n << " has no Action";
 }
 

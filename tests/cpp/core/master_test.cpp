@@ -61,7 +61,7 @@ TEST(DeadlineList, EqualsAMapOfDeadlinesOverRandomOperations) {
   }
 }
 
-/// The earliest deadline by walking the registry (what next_deadline() computed before issue 14).
+/// The earliest deadline by walking the registry: the reference next_deadline() must equal.
 Millis walked_deadline(const Master<>& m, const Timers& t) {
   Millis d = Master<>::kNever;
   for (const auto& kv : m.registry()) {

@@ -186,7 +186,7 @@ TEST(Node, DurableComesBeforeTheVoteItGuards) {
   events(n);
   sent(n);
   // ELECT(2) of a weaker candidate that knows no membership (members_epoch 0, below our floor 1):
-  // the epoch is adopted, the vote refused (issue 13).
+  // the epoch is adopted, the vote refused.
   n.handle_datagram("8:0:9:27:2:1:0", 8, 4001);
   EXPECT_EQ(events(n), (std::vector<std::string>{"durable 2/0 [7,8,9]@1 floor 1"}));
   EXPECT_EQ(sent(n), (std::vector<std::string>{}));

@@ -429,7 +429,7 @@ TEST(TraceFile, LinesFlushedEvery200ms) {
 
 }  // namespace
 
-// The membership a state file keeps (issue 13): one rule for ev3-agent (with its floor), ev3-master
+// The membership a state file keeps: one rule for ev3-agent (with its floor), ev3-master
 // and ev3-agent --driver; every refusal names the key.
 TEST(Files, StoredMembershipRule) {
   using KV = std::map<std::string, std::string>;

@@ -324,7 +324,7 @@ TEST(Behaviours, ModelADeclaresItsActionsAndBehaviours) {
   }
 }
 
-// The behaviour language (issue 16, ev3proto/behaviour/) names the robot's events, devices and stop
+// The behaviour language (ev3proto/behaviour/) names the robot's events, devices and stop
 // actions with its own enums "in the order and with the values of" robot/'s, so the runtime can pass
 // one as the other: checked here, for both sides.
 TEST(Behaviours, TheLanguagesEnumsAreTheRobots) {

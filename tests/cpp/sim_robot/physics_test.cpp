@@ -97,7 +97,7 @@ double stop_distance(int speed, const char* action) {
 }
 
 TEST(Physics, StopDistancesCoastBrakeHold) {
-  // The thesis (brief.md section 7): coast 1-5 cm depending on speed, hold <= 2 cm.
+  // The thesis (docs/brief.md section 7): coast 1-5 cm depending on speed, hold <= 2 cm.
   std::printf("speed (deg/s, cm/s)   coast    brake    hold   (cm travelled after `stop`)\n");
   for (int speed : {263, 525, 788, 1050}) {
     const double coast = stop_distance(speed, "coast");

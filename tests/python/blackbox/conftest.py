@@ -74,7 +74,7 @@ def start_agent(agent_exe, programs, tmp_path, tm):
     return start
 
 
-# --- trace validation (issue 7; docs/spec.md "Conformance") -----------------------------------------
+# --- trace validation (docs/spec.md "Conformance") --------------------------------------------------
 # Every ev3-agent / ev3-master started by a scenario runs with `--trace FILE`; when the test ends the
 # trace is checked by TLC against the spec (ev3conformance.tracecheck) in a background pool of 2 TLC
 # runs, so the checks overlap the following scenarios: agent traces against AgentLogic (validate),

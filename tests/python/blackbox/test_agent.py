@@ -1,5 +1,5 @@
 """ev3-agent over real UDP on loopback, driven by a Python test master (ev3conformance.wire):
-every row of brief.md section 2's table, and the answers of wire.md (ACK/NOT with the msgid,
+every row of docs/brief.md section 2's table, and the answers of docs/protocol.md (ACK/NOT with the msgid,
 duplicates answered again and acted on once), the `wait` behaviour, LEDs, signals, command line."""
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def test_panic_ignores_other_agents(active, tm):
                 if m.type in (T["ACK"], T["NOT"], T["PING"]) and m.msgid > panic.msgid]
 
 
-# --- wire.md answers -----------------------------------------------------------------------------
+# --- docs/protocol.md answers -------------------------------------------------------------------
 
 def test_refusals_carry_msgid_and_reason(active, tm):
     assert tm.refused(ID, "START") == b"no behaviour"

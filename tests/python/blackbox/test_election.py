@@ -1,7 +1,7 @@
 """Relay and election with real programs over loopback UDP (docs/programs.md "Relay and election"):
 ev3-master and three ev3-agent, all with --election; the master is killed (SIGKILL); the agents
 elect one of them master of epoch 5 (the lowest --score; the PC published the membership one agent
-per epoch while the three synced, issue 13: epochs 2, 3, 4), the others follow it, and its
+per epoch while the three synced: epochs 2, 3, 4), the others follow it, and its
 --master-script commands take effect; then the PC comes back from its state file and takes the fleet
 back: agent #1's datagrams go through the test (ev3net.Links), which loses the PC's ELECT on its way
 to #1, so the agent-master hears of the newer epoch from the PC's LEADER and hands over (HANDOVER).
@@ -219,10 +219,10 @@ def test_relay_for_an_agent_that_hears_only_a_peer(master_exe, agent_exe, progra
 
 def test_agents_that_never_heard_the_pc_learn_the_membership_from_peers(master_exe, agent_exe, programs,
                                                                         tmp_path):
-    """Issue 13's liveness failure: the PC dies right after the sync, and the agents that could win
-    never heard a LEADER listing the membership; they must learn it from a peer (ShareMembers /
-    LearnMembers, at their first RELAY_REQ) and elect a master (before the fix the fleet sat in PANIC
-    until the PC came back). Five agents and the PC, 30 % loss, duplication and reordering on every
+    """Liveness without the PC's list: the PC dies right after the sync, and the agents that could
+    win never heard a LEADER listing the membership; they must learn it from a peer (ShareMembers /
+    LearnMembers, at their first RELAY_REQ) and elect a master (without that rule the fleet would sit
+    in PANIC until the PC came back). Five agents and the PC, 30 % loss, duplication and reordering on every
     sender. The PC's --broadcast list (LEADER, ELECT) names only #3, #4 and #5, which hear #1, #2 and
     the PC but not each other; #1 and #2 (the lowest scores) hear everyone, and the PC only by unicast
     (MASTER, PONG). #3-#5 sync first, so they are the PC's first three members and vote for each
@@ -312,7 +312,7 @@ def test_agents_that_never_heard_the_pc_learn_the_membership_from_peers(master_e
 
 
 def test_a_damaged_membership_in_a_state_file_is_refused(master_exe, agent_exe, tmp_path):
-    """The membership is kept with the epoch (issue 13): a state file whose list is damaged, whose list
+    """The membership is kept with the epoch: a state file whose list is damaged, whose list
     lacks the epoch that published it or names one above the file's epoch, or (the agent's) whose
     floor is below that epoch, stops the program with the entry named (one rule for both programs,
     ev3io::read_membership)."""

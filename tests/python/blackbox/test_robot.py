@@ -289,7 +289,7 @@ def test_normal_events_reach_the_master_with_their_port(sim_factory, fleet, agen
 
 
 def test_a_behaviour_the_robot_cannot_run_is_refused_on_receipt(sim_factory, start_agent, tm):
-    """The robot checks a BEHAVIOUR on receipt, before it answers (issue 16; spec RecvBehaviour,
+    """The robot checks a BEHAVIOUR on receipt, before it answers (spec RecvBehaviour,
     Refused). Sent straight from a test master (no console check): a custom definition that does not
     parse gets NOT with `line L col C: ...`, one with an unknown action NOT naming it, one needing
     the gyro (model A has none) NOT naming the device, a built-in with a bad argument NOT naming the

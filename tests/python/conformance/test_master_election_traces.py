@@ -145,7 +145,7 @@ EXTENSIONS = {
     # RELAY_ROUTE(3, 4) from relay 3
     "MasterRoute": (route_record(3), route_record(2)),                                          # an old epoch's route
     # EPOCH_STALE(5): a newer epoch exists, the PC stands again, without the votes of its epoch
-    # (Election.tla HandleStaleNext clears them since issue 13)
+    # (Election.tla HandleStaleNext clears them)
     "HandleStale": ({"action": "HandleStale", "args": {"msg": "3:1:900637401:30:5"},
                      "changed": {"life": "CANDIDATE", "epoch": 5, "votes": []}},
                     {"action": "HandleStale", "args": {"msg": "3:1:900637401:30:5"},
@@ -271,7 +271,7 @@ def taught(recs: list[dict], first: int = 4101) -> list[dict]:
 
 
 def reconfigured(added: list[int], teach: bool = True) -> list[dict]:
-    """master2 as a core since issue 13 writes it (its BecomeMaster records the membership's epoch,
+    """master2 as the core writes it (its BecomeMaster records the membership's epoch,
     mepoch 3; each StartElection sends a copy of the membership first: taught), then HANDOVER(2, 6, 5)
     from the agent-master of epoch 2: the PC wants 5 and 6 besides its list 2, 3, 4, stands in epoch 4
     (Reconfigure, StartElection: the copy and ELECT), gets the votes of 2 and 3 and publishes 2, 3, 4

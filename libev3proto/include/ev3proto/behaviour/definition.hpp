@@ -87,7 +87,7 @@ enum class StopMode : std::uint8_t { coast, brake, hold };
 /// Colours of the colour sensor in COL-COLOR mode; the value is ev3dev's value0.
 enum class Colour : std::uint8_t { none, black, blue, green, yellow, red, white, brown };
 
-/// Events of the robot (issue 15, thesis 5.2.2), in the order and with the values of robot/events.hpp
+/// Events of the robot (thesis 5.2.2), in the order and with the values of robot/events.hpp
 /// EventKind, so the runtime can convert one into the other.
 enum class Event : std::uint8_t {
   DEVICE_CONNECTED,    ///< a device appeared on a port

@@ -2,12 +2,12 @@
 /// @brief What the behaviour language and its checker need to know about a robot model: the devices
 /// it declares, the actions it implements and the limits of its motors.
 ///
-/// TO BE UNIFIED with the robot layer of issue 15 (libev3proto/include/ev3proto/robot/, branch dev15):
-/// when that lands with model A's description, the Device and Action enumerations and kModelA below
-/// are replaced by (or built from) its tables. Until then this is the one place the checker reads a
-/// model from. Model A's figures come from the ev3dev reference trees (tests/data/ev3dev: the large
-/// motor `lego-ev3-l-motor` has max_speed 1050 and count_per_rot 360, so tacho counts per second are
-/// degrees per second of the wheel) and from the thesis' test robot (brief.md section 6).
+/// The checker reads a model from here only. Its device bits are the robot layer's
+/// (libev3proto/include/ev3proto/robot/ role bits; the test Behaviours.TheLanguagesEnumsAreTheRobots
+/// keeps them equal); its actions name the robot layer's action kinds, plus `repeat`. Model A's
+/// figures come from the ev3dev reference trees (tests/data/ev3dev: the large motor
+/// `lego-ev3-l-motor` has max_speed 1050 and count_per_rot 360, so tacho counts per second are
+/// degrees per second of the wheel) and from the thesis' test robot (docs/brief.md section 6).
 #pragma once
 
 #include <cstdint>
@@ -16,7 +16,7 @@
 namespace ev3proto::behaviour {
 
 /// A device a behaviour may need. The value is the bit position in Model::devices: the same bits as
-/// issue 15's robot::Role (robot/model.hpp role_bit: left 1, right 2, ultrasonic 4, touch 8, colour 16)
+/// robot::Role (robot/model.hpp role_bit: left 1, right 2, ultrasonic 4, touch 8, colour 16)
 /// and the agent core's Capabilities::devices, so a robot's plugged mask can be passed as it is.
 enum class Device : std::uint8_t {
   left_motor = 0,  ///< large motor driving the left wheel (model A: outB)
@@ -58,8 +58,8 @@ constexpr std::string_view role_name(Device d) noexcept {
   return "?";
 }
 
-/// An action of the behaviour language: issue 15's actions (robot/actions.hpp action::Kind). The
-/// value is the bit position in Model::actions. `repeat` is Repeat(n, ...): a state that runs its
+/// An action of the behaviour language: one of the robot layer's actions (robot/actions.hpp
+/// action::Kind, other values), or `repeat`. The value is the bit position in Model::actions. `repeat` is Repeat(n, ...): a state that runs its
 /// steps n times.
 enum class Action : std::uint8_t {
   run = 0,    ///< RunForever: both wheels at a speed until something else happens
@@ -102,7 +102,6 @@ inline constexpr std::uint32_t kDriveMotors = bit(Device::left_motor) | bit(Devi
 
 /// Model A, the thesis' test robot: two large motors, touch, colour and ultrasonic sensors (robot/'s
 /// kModelADevices); every action. max_speed is the large motor's (robot/ reads it from the motor).
-/// (Clearly marked table, see the file comment: to be unified with issue 15's model A.)
 inline constexpr Model kModelA{
     "A",
     kDriveMotors | bit(Device::touch) | bit(Device::colour) | bit(Device::ultrasonic),

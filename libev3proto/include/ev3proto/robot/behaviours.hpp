@@ -1,7 +1,8 @@
 /// @file behaviours.hpp
-/// @brief The built-in behaviours of model A until the behaviour issue brings automata: `wait`
-///        (stand still N seconds, then ACTION_OK) and `drive` (RunForever at speed=N until an
-///        obstacle or STOP). Each turns BEHAVIOUR's key=value arguments into a Plan, or a reason.
+/// @brief What model A offers: its actions (kModelAActions), the behaviours its agent core accepts
+///        (kModelABehaviours: wait, drive, explore, exploit, custom, each with the devices it needs),
+///        and hand-written plans of `wait` and `drive` (build_behaviour), used by tests only: the
+///        reference the behaviour language's versions (behaviours/*.bhv) are checked against. The robot runs every behaviour through behaviour::Automaton.
 #pragma once
 
 #include <cstddef>

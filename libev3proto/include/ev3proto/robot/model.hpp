@@ -139,8 +139,8 @@ constexpr bool parse_ports(std::string_view spec, PortMap& map, Reason& why) noe
 
 /// The drive base. Defaults: model A built from the EV3 education core set (45544): its 56 x 28
 /// tyre is 56 mm across (LEGO names tyres by diameter x width), and its driving base has about
-/// 120 mm between the middles of the two tyres (the lead's figure for model A; measure yours and
-/// pass it: a turn's error scales with it).
+/// 120 mm between the middles of the two tyres (a figure for the set's driving base, not measured
+/// here; measure yours and pass it: a turn's error scales with it).
 struct Geometry {
   double wheel_diameter_mm = 56.0;
   double wheel_base_mm = 120.0;

@@ -16,7 +16,7 @@
 /// the action's end condition. Otherwise it ticks every `idle_tick_ms` (100 ms) to keep watching
 /// the sensors, and reads the battery every `battery_period_ms` (1 s).
 ///
-/// Behaviours (issue 16): check_behaviour() is the robot's check on receipt (the agent core asks it
+/// Behaviours: check_behaviour() is the robot's check on receipt (the agent core asks it
 /// before it answers BEHAVIOUR: robot_link.hpp): a built-in (behaviours/*.bhv: explore, exploit,
 /// drive, wait) or `custom` (the definition in the first argument) is parsed, BEHAVIOUR's key=value
 /// arguments applied, and checked on model A; a refusal's reason (`line 4 col 12: ...`) goes into
