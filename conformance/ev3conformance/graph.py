@@ -133,29 +133,36 @@ def record_dump(module: str, cfg: str, name: str, out: str, cwd: Path = SPEC) ->
     (BUILD / f"{name}-graph.key").write_text(json.dumps({"digest": spec_digest(module, cfg, cwd)} | figs))
 
 
-def dump_graph(module: str, cfg: str, name: str, cwd: Path = SPEC) -> tuple[Graph, dict]:
-    """Runs TLC with -dump dot,actionlabels and parses the graph. Returns (graph, figures). A dump
-    recorded (record_dump) for the same spec is taken as it is (figures: reused)."""
+def dump_file(module: str, cfg: str, name: str, cwd: Path = SPEC) -> tuple[Path, dict]:
+    """The dot file of the model's state graph (TLC -dump dot,actionlabels) and TLC's figures. A
+    dump recorded (record_dump) for the same spec is taken as it is (figures: reused); otherwise
+    TLC runs here."""
     dump, key = BUILD / f"{name}-graph", BUILD / f"{name}-graph.key"
-    t0 = time.monotonic()
     try:
         known = json.loads(key.read_text())
     except (OSError, ValueError):
         known = {}
     path = dump if dump.exists() else dump.with_suffix(".dot")
     if known.get("digest") == spec_digest(module, cfg, cwd) and path.exists():
-        figs = {k: known[k] for k in ("generated", "distinct") if k in known} | {"reused": True}
-    else:
-        key.unlink(missing_ok=True)
-        rc, out = tlc(module, cfg, dump_args(name), cwd=cwd)
-        if rc != 0:
-            raise RuntimeError(f"TLC failed (exit {rc}) on {module} {cfg}:\n{out[-3000:]}")
-        path = dump if dump.exists() else dump.with_suffix(".dot")
-        figs = {}
-        m = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found", out)
-        if m:
-            figs["generated"] = int(m.group(1).replace(",", ""))
-            figs["distinct"] = int(m.group(2).replace(",", ""))
+        return path, {k: known[k] for k in ("generated", "distinct") if k in known} | {"reused": True}
+    key.unlink(missing_ok=True)
+    rc, out = tlc(module, cfg, dump_args(name), cwd=cwd)
+    if rc != 0:
+        raise RuntimeError(f"TLC failed (exit {rc}) on {module} {cfg}:\n{out[-3000:]}")
+    record_dump(module, cfg, name, out, cwd)
+    path = dump if dump.exists() else dump.with_suffix(".dot")
+    figs = {}
+    m = re.search(r"([\d,]+) states generated, ([\d,]+) distinct states found", out)
+    if m:
+        figs["generated"] = int(m.group(1).replace(",", ""))
+        figs["distinct"] = int(m.group(2).replace(",", ""))
+    return path, figs
+
+
+def dump_graph(module: str, cfg: str, name: str, cwd: Path = SPEC) -> tuple[Graph, dict]:
+    """The model's state graph (dump_file) parsed. Returns (graph, figures)."""
+    t0 = time.monotonic()
+    path, figs = dump_file(module, cfg, name, cwd)
     t1 = time.monotonic()
     g = parse_dot(path)
     figs |= {"tlc_seconds": round(t1 - t0, 1), "parse_seconds": round(time.monotonic() - t1, 1)}
