@@ -144,7 +144,8 @@ fuzz-build: deps
 	@ninja -C build/fuzz
 
 # A short fuzz run with ASan+UBSan over the committed corpus: part of `make test`. FUZZ_SMOKE_SECONDS
-# is per target: 30 s each for fuzz_decode and fuzz_behaviour (60 s in all, as with one target at 60 s).
+# is per target; fuzz_decode and fuzz_behaviour fuzz at the same time, one core each (30 s of wall
+# time, 60 s of fuzzing in all).
 test-fuzz: fuzz-build
 	@bash tools/fuzz.sh smoke $(FUZZ_SMOKE_SECONDS)
 

@@ -20,8 +20,9 @@ targets=(fuzz_decode fuzz_behaviour)
 export ASAN_OPTIONS="${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1:symbolize=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}"
 
-status=0
-for t in "${targets[@]}"; do
+# One target: fuzz, report, keep a finding (and merge new inputs when long). Exit status 1 on a finding.
+fuzz_one() {
+  local t=$1 bin corpus dict work artifacts log dict_arg rc execs rate cov crashes c keep before
   bin="$bindir/$t"
   corpus="$root/fuzz/corpus/$t"
   dict="$root/fuzz/$t.dict"
@@ -53,14 +54,26 @@ for t in "${targets[@]}"; do
       echo "fuzz: reproduce:  $bin build/fuzz/findings/$t/$(basename "$c")" >&2
       echo "fuzz: then add it as a regression seed: cp build/fuzz/findings/$t/$(basename "$c") fuzz/corpus/$t/regression_<what>" >&2
     done
-    continue  # keep $work for inspection
+    return 1  # keep $work for inspection
   fi
   if [ "$mode" = long ] && [ -n "$(ls -A "$work/new")" ]; then
     before=$(ls "$corpus" | wc -l)
     "$bin" -merge=1 "$corpus" "$work/new" "${dict_arg[@]}" -max_len=5000 >"$work/merge.log" 2>&1 \
-      || { echo "fuzz: merge failed, see $work/merge.log" >&2; status=1; continue; }
+      || { echo "fuzz: merge failed, see $work/merge.log" >&2; return 1; }
     echo "fuzz: $t: merged $(( $(ls "$corpus" | wc -l) - before )) new inputs into ${corpus#"$root"/}"
   fi
   rm -rf "$work"
+}
+
+# The targets fuzz at the same time, one process each (the machine's cores are used, the wall time
+# is SECONDS, not SECONDS per target).
+pids=()
+for t in "${targets[@]}"; do
+  fuzz_one "$t" &
+  pids+=($!)
+done
+status=0
+for p in "${pids[@]}"; do
+  wait "$p" || status=1
 done
 exit $status
