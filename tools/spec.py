@@ -315,14 +315,15 @@ def cmd_refute(args):
         raise SystemExit(1)
 
 
-# ------------------------------------------------------------------ spec mutations (issue 13.6)
+# ------------------------------------------------------------------ spec mutations
 # spec/tla/mutations.toml: textual mutations of the shipped spec, each applied to a copy of
 # spec/tla/ and checked with the models `make spec` runs (docs/spec.md "Spec mutations").  Not the
 # BUG variants above: a mutation changes the text of a rule, nothing in the spec switches it.
 MUTATIONS = os.path.join(SPEC, "mutations.toml")
 MUTATION_FIELDS = {"id", "module", "class", "from", "to", "breaks", "models", "expect"}
 MUTATION_OPTIONAL = {"only", "why", "timeout"}
-# The guard classes of issue 13 (each needs at least one mutation), and the other kinds of rule.
+# The guard classes of the election's rules (each needs at least one mutation), and the other kinds of
+# rule.
 GUARD_CLASSES = {"sender", "epoch", "vote", "relay", "timeout", "dedupe"}
 OTHER_CLASSES = {"state", "registry", "bound", "reconcile"}
 MUTATION_TIMEOUT = 300   # seconds per TLC run unless the mutation says otherwise
@@ -568,7 +569,7 @@ def cmd_diagram(args):
     print("diagram: wrote docs/lifecycle.dot, docs/lifecycle.svg")
 
 
-# ------------------------------------------------------------------ relay and election (issue 4)
+# ------------------------------------------------------------------ relay and election
 # docs/election.md.  Figures and expectations in the "election" key of spec/tla/manifest.json:
 #   thesis     MCThesisElection must FAIL (exit 12) on its invariant (the thesis' split brain);
 #   models     exhaustive runs (size small: make spec; full: make spec-full), distinct/depth checked;
@@ -729,12 +730,12 @@ def trace_modules():
     """spec/tla/trace/, the trace checks of `ev3-conformance validate` (docs/spec.md "Implementation ->
     spec"): SANY on every module, and each check on its sample trace (must conform; one record changed
     must be rejected, naming it), the whole-run check (MCMergedTrace) on a black-box run (must
-    conform; each planted fault rejected, naming its record): ev3conformance.tracecheck.check_modules
+    conform; each planted fault rejected, naming its record): ev3conformance.tracemodules.check_modules
     (standard library only)."""
     sys.path.insert(0, os.path.join(ROOT, "conformance"))
-    from ev3conformance import tracecheck
+    from ev3conformance import tracemodules
     t0 = time.monotonic()
-    ok = tracecheck.check_modules()
+    ok = tracemodules.check_modules()
     print("trace modules: %s (%.1fs)" % ("ok" if ok else "FAILED", time.monotonic() - t0))
     if not ok:
         raise SystemExit(1)
@@ -760,7 +761,7 @@ def main():
     {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
     if args.cmd == "check":
         trace_modules()
-    election_main(args)  # relay and election (issue 4), after the lifecycle models
+    election_main(args)  # relay and election, after the lifecycle models
 
 
 if __name__ == "__main__":
