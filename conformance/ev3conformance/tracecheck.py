@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ev3conformance import driver as drv
 from ev3conformance import graph as gr
 from ev3conformance import tla, wire
 
@@ -42,20 +43,19 @@ REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTI
 
 
 def model_a_behaviours() -> list[str]:
-    """The behaviours ev3-agent's model A accepts: the names of kModelABehaviours in
-    robot/behaviours.hpp (one list, read where the agent takes it from)."""
-    src = (gr.ROOT / "libev3proto" / "include" / "ev3proto" / "robot" / "behaviours.hpp").read_text()
-    table = re.search(r"kModelABehaviours\[\] = \{(.*?)\n\};", src, re.S)
-    names = re.findall(r'\{"([a-z]+)",', table.group(1)) if table else []
-    if not names:
-        raise RuntimeError("kModelABehaviours not found in robot/behaviours.hpp")
-    return names
+    """The behaviours ev3-agent's model A accepts, as the built agent's driver reports them
+    (docs/driver.md "facts"). Raises TraceError when it cannot be asked."""
+    try:
+        return [b["name"] for b in drv.agent_facts()["behaviours"]]
+    except (OSError, drv.DriverError, KeyError, TypeError) as e:
+        raise TraceError(f"model A's behaviours come from ev3-agent --driver (input facts), which could "
+                         f"not tell them ({e}); build it (make build) or give the run's Behaviours") from e
 
 
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
-# them passed (validate --timers).
+# them passed (validate --timers). Behaviours, when not given: model_a_behaviours().
 DEFAULTS = {"TSync": 10000, "TPing": 1000, "TLoss": 3000, "TPaused": 6000, "Window": 50,
-            "Behaviours": model_a_behaviours(), "ModelName": "A", "Steps": 1000000000}
+            "ModelName": "A", "Steps": 1000000000}
 
 
 @dataclass
@@ -314,6 +314,8 @@ def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp
     mine = [r for r in tf.records if str(r.get("node", "")).startswith(node)]
     if not mine:
         raise NoRecords(_no_records(tf, node, " (a master's trace: validate --master)"))
+    if c.get("Behaviours") is None:
+        c["Behaviours"] = model_a_behaviours()
     tid = temp_id if temp_id is not None else temp_id_of(mine)
     election = c.get("Election")
     if election is None:
