@@ -11,6 +11,7 @@
 
 #include <ev3proto/agent.hpp>
 #include <ev3proto/json.hpp>
+#include <ev3proto/robot/behaviours.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
@@ -117,8 +118,12 @@ class Driver {
   void core_recv(const std::string& bytes, const Json& in, Millis now) {
     core_->handle_datagram(bytes, static_cast<ev3proto::Peer>(in["from"].num(1)), now);
   }
-  /// "random" (the ids and msgids the agent will draw) needs no core.
+  /// "random" (the ids and msgids the agent will draw) and "facts" need no core.
   bool early(const std::string& type, const Json& in, std::string& reply) {
+    if (type == "facts") {
+      reply = ev3prog::output_start(seq_, true) + ",\"facts\":" + facts_json() + "}";
+      return true;
+    }
     if (type != "random") return false;
     if (in.has("temp_id")) draw_temp_ = in["temp_id"].num();
     if (in.has("first_msgid")) draw_msgid_ = in["first_msgid"].num();
@@ -159,6 +164,19 @@ class Driver {
     s += ",\"vars\":" + vars_json(core_->vars(), *core_);
     if (core_->vars().election) s += ",\"election\":" + election_json(*core_);
     return s + "}";
+  }
+
+  /// What ev3-agent runs with, for a checker that has no other way to know it (docs/driver.md
+  /// "facts"): model A and its behaviours, each with the devices it needs (robot::kModelABehaviours,
+  /// the table the program gives its agent core).
+  static std::string facts_json() {
+    std::string s = "{\"model\":\"A\",\"behaviours\":[";
+    for (const auto& b : ev3proto::robot::kModelABehaviours) {
+      s += s.back() == '[' ? "{\"name\":" : ",{\"name\":";
+      json_string(s, b.name);
+      s += ",\"devices\":" + std::to_string(b.devices) + "}";
+    }
+    return s + "]}";
   }
 
   /// The agent's Election.tla variables after the input (docs/driver.md "Output"): life (the
@@ -333,7 +351,8 @@ class Driver {
 }  // namespace
 
 int run_driver(int argc, char** argv) {
-  return ev3prog::driver_main<Driver>(argc, argv, "ev3-agent", "agent", "config, random, recv, advance, event, save, restore");
+  return ev3prog::driver_main<Driver>(argc, argv, "ev3-agent", "agent",
+                                      "config, random, recv, advance, event, save, restore, facts");
 }
 
 }  // namespace ev3agent

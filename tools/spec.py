@@ -740,12 +740,12 @@ def trace_modules():
     """spec/tla/trace/, the trace checks of `ev3-conformance validate` (docs/spec.md "Implementation ->
     spec"): SANY on every module, and each check on its sample trace (must conform; one record changed
     must be rejected, naming it), the whole-run check (MCMergedTrace) on a black-box run (must
-    conform; each planted fault rejected, naming its record): ev3conformance.tracecheck.check_modules
+    conform; each planted fault rejected, naming its record): ev3conformance.tracemodules.check_modules
     (standard library only)."""
     sys.path.insert(0, os.path.join(ROOT, "conformance"))
-    from ev3conformance import tracecheck
+    from ev3conformance import tracemodules
     t0 = time.monotonic()
-    ok = tracecheck.check_modules()
+    ok = tracemodules.check_modules()
     print("trace modules: %s (%.1fs)" % ("ok" if ok else "FAILED", time.monotonic() - t0))
     if not ok:
         raise SystemExit(1)

@@ -165,40 +165,30 @@ def _cmd_replay_master(args: argparse.Namespace) -> int:
 
 def _cmd_replay_fleet(args: argparse.Namespace) -> int:
     import shlex
-    from ev3conformance import driver, fleet_replay
+    from ev3conformance import driver, fleet_replay, system_replay
     agent = shlex.split(args.agent_driver or args.driver or "") or [str(driver.default_bin() / "ev3-agent"), "--driver"]
     master = shlex.split(args.master_driver or "") or [str(driver.default_bin() / "ev3-master"), "--driver"]
-    try:
-        f = fleet_replay.replay_simulation(args.seed, args.num, args.depth, agent, master, args.cfg)
-    except driver.DriverError as e:
-        print(f"driver failed: {e}")
-        return 2
-    except RuntimeError as e:
-        print(e)
-        return 2
-    for (act, flds), (n, rep) in sorted(f.classes.items(), key=lambda kv: -kv[1][0]):
-        print(f"MISMATCH (fleet): {act} differs in [{', '.join(flds)}] in {n} traces; first one:")
-        print(rep)
-    print(f"seed {args.seed}, {args.num} traces of depth <= {args.depth} ({args.cfg})")
-    print(f.summary())
-    bad = bool(f.classes)
+    # the fleet (MCFleetSim), then the whole system with the election (MCSystemSim: --election-num 0, none)
+    parts = [("fleet", fleet_replay.replay_simulation, args.num, args.depth, args.cfg)]
     if args.election_num > 0:
-        from ev3conformance import system_replay
+        parts.append(("election", system_replay.replay_simulation, args.election_num, args.election_depth,
+                      args.election_cfg))
+    bad = False
+    for label, replay_simulation, num, depth, cfg in parts:
         try:
-            e = system_replay.replay_simulation(args.seed, args.election_num, args.election_depth, agent, master,
-                                                args.election_cfg)
-        except driver.DriverError as x:
-            print(f"driver failed: {x}")
+            f = replay_simulation(args.seed, num, depth, agent, master, cfg)
+        except driver.DriverError as e:
+            print(f"driver failed: {e}")
             return 2
-        except RuntimeError as x:
-            print(x)
+        except RuntimeError as e:
+            print(e)
             return 2
-        for (act, flds), (n, rep) in sorted(e.classes.items(), key=lambda kv: -kv[1][0]):
-            print(f"MISMATCH (election): {act} differs in [{', '.join(flds)}] in {n} traces; first one:")
+        for (act, flds), (n, rep) in sorted(f.classes.items(), key=lambda kv: -kv[1][0]):
+            print(f"MISMATCH ({label}): {act} differs in [{', '.join(flds)}] in {n} traces; first one:")
             print(rep)
-        print(f"seed {args.seed}, {args.election_num} traces of depth <= {args.election_depth} ({args.election_cfg})")
-        print(e.summary())
-        bad = bad or bool(e.classes)
+        print(f"seed {args.seed}, {num} traces of depth <= {depth} ({cfg})")
+        print(f.summary())
+        bad = bad or bool(f.classes)
     print("replay: conforms" if not bad else "replay: FAIL")
     return 1 if bad else 0
 

@@ -3,6 +3,7 @@ docs/driver.md): NDJSON in, one NDJSON line out per input line."""
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 import subprocess
@@ -30,8 +31,12 @@ class Driver:
     def __init__(self, argv: list[str], trace: Path | None = None) -> None:
         self.argv = list(argv) + (["--trace", str(trace)] if trace else [])
         self._err = tempfile.TemporaryFile()
-        self.proc = subprocess.Popen(self.argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
-                                     stderr=self._err, bufsize=1 << 16)
+        try:
+            self.proc = subprocess.Popen(self.argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                         stderr=self._err, bufsize=1 << 16)
+        except OSError:
+            self._err.close()
+            raise
         self.lines = 0
 
     def stderr(self) -> str:
@@ -115,6 +120,26 @@ class Driver:
         if self.proc.poll() is None:
             self.proc.kill()
             self.proc.wait()
+
+
+def agent_facts(argv: list[str] | None = None) -> dict:
+    """What an agent's driver reports of its program (input "facts", docs/driver.md): "model" and
+    "behaviours" [{"name", "devices"}], the behaviours the program's model accepts. argv: default
+    `$EV3_BIN/ev3-agent --driver`. Asked once per argv. Raises DriverError (OSError when the
+    program cannot be started)."""
+    return _facts(tuple(argv or [str(default_bin() / "ev3-agent"), "--driver"]))
+
+
+@functools.lru_cache(maxsize=None)
+def _facts(argv: tuple) -> dict:
+    d = Driver(list(argv))
+    try:
+        out = d.ask({"type": "facts"})
+    finally:
+        d.close()
+    if not isinstance(out.get("facts"), dict):
+        raise DriverError(f"{' '.join(argv)} reports no facts: {json.dumps(out)[:300]}")
+    return out["facts"]
 
 
 # --- spec messages <-> wire ----------------------------------------------------------------------

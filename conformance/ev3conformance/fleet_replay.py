@@ -52,8 +52,6 @@ from __future__ import annotations
 
 import json
 import re
-import shutil
-import tempfile
 import time
 from collections import Counter
 from dataclasses import dataclass, field
@@ -64,6 +62,7 @@ from ev3conformance import graph as gr
 from ev3conformance import tla
 from ev3conformance import wire
 from ev3conformance.replay import split_sent, timeout_due
+from ev3conformance.sim_replay import Mismatch, SimFigures, SimReplay, SimTrace
 
 SIM_MODULE = "MCFleetSim.tla"
 SIM_CFG = "MCFleetSim.cfg"
@@ -77,42 +76,6 @@ REPORTS = ("ACTION_OK", "ACTION_INTERR", "ACTION_ERR")
 def agent_first_msgid(i: int) -> int:
     """The first msgid agent i draws (any value: the replay maps msgids, never equates them)."""
     return 1000 * (i + 1) + 1
-
-
-# --- TLC -simulate -------------------------------------------------------------------------------
-
-_STATE = re.compile(r"^STATE_\d+ ==[ \t]*\n", re.M)
-
-
-def read_trace(path: Path) -> list[dict]:
-    """A trace file of `-simulate file=...` (a module of STATE_i definitions) -> its states."""
-    text = path.read_text()
-    parts = _STATE.split(text)[1:]
-    if not parts:
-        raise tla.TlaParseError(f"{path}: no states")
-    parts[-1] = re.split(r"^={4,}", parts[-1], flags=re.M)[0]
-    return [tla.parse_state(p, model_values=True) for p in parts]
-
-
-def simulate(seed: int, num: int, depth: int, cfg: str = SIM_CFG, out_dir: Path | None = None,
-             timeout: float | None = None) -> tuple[list[Path], dict]:
-    """Runs TLC -simulate on MCFleetSim (one worker, fixed seed: the same traces every time) and
-    returns the trace files in order and figures. out_dir: default a new directory
-    build/conformance/fleet-sim-* (runs in parallel do not share it)."""
-    if out_dir is None:
-        gr.BUILD.mkdir(parents=True, exist_ok=True)
-        out_dir = Path(tempfile.mkdtemp(prefix=f"fleet-sim-s{seed}-", dir=gr.BUILD))
-    else:
-        shutil.rmtree(out_dir, ignore_errors=True)
-        out_dir.mkdir(parents=True)
-    t0 = time.monotonic()
-    rc, out = gr.tlc(SIM_MODULE, cfg, ["-simulate", f"file={out_dir / 'trace'},num={num}",
-                                        "-depth", str(depth), "-seed", str(seed)], timeout=timeout)
-    secs = time.monotonic() - t0
-    if rc != 0 or "Error:" in out:
-        raise RuntimeError(f"TLC -simulate failed (exit {rc}) on {SIM_MODULE} {cfg}:\n{out[-4000:]}")
-    files = sorted(out_dir.glob("trace_*"), key=lambda p: [int(x) for x in p.name.split("_")[1:]])
-    return files, {"tlc_seconds": round(secs, 1), "dir": str(out_dir)}
 
 
 # The wrapper is Fleet: the same bounds model-checked with MCFleet's Init/Next and with MCFleetSim's
@@ -158,39 +121,16 @@ def check_wrapper(bounds: dict | None = None) -> dict:
 
 # --- figures and mismatches -----------------------------------------------------------------------
 
-class FleetMismatch(Exception):
-    def __init__(self, what: str, fields: tuple, report: str) -> None:
-        super().__init__(report)
-        self.what, self.fields, self.report = what, fields, report
-
-
 @dataclass
-class FleetFigures:
-    traces: int = 0
-    steps: int = 0             # spec steps in all traces
-    matched: int = 0           # steps replayed and matched
-    not_replayed: int = 0      # steps after a trace's first mismatch
-    mismatched_traces: int = 0
-    inputs: int = 0            # driver inputs
-    agents: int = 0
-    tlc_seconds: float = 0.0
-    seconds: float = 0.0
-    actions: Counter = field(default_factory=Counter)     # spec action (handler) -> steps matched
-    classes: dict = field(default_factory=dict)           # (action, fields) -> [count, report]
+class FleetFigures(SimFigures):
     mapped: Counter = field(default_factory=Counter)      # msgids bound in the tables
 
-    def summary(self) -> str:
-        lines = [f"fleet: traces {self.traces} ({self.agents} agents + master; one driver process per node)",
-                 f"  steps {self.steps}  matched {self.matched}  mismatched traces {self.mismatched_traces}"
-                 f"  steps not replayed (after a mismatch) {self.not_replayed}",
-                 f"  driver inputs {self.inputs}  msgids mapped: master {self.mapped['master']}, "
-                 f"agents {self.mapped['agent']}",
-                 f"  time: TLC -simulate {self.tlc_seconds:.1f}s, replay {self.seconds:.1f}s"]
-        acts = ", ".join(f"{k} {n}" for k, n in sorted(self.actions.items(), key=lambda kv: (-kv[1], kv[0])))
-        lines.append(f"  steps matched by action: {acts}")
-        for (act, flds), (n, _) in sorted(self.classes.items(), key=lambda kv: -kv[1][0]):
-            lines.append(f"  MISMATCH class {act} [{', '.join(flds)}]: {n} traces")
-        return "\n".join(lines)
+    def title(self) -> str:
+        return f"fleet: traces {self.traces} ({self.agents} agents + master; one driver process per node)"
+
+    def details(self) -> list[str]:
+        return [f"  driver inputs {self.inputs}  msgids mapped: master {self.mapped['master']}, "
+                f"agents {self.mapped['agent']}"]
 
 
 def _msg_text(m: dict) -> str:
@@ -248,11 +188,11 @@ def act_key(act: dict) -> str:
 
 # --- one trace -------------------------------------------------------------------------------------
 
-class _Trace:
+class _Trace(SimTrace):
     """The replay of one trace: drivers, msgid tables, datagrams in flight."""
 
     def __init__(self, rp: "FleetReplay", idx: int, path: Path | None, states: list[dict]) -> None:
-        self.rp, self.idx, self.path, self.states = rp, idx, path, states
+        super().__init__(rp, idx, path, states)
         self.c = rp.c
         init = states[0]
         self.agents = sorted(init["ag"].keys())
@@ -272,19 +212,8 @@ class _Trace:
         self.phi: dict = {a: {} for a in self.agents}    # agent -> real msgid -> spec stamp
         self.phi_last: dict = {}       # agent -> (last real msgid, its stamp)
         self.inflight: dict = {}       # spec datagram (net element) -> [bytes, ...]
-        self.k = 0                     # current step (index into states)
-        self.last_out: dict = {}       # node -> last driver output (for reports)
 
     # -- drivers --
-    def _ask(self, d: drv.Driver, node: str, inp: dict) -> dict:
-        out = d.ask(inp)
-        self.rp.fig.inputs += 1
-        self.last_out[node] = out
-        if "error" in out:
-            self.fail("driver error", ("driver error",), f"{node}'s driver answered {json.dumps(inp)} with "
-                      f"error: {out['error']}")
-        return out
-
     def start(self) -> None:
         init = self.states[0]
         for i, a in enumerate(self.agents):
@@ -580,7 +509,7 @@ class _Trace:
             sent = [("master", x) for x in out["sent"]]
         elif n == "MasterCrash":
             kept = {"nextId": self.mvars["nextId"], "msgid": self.mvars["msgid"], "reg": []}
-            self.rp.close_master(self.mdrv)
+            self.rp.close(self.mdrv)
             self.mdrv = None
             self.mvars = kept
         elif n == "MasterRestart":
@@ -635,10 +564,15 @@ class _Trace:
         return sent
 
     # -- reports --
+    def key(self, k: int) -> str:
+        return act_key(self.states[k]["act"])
+
+    def text(self, k: int) -> str:
+        return act_text(self.states[k]["act"]) if k else "Init"
+
     def fail(self, what: str, fields: tuple, detail: str) -> None:
         act = self.states[self.k]["act"] if self.k else {"name": "Init"}
-        lines = [f"trace {self.idx}" + (f" ({self.path})" if self.path else "") +
-                 f", step {self.k} of {len(self.states) - 1}: {act_text(act)}", f"  {what}"]
+        lines = [self.where(), f"  {what}"]
         if detail:
             lines.append(detail)
         s = self.states[self.k]
@@ -662,102 +596,44 @@ class _Trace:
             if node in what or node in d or (act.get("name") == "Deliver" and
                                               str(act["e"]["to"] if act["e"]["to"] != MASTER_EP else "master") == node):
                 lines.append(f"  {node}'s last driver output: {json.dumps(out)[:1500]}")
-        lines.append("  the trace up to here:")
-        start = max(1, self.k - 60)
-        if start > 1:
-            lines.append(f"     ... {start - 1} earlier steps (the trace file has them all)")
-        for i in range(start, self.k + 1):
-            lines.append(f"    {i:3}. {act_text(self.states[i]['act'])}")
-        raise FleetMismatch(what, fields, "\n".join(lines))
+        raise Mismatch(what, fields, "\n".join(lines + self.history()))
 
 
 # --- the runner --------------------------------------------------------------------------------------
 
-class FleetReplay:
+class FleetReplay(SimReplay):
+    """One driver process per agent, kept across traces (each trace configures it afresh: Init), and
+    the master's (a new process after a crash)."""
+
+    MODULE = SIM_MODULE
+    PREFIX = "fleet-sim"
+    Trace = _Trace
+    Figures = FleetFigures
+    DRIVERS_PER_TRACE = False
+
     def __init__(self, consts: dict, agent_argv: list[str], master_argv: list[str]) -> None:
         if not isinstance(consts.get("Behaviours"), (set, frozenset)):
             raise RuntimeError(f"the cfg's Behaviours did not resolve to a set: {consts.get('Behaviours')!r}")
+        super().__init__(agent_argv, master_argv)
         self.c = consts
-        self.agent_argv, self.master_argv = agent_argv, master_argv
-        self.fig = FleetFigures()
         self._agents: dict = {}
-        self._masters: list[drv.Driver] = []
+        self._master: drv.Driver | None = None
 
     def agent_driver(self, a) -> drv.Driver:
-        """One process per agent, kept across traces (each trace configures it afresh: Init)."""
         d = self._agents.get(str(a))
         if d is None or d.proc.poll() is not None:
-            d = self._agents[str(a)] = drv.Driver(self.agent_argv)
+            d = self._agents[str(a)] = self.driver("agent")
         return d
 
     def master_driver(self) -> drv.Driver:
         """The running master process, or a new one (after a crash: a new process)."""
-        if self._masters and self._masters[-1].proc.poll() is None:
-            return self._masters[-1]
-        d = drv.Driver(self.master_argv)
-        self._masters.append(d)
-        return d
-
-    def close_master(self, d: drv.Driver) -> None:
-        d.kill()
-        d.close()
-        self._masters.remove(d)
-
-    def close(self) -> None:
-        for d in list(self._agents.values()) + self._masters:
-            d.kill()
-            d.close()
-        self._agents.clear()
-        self._masters.clear()
-
-    def run_trace(self, idx: int, states: list[dict], path: Path | None = None) -> bool:
-        """Replays one trace; True when every step matched."""
-        self.fig.traces += 1
-        self.fig.agents = max(self.fig.agents, len(states[0]["ag"]))
-        steps = len(states) - 1
-        self.fig.steps += steps
-        t = _Trace(self, idx, path, states)
-        try:
-            t.start()
-            for k in range(1, len(states)):
-                t.k = k
-                t.step()
-                self.fig.matched += 1
-                self.fig.actions[act_key(states[k]["act"])] += 1
-            return True
-        except FleetMismatch as m:
-            self.fig.mismatched_traces += 1
-            self.fig.not_replayed += steps - t.k
-            act = states[t.k]["act"] if t.k else {"name": "Init"}
-            key = (act_key(act), m.fields)
-            if key not in self.fig.classes:
-                self.fig.classes[key] = [0, m.report]
-            self.fig.classes[key][0] += 1
-            return False
-
-    def run(self, traces) -> FleetFigures:
-        """traces: iterable of (path or None, states)."""
-        t0 = time.monotonic()
-        try:
-            for i, (path, states) in enumerate(traces):
-                self.run_trace(i, states, path)
-        finally:
-            self.close()
-        self.fig.seconds = time.monotonic() - t0
-        return self.fig
+        if self._master is None or self._master.proc.poll() is not None:
+            self._master = self.driver("master")
+        return self._master
 
 
 def replay_simulation(seed: int, num: int, depth: int, agent_argv: list[str], master_argv: list[str],
                       cfg: str = SIM_CFG) -> FleetFigures:
-    """Simulates and replays; the trace files are removed when every trace conforms, kept (their
-    paths are in the reports) when one does not."""
-    files, figs = simulate(seed, num, depth, cfg)
+    """Simulates MCFleetSim and replays its traces (SimReplay.replay_simulation)."""
     consts = gr.cfg_constants("MCFleet", cfg)  # MCBehaviours is defined there
-    rp = FleetReplay(consts, agent_argv, master_argv)
-    t0 = time.monotonic()
-    rp.run((p, read_trace(p)) for p in files)
-    rp.fig.seconds = time.monotonic() - t0
-    rp.fig.tlc_seconds = figs["tlc_seconds"]
-    if not rp.fig.classes:
-        shutil.rmtree(figs["dir"], ignore_errors=True)
-    return rp.fig
+    return FleetReplay(consts, agent_argv, master_argv).replay_simulation(seed, num, depth, cfg)

@@ -76,18 +76,14 @@ the trace up to it.
 from __future__ import annotations
 
 import json
-import shutil
-import tempfile
-import time
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from ev3conformance import driver as drv
-from ev3conformance import graph as gr
 from ev3conformance import tla, tracecheck, wire
-from ev3conformance.fleet_replay import read_trace
 from ev3conformance.replay import split_sent
+from ev3conformance.sim_replay import Mismatch, SimFigures, SimReplay, SimTrace
 
 SIM_MODULE = "MCSystemSim.tla"
 SIM_CFG = "MCSystemSim.cfg"
@@ -106,25 +102,6 @@ NOT_MODELLED = ("PANIC", "RELAY_ROUTE")   # datagrams System has no counterpart 
 AGENT_FIELDS = ("life", "epoch", "votedFor", "votes", "leader", "following", "via", "relays", "offered",
                 "prevotes", "members", "mepoch", "floor")
 PC_FIELDS = ("life", "epoch", "votes", "members", "mepoch")
-
-
-def simulate(seed: int, num: int, depth: int, cfg: str = SIM_CFG, out_dir: Path | None = None,
-             timeout: float | None = None) -> tuple[list[Path], dict]:
-    """TLC -simulate on MCSystemSim (one worker, fixed seed: the same traces every time)."""
-    if out_dir is None:
-        gr.BUILD.mkdir(parents=True, exist_ok=True)
-        out_dir = Path(tempfile.mkdtemp(prefix=f"system-sim-s{seed}-", dir=gr.BUILD))
-    else:
-        shutil.rmtree(out_dir, ignore_errors=True)
-        out_dir.mkdir(parents=True)
-    t0 = time.monotonic()
-    rc, out = gr.tlc(SIM_MODULE, cfg, ["-simulate", f"file={out_dir / 'trace'},num={num}",
-                                        "-depth", str(depth), "-seed", str(seed)], timeout=timeout)
-    secs = time.monotonic() - t0
-    if rc != 0 or "Error:" in out:
-        raise RuntimeError(f"TLC -simulate failed (exit {rc}) on {SIM_MODULE} {cfg}:\n{out[-4000:]}")
-    files = sorted(out_dir.glob("trace_*"), key=lambda p: [int(x) for x in p.name.split("_")[1:]])
-    return files, {"tlc_seconds": round(secs, 1), "dir": str(out_dir)}
 
 
 # --- datagrams -------------------------------------------------------------------------------------
@@ -204,61 +181,38 @@ def step_key(la: tuple) -> str:
 
 # --- figures and mismatches -----------------------------------------------------------------------
 
-class SystemMismatch(Exception):
-    def __init__(self, what: str, fields: tuple, report: str) -> None:
-        super().__init__(report)
-        self.what, self.fields, self.report = what, fields, report
-
-
 @dataclass
-class SystemFigures:
-    traces: int = 0
-    steps: int = 0
-    matched: int = 0
-    not_replayed: int = 0
-    mismatched_traces: int = 0
-    inputs: int = 0
-    agents: int = 0
+class SystemFigures(SimFigures):
     wakes: int = 0             # clock advances to a deadline for a timer's step
     held: int = 0              # datagrams held back (emitted ahead of the spec's step)
     held_used: int = 0         # ... later taken by the spec's step
     dropped: Counter = field(default_factory=Counter)   # not modelled datagrams (type -> count)
-    tlc_seconds: float = 0.0
-    seconds: float = 0.0
-    actions: Counter = field(default_factory=Counter)
     elected: int = 0           # BecomeMaster of an agent, matched
     pc_elected: int = 0        # BecomeMaster of the PC (after a crash), matched
     handovers: int = 0         # MasterHandover matched (the PC took an elected agent's HANDOVER)
     handed: int = 0            # HANDOVERs sent (steps that add to hnet), matched
     late: int = 0              # deliveries of a datagram of an epoch older than the receiver's
     again: int = 0             # deliveries of a datagram the receiver got before (duplicates)
-    classes: dict = field(default_factory=dict)
 
-    def summary(self) -> str:
-        lines = [f"election (System): traces {self.traces} ({self.agents} agents + the PC; one driver "
-                 f"process per node, one per elected agent's Master core)",
-                 f"  steps {self.steps}  matched {self.matched}  mismatched traces {self.mismatched_traces}"
-                 f"  steps not replayed (after a mismatch) {self.not_replayed}",
-                 f"  agents elected {self.elected}, the PC elected again {self.pc_elected}, HANDOVERs sent "
-                 f"{self.handed}, taken by the PC {self.handovers} (copies included)",
-                 f"  deliveries of an older epoch than the receiver's {self.late}, of a datagram delivered "
-                 f"before {self.again}",
-                 f"  driver inputs {self.inputs}  clock wakes {self.wakes}  datagrams held back {self.held} "
-                 f"(used later {self.held_used})  not modelled, not delivered: "
-                 + (", ".join(f"{k} {n}" for k, n in sorted(self.dropped.items())) or "-"),
-                 f"  time: TLC -simulate {self.tlc_seconds:.1f}s, replay {self.seconds:.1f}s"]
-        acts = ", ".join(f"{k} {n}" for k, n in sorted(self.actions.items(), key=lambda kv: (-kv[1], kv[0])))
-        lines.append(f"  steps matched by action: {acts}")
-        for (act, flds), (n, _) in sorted(self.classes.items(), key=lambda kv: -kv[1][0]):
-            lines.append(f"  MISMATCH class {act} [{', '.join(flds)}]: {n} traces")
-        return "\n".join(lines)
+    def title(self) -> str:
+        return (f"election (System): traces {self.traces} ({self.agents} agents + the PC; one driver "
+                f"process per node, one per elected agent's Master core)")
+
+    def details(self) -> list[str]:
+        return [f"  agents elected {self.elected}, the PC elected again {self.pc_elected}, HANDOVERs sent "
+                f"{self.handed}, taken by the PC {self.handovers} (copies included)",
+                f"  deliveries of an older epoch than the receiver's {self.late}, of a datagram delivered "
+                f"before {self.again}",
+                f"  driver inputs {self.inputs}  clock wakes {self.wakes}  datagrams held back {self.held} "
+                f"(used later {self.held_used})  not modelled, not delivered: "
+                + (", ".join(f"{k} {n}" for k, n in sorted(self.dropped.items())) or "-")]
 
 
 # --- one trace -------------------------------------------------------------------------------------
 
-class _Trace:
+class _Trace(SimTrace):
     def __init__(self, rp: "SystemReplay", idx: int, path: Path | None, states: list[dict]) -> None:
-        self.rp, self.idx, self.path, self.states = rp, idx, path, states
+        super().__init__(rp, idx, path, states)
         self.agents = sorted(states[0]["silence"].keys())
         self.aset = frozenset(self.agents)
         self.score = {PC: 0, **{a: a for a in self.agents}}
@@ -273,19 +227,10 @@ class _Trace:
         self.bytes: dict = {}         # spec datagram (net / hnet element) -> bytes that stand for it
         self.pool: dict = {}          # (node, action) -> [(spec datagrams, bytes)] emitted ahead
         self.ahead: dict = {}         # node -> [action] the core took ahead of the spec
-        self.k = 0
-        self.last_out: dict = {}
+        self.ahead_sent: dict = {}    # node -> the datagrams of the action it took ahead
+        self.got_before: set = set()  # (receiver, datagram) delivered so far (SystemFigures.again)
 
     # -- drivers --
-    def _ask(self, d: drv.Driver, node, inp: dict) -> dict:
-        out = d.ask(inp)
-        self.rp.fig.inputs += 1
-        self.last_out[str(node)] = out
-        if "error" in out:
-            self.fail("driver error", ("driver error",), f"  {node}'s driver answered {json.dumps(inp)} with "
-                      f"error: {out['error']}")
-        return out
-
     def _pc_config(self, candidate: bool) -> None:
         s = self.pc_saved
         self._ask(self.pc, "PC", {"type": "config", "timers": MASTER_TIMERS, "next_id": s["next_id"],
@@ -296,7 +241,7 @@ class _Trace:
     def start(self) -> None:
         init = self.states[0]
         for a in self.agents:
-            d = self.ag[a] = self.rp.driver("agent", a)
+            d = self.ag[a] = self.rp.driver("agent")
             temp = 50000 + a
             mem = sorted(at(init["members"], a))
             self._ask(d, a, {"type": "config", "timers": AGENT_TIMERS, "temp_id": temp,
@@ -308,7 +253,7 @@ class _Trace:
             sync = wire.encode(wire.Message(PC, a, 100 + a, 2, (str(temp).encode(),)))
             out = self._ask(d, a, {"type": "recv", "from": PC, "hex": sync.hex()})
             self._took(a, out)
-        self.pc = self.rp.driver("master", PC)
+        self.pc = self.rp.driver("master")
         mem0 = at(init["members"], PC)
         self.pc_saved = {"epoch": 1, "members": sorted(mem0), "mepoch": 1, "msgid": 1,
                          "next_id": max(self.agents) + 1}
@@ -448,7 +393,7 @@ class _Trace:
 
     def _start_core(self, a, emitted: list) -> None:
         el = self.el[a]
-        d = self.core[a] = self.rp.driver("master", ("core", a))
+        d = self.core[a] = self.rp.driver("master")
         self.core_seen[a] = set()
         out = self._ask(d, f"{a}'s Master core", {
             "type": "config", "timers": MASTER_TIMERS,
@@ -565,7 +510,7 @@ class _Trace:
             node = la[1]
             if node != PC:
                 self.fail("agent restarts are not replayed", ("internal",), "")
-            self.pc = self.rp.driver("master", PC)
+            self.pc = self.rp.driver("master")
             self._pc_config(True)
             self.el[PC] = self.last_out["PC"]["election"]
         elif n == "Ignore":
@@ -587,8 +532,6 @@ class _Trace:
         self._stop_cores()
         self.match_emitted(s0, s1, emitted)
         self.compare()
-
-    ahead_sent: dict
 
     def _check_delivery(self, n: str, node, s0: dict, got: list, emitted: list) -> None:
         want = {"Refresh": [], "HandleHeartbeat": ["HandleHeartbeat"]}.get(n, [n])
@@ -683,11 +626,28 @@ class _Trace:
             self.fail("state differs", flds, "")
 
     # -- reports --
+    def key(self, k: int) -> str:
+        return step_key(self.states[k]["lastAction"])
+
+    def text(self, k: int) -> str:
+        return step_text(self.states[k]["lastAction"])
+
+    def counted(self, k: int) -> None:
+        s0, s1 = self.states[k - 1], self.states[k]
+        fig = self.rp.fig
+        fig.handed += len(set(s1["hnet"]) - set(s0["hnet"]))
+        la = s1["lastAction"]
+        if len(la) > 2 and isinstance(la[2], dict) and "e" in la[2]:
+            fig.late += la[2]["e"] < at(s0["epoch"], la[1])
+            fig.again += (la[1], la[2]) in self.got_before
+            self.got_before.add((la[1], la[2]))
+        elif la[0] == "MasterHandover":
+            fig.again += (PC, la[1]) in self.got_before
+            self.got_before.add((PC, la[1]))
+
     def fail(self, what: str, fields: tuple, detail: str) -> None:
         s = self.states[self.k]
-        la = s["lastAction"]
-        lines = [f"trace {self.idx}" + (f" ({self.path})" if self.path else "") +
-                 f", step {self.k} of {len(self.states) - 1}: {step_text(la)}", f"  {what}"]
+        lines = [self.where(), f"  {what}"]
         if detail:
             lines.append(detail)
         for n in [PC] + self.agents:
@@ -701,87 +661,22 @@ class _Trace:
         lines.append("  spec emits: " + ("; ".join(msg_text(m) for m in new) or "-"))
         for node, out in self.last_out.items():
             lines.append(f"  {node}'s last driver output: {json.dumps(out)[:900]}")
-        lines.append("  the trace up to here:")
-        start = max(1, self.k - 60)
-        for i in range(start, self.k + 1):
-            lines.append(f"    {i:3}. {step_text(self.states[i]['lastAction'])}")
-        raise SystemMismatch(what, fields, "\n".join(lines))
+        raise Mismatch(what, fields, "\n".join(lines + self.history()))
 
 
 # --- the runner --------------------------------------------------------------------------------------
 
-class SystemReplay:
-    def __init__(self, agent_argv: list[str], master_argv: list[str]) -> None:
-        self.agent_argv, self.master_argv = agent_argv, master_argv
-        self.fig = SystemFigures()
-        self._open: list[drv.Driver] = []
+class SystemReplay(SimReplay):
+    """New driver processes for every trace: the PC's, one per agent, one per elected agent's Master
+    core (while it runs)."""
 
-    def driver(self, kind: str, node) -> drv.Driver:
-        d = drv.Driver(self.agent_argv if kind == "agent" else self.master_argv)
-        self._open.append(d)
-        return d
-
-    def close(self, d: drv.Driver) -> None:
-        d.kill()
-        d.close()
-        if d in self._open:
-            self._open.remove(d)
-
-    def close_all(self) -> None:
-        for d in list(self._open):
-            self.close(d)
-
-    def run_trace(self, idx: int, states: list[dict], path: Path | None = None) -> bool:
-        self.fig.traces += 1
-        self.fig.agents = max(self.fig.agents, len(states[0]["silence"]))
-        steps = len(states) - 1
-        self.fig.steps += steps
-        t = _Trace(self, idx, path, states)
-        t.ahead_sent = {}
-        got_before = set()
-        try:
-            t.start()
-            for k in range(1, len(states)):
-                t.k = k
-                t.step()
-                self.fig.matched += 1
-                self.fig.actions[step_key(states[k]["lastAction"])] += 1
-                self.fig.handed += len(set(states[k]["hnet"]) - set(states[k - 1]["hnet"]))
-                la = states[k]["lastAction"]
-                if len(la) > 2 and isinstance(la[2], dict) and "e" in la[2]:
-                    self.fig.late += la[2]["e"] < at(states[k - 1]["epoch"], la[1])
-                    self.fig.again += (la[1], la[2]) in got_before
-                    got_before.add((la[1], la[2]))
-                elif la[0] == "MasterHandover":
-                    self.fig.again += (PC, la[1]) in got_before
-                    got_before.add((PC, la[1]))
-            return True
-        except SystemMismatch as m:
-            self.fig.mismatched_traces += 1
-            self.fig.not_replayed += steps - t.k
-            key = (step_key(states[t.k]["lastAction"]) if t.k else "Init", m.fields)
-            if key not in self.fig.classes:
-                self.fig.classes[key] = [0, m.report]
-            self.fig.classes[key][0] += 1
-            return False
-        finally:
-            self.close_all()
-
-    def run(self, traces) -> SystemFigures:
-        t0 = time.monotonic()
-        for i, (path, states) in enumerate(traces):
-            self.run_trace(i, states, path)
-        self.fig.seconds = time.monotonic() - t0
-        return self.fig
+    MODULE = SIM_MODULE
+    PREFIX = "system-sim"
+    Trace = _Trace
+    Figures = SystemFigures
 
 
 def replay_simulation(seed: int, num: int, depth: int, agent_argv: list[str], master_argv: list[str],
                       cfg: str = SIM_CFG) -> SystemFigures:
-    """Simulates and replays; the trace files are removed when every trace conforms."""
-    files, figs = simulate(seed, num, depth, cfg)
-    rp = SystemReplay(agent_argv, master_argv)
-    rp.run((p, read_trace(p)) for p in files)
-    rp.fig.tlc_seconds = figs["tlc_seconds"]
-    if not rp.fig.classes:
-        shutil.rmtree(figs["dir"], ignore_errors=True)
-    return rp.fig
+    """Simulates MCSystemSim and replays its traces (SimReplay.replay_simulation)."""
+    return SystemReplay(agent_argv, master_argv).replay_simulation(seed, num, depth, cfg)

@@ -31,6 +31,7 @@ from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ev3conformance import driver as drv
 from ev3conformance import graph as gr
 from ev3conformance import tla, wire
 
@@ -42,20 +43,19 @@ REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTI
 
 
 def model_a_behaviours() -> list[str]:
-    """The behaviours ev3-agent's model A accepts: the names of kModelABehaviours in
-    robot/behaviours.hpp (one list, read where the agent takes it from)."""
-    src = (gr.ROOT / "libev3proto" / "include" / "ev3proto" / "robot" / "behaviours.hpp").read_text()
-    table = re.search(r"kModelABehaviours\[\] = \{(.*?)\n\};", src, re.S)
-    names = re.findall(r'\{"([a-z]+)",', table.group(1)) if table else []
-    if not names:
-        raise RuntimeError("kModelABehaviours not found in robot/behaviours.hpp")
-    return names
+    """The behaviours ev3-agent's model A accepts, as the built agent's driver reports them
+    (docs/driver.md "facts"). Raises TraceError when it cannot be asked."""
+    try:
+        return [b["name"] for b in drv.agent_facts()["behaviours"]]
+    except (OSError, drv.DriverError, KeyError, TypeError) as e:
+        raise TraceError(f"model A's behaviours come from ev3-agent --driver (input facts), which could "
+                         f"not tell them ({e}); build it (make build) or give the run's Behaviours") from e
 
 
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
-# them passed (validate --timers).
+# them passed (validate --timers). Behaviours, when not given: model_a_behaviours().
 DEFAULTS = {"TSync": 10000, "TPing": 1000, "TLoss": 3000, "TPaused": 6000, "Window": 50,
-            "Behaviours": model_a_behaviours(), "ModelName": "A", "Steps": 1000000000}
+            "ModelName": "A", "Steps": 1000000000}
 
 
 @dataclass
@@ -314,6 +314,8 @@ def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp
     mine = [r for r in tf.records if str(r.get("node", "")).startswith(node)]
     if not mine:
         raise NoRecords(_no_records(tf, node, " (a master's trace: validate --master)"))
+    if c.get("Behaviours") is None:
+        c["Behaviours"] = model_a_behaviours()
     tid = temp_id if temp_id is not None else temp_id_of(mine)
     election = c.get("Election")
     if election is None:
@@ -331,8 +333,13 @@ def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp
               "InitVotedFor": int(c.get("VotedFor", 0) or 0),
               "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
               "InitMEpoch": int(c.get("MEpoch", 0) or 0), "InitFloor": int(c.get("Floor", 0) or 0),
+<<<<<<< HEAD
               # the core records the membership only when it changes (a restored agent that
               # hears the list it kept records none); a trace without it checks no membership
+=======
+              # the core records the membership (only when it changes: a restored agent that
+              # hears the list it kept records none); a trace of an older core has none of it
+>>>>>>> pyreplay
               "WithMembers": bool(c.get("Members") or c.get("MEpoch") or c.get("Floor")) or any(
                   {"members", "mepoch", "floor"} & r.get("changed", {}).keys() for r in mine)})
     return NodeData(node, "MCElectionTrace", "AgentLogic + Election (per-agent projection)", mine, items, k, tf,
@@ -468,7 +475,11 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
               "InitEpoch": int(c.get("Epoch", 1) or 1),
               "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
               "InitMEpoch": int(c.get("MEpoch") or c.get("Epoch", 1) or 1),
+<<<<<<< HEAD
               # the core records the membership of its epoch when it changes
+=======
+              # the core records the membership of its epoch when it changes (an older core: never)
+>>>>>>> pyreplay
               "WithMembers": any({"members", "mepoch"} & r.get("changed", {}).keys() for r in recs)})
     return NodeData(node or "master", "MCMasterElectionTrace", "MasterLogic + Election (the PC's rules)", recs,
                     _master_election_records(recs), k, tf, ", election")
@@ -546,7 +557,11 @@ def _el_msg(text: str) -> tuple[dict, dict | None, list[int]]:
         d["e"] = _num(ps, 0)
     if t in ("RREQ", "ELECT"):
         d["sc"] = _num(ps, 1)
+<<<<<<< HEAD
         d["k"] = _num(ps, 2)  # members_epoch (0 when the sender left it out)
+=======
+        d["k"] = _num(ps, 2)  # members_epoch (0 when an older sender left it out)
+>>>>>>> pyreplay
     if t in ("ROFFER", "RACCEPT"):
         d["x"] = _num(ps, 1)
     if t == "HB":
@@ -642,7 +657,11 @@ def _master_election_records(recs: list[dict]) -> list[dict]:
             ech["epoch"] = int(ch["epoch"])
         if "votes" in ch:
             ech["votes"] = frozenset(int(v) for v in ch["votes"])
+<<<<<<< HEAD
         if "members" in ch:  # the membership of the epoch (the core records it)
+=======
+        if "members" in ch:  # the membership of the epoch (an older core does not record it)
+>>>>>>> pyreplay
             ech["members"] = frozenset(int(v) for v in ch["members"])
         if "mepoch" in ch:
             ech["mepoch"] = int(ch["mepoch"])
@@ -708,97 +727,6 @@ def agent_master_runs(path: Path, consts: dict | None = None) -> list[tuple[str,
     return out
 
 
-# --- the trace modules themselves (make spec: tools/spec.py check) ----------------------------------
+# --- the sample traces of the trace modules (make spec: ev3conformance.tracemodules) -------------
 
 SAMPLES = TRACE_SPEC / "samples"
-
-
-def _sany(modules: list[str], cwd: Path) -> str | None:
-    """SANY on @p modules in @p cwd: None, or its report of the first module with errors."""
-    import subprocess
-    md = tempfile.mkdtemp(prefix="sany-", dir=cwd)
-    try:
-        p = subprocess.run(gr.JAVA + [f"-Djava.io.tmpdir={md}", "-cp", str(gr.JAR), "tla2sany.SANY"] + modules,
-                           cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    finally:
-        shutil.rmtree(md, ignore_errors=True)
-    out = p.stdout
-    if p.returncode != 0 or "*** Errors" in out or "Semantic errors" in out or "Parse Error" in out:
-        return out
-    return None
-
-
-def check_modules(say=print, jobs: int = 2) -> bool:
-    """What make spec checks of spec/tla/trace/: SANY on every module (the MC*Trace ones are parsed by
-    TLC with their sample's data), and each check on its sample trace (samples/samples.json): the
-    sample must conform, and the same trace with one record changed must be rejected naming that
-    record. A sample with "run" (MCMergedTrace) is a directory of one run's traces, checked whole
-    (ev3conformance.merged): it must conform, and each of its "plants" planted in it must be rejected
-    naming the file and record, and failing the one invariant it is planted for (merged.PLANT_INVARIANT).
-    Every MC*Trace module must have a sample. Prints one line per check;
-    True when all pass."""
-    wd = gr.BUILD / "trace-modules"
-    wd.mkdir(parents=True, exist_ok=True)
-    d = Path(tempfile.mkdtemp(prefix="sany-", dir=wd))
-    for f in sorted(gr.SPEC.glob("*.tla")) + sorted(TRACE_SPEC.glob("*.tla")):
-        shutil.copy(f, d / f.name)
-    mods = sorted(f.name for f in TRACE_SPEC.glob("*.tla"))
-    err = _sany([m for m in mods if not m.startswith("MC")], d)
-    shutil.rmtree(d, ignore_errors=True)
-    if err:
-        say(err)
-        say("FAIL trace modules: SANY found errors (above)")
-        return False
-    say(f"trace modules: SANY ok on {', '.join(m for m in mods if not m.startswith('MC'))}")
-    spec = json.loads((SAMPLES / "samples.json").read_text())["samples"]
-    missing = sorted({m[:-4] for m in mods if m.startswith("MC")} - {s["module"] for s in spec})
-    runs = [s for s in spec if "run" in s]  # whole runs (MCMergedTrace): a directory of traces
-    spec = [s for s in spec if "run" not in s]
-    if missing:
-        say(f"FAIL trace modules: no sample trace checks {', '.join(missing)} (samples/samples.json)")
-        return False
-
-    def run(job):
-        s, bad = job
-        path = SAMPLES / s["trace"]
-        k = 0
-        if bad:
-            recs = [json.loads(x) for x in path.read_text().splitlines() if x.strip()]
-            k = s["corrupt"]["record"]
-            recs[k - 1] = dict(recs[k - 1], changed=dict(recs[k - 1].get("changed", {}), **s["corrupt"]["changed"]))
-            path = Path(tempfile.mkdtemp(prefix="bad-", dir=wd)) / s["trace"]
-            path.write_text("".join(json.dumps(r) + "\n" for r in recs))
-        r = (validate_master(path, s["consts"], workdir=wd) if s.get("master")
-             else validate(path, s["consts"], workdir=wd))
-        if bad:
-            shutil.rmtree(path.parent, ignore_errors=True)
-            ok = not r.ok and f"record {k} of {r.records} could not be matched" in r.message
-            return ok, f"{s['module']} on {s['trace']} with record {k} changed: " + \
-                       (f"rejected, record {k} named" if ok else f"NOT REJECTED AS IT SHOULD BE: {r.message}")
-        return r.ok, f"{s['module']} on {s['trace']}: {r.message}"
-
-    def run_merged(job):
-        # the run must conform; each planted fault must be rejected, naming the file it was planted in
-        from ev3conformance import merged
-        s, fault = job
-        path = SAMPLES / s["run"]
-        if fault is None:
-            r = merged.validate([path], workdir=wd, loss=s["consts"]["TLoss"])
-            return r.ok, f"{s['module']} on {s['run']}/ ({r.seconds:.0f} s): {r.message.splitlines()[0]}"
-        out = Path(tempfile.mkdtemp(prefix="plant-", dir=wd))
-        where = merged.plant([path], out, fault, s["consts"]["TLoss"])
-        r = merged.validate([out], workdir=wd, loss=s["consts"]["TLoss"])
-        shutil.rmtree(out, ignore_errors=True)
-        inv = merged.PLANT_INVARIANT[fault]
-        head = r.message.splitlines()[0] if r.message else ""
-        ok = (not r.ok and where.split(" (")[0] in r.message and "cannot merge" not in r.message
-              and (f"({inv}" in head or f"{inv} is violated" in head))
-        return ok, (f"{s['module']} on {s['run']}/ with {fault} planted at {where}: " +
-                    (f"rejected: {r.message.splitlines()[0]}" if ok else f"NOT REJECTED AS IT SHOULD BE: {r.message}"))
-
-    with ThreadPoolExecutor(max_workers=max(1, jobs)) as ex:
-        results = list(ex.map(run, [(s, bad) for s in spec for bad in (False, True)]))
-        results += list(ex.map(run_merged, [(s, f) for s in runs for f in [None] + s["plants"]]))
-    for ok, line in results:
-        say(f"{'ok  ' if ok else 'FAIL'} {line}")
-    return all(ok for ok, _ in results)

@@ -122,3 +122,30 @@ def test_master_driver_registers_an_agent_like_the_spec():
     finally:
         d.kill()
         d.close()
+
+
+def test_agent_driver_reports_model_a_behaviours():
+    # "facts" needs no core and changes nothing; validate takes model A's behaviours from it
+    from ev3conformance import driver as drv
+    d = drv.Driver(AGENT)
+    try:
+        out = d.ask({"type": "facts"})
+        assert out["ok"] is True and out["facts"]["model"] == "A"
+        behs = {b["name"]: b["devices"] for b in out["facts"]["behaviours"]}
+        assert list(behs)[:2] == ["wait", "drive"] and "custom" in behs
+        assert behs["wait"] == 0 and behs["drive"] != 0
+        after = d.ask({"type": "advance", "ms": 0})   # a core with the defaults, as if nothing came before
+        assert after["in"] == 2 and after["vars"]["state"] == "IDLE" and after["vars"]["id"] == 50000
+    finally:
+        d.kill()
+        d.close()
+    assert tracecheck.model_a_behaviours() == list(behs)
+
+
+def test_an_agent_trace_without_behaviours_needs_the_driver(tmp_path, monkeypatch):
+    trace = _driver_trace(tmp_path)
+    monkeypatch.setenv("EV3_BIN", str(tmp_path / "no-build"))
+    r = tracecheck.validate(trace, CHECK)
+    assert not r.ok and "ev3-agent --driver (input facts)" in r.message and "make build" in r.message
+    r = tracecheck.validate(trace, dict(CHECK, Behaviours=["wait"]))
+    assert r.ok, r.message

@@ -13,6 +13,7 @@ import pytest
 
 from ev3conformance import fleet_replay as fr
 from ev3conformance import graph as gr
+from ev3conformance import sim_replay
 from ev3conformance.tla import Rec
 
 REPO = Path(__file__).resolve().parents[3]
@@ -24,9 +25,10 @@ CONSTS = gr.cfg_constants("MCFleet", fr.SIM_CFG)
 
 @pytest.fixture(scope="module")
 def traces(tmp_path_factory):
-    files, _ = fr.simulate(seed=3, num=4, depth=150, out_dir=tmp_path_factory.mktemp("fleet-sim"))
+    files, _ = sim_replay.simulate(fr.SIM_MODULE, fr.SIM_CFG, "fleet-sim", seed=3, num=4, depth=150,
+                                   out_dir=tmp_path_factory.mktemp("fleet-sim"))
     assert len(files) == 4
-    return [fr.read_trace(p) for p in files]
+    return [sim_replay.read_trace(p) for p in files]
 
 
 def _run(traces, agent=AGENT, master=MASTER) -> fr.FleetFigures:

@@ -100,7 +100,7 @@ def test_a_master_core_that_hands_over_and_stays_master_fails_naming_the_record(
 
 
 def test_each_fault_is_planted_for_one_invariant_of_the_composed_spec():
-    # the other faults are planted in make spec's sample run (tracecheck.check_modules, samples.json)
+    # the other faults are planted in make spec's sample run (tracemodules.check_modules, samples.json)
     cfg = (merged.tracecheck.TRACE_SPEC / "MCMergedTrace.cfg").read_text()
     # FollowersAgreeInv: test_an_agent_following_a_node_not_elected_fails_naming_it
     assert set(merged.PLANT_INVARIANT.values()) | {"FollowersAgreeInv"} == {w for w in cfg.split() if w.endswith("Inv")}

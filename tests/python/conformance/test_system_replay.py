@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
+from ev3conformance import sim_replay
 from ev3conformance import system_replay as sr
-from ev3conformance.fleet_replay import read_trace
 
 REPO = Path(__file__).resolve().parents[3]
 BIN = Path(os.environ.get("EV3_BIN") or REPO / "build" / "bin")
@@ -24,9 +24,10 @@ FAKE = [sys.executable, str(Path(__file__).with_name("fake_election_driver.py"))
 
 @pytest.fixture(scope="module")
 def traces(tmp_path_factory):
-    files, _ = sr.simulate(seed=5, num=12, depth=150, out_dir=tmp_path_factory.mktemp("system-sim"))
+    files, _ = sim_replay.simulate(sr.SIM_MODULE, sr.SIM_CFG, "system-sim", seed=5, num=12, depth=150,
+                                   out_dir=tmp_path_factory.mktemp("system-sim"))
     assert len(files) == 12
-    return [read_trace(p) for p in files]
+    return [sim_replay.read_trace(p) for p in files]
 
 
 def _run(traces, agent=AGENT, master=MASTER) -> sr.SystemFigures:
