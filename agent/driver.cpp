@@ -10,12 +10,12 @@
 #include <vector>
 
 #include <ev3proto/agent.hpp>
+#include <ev3proto/durable.hpp>
 #include <ev3proto/json.hpp>
 #include <ev3proto/robot/behaviours.hpp>
 #include <ev3proto/trace.hpp>
 #include <ev3proto/wire.hpp>
 
-#include "ev3io/state_file.hpp"
 #include "ev3prog/driver_json.hpp"
 #include "ev3prog/program.hpp"
 #include "agent_sink.hpp"
@@ -61,13 +61,11 @@ class Driver {
       if (t.has(r.name)) c.timers.set(r.timer, static_cast<Millis>(t[r.name].num(1)));
     // Relay and election (Election.tla): {"enabled", "score", "epoch", "voted_for", and the membership
     // its state keeps: "members" [ids], "members_epoch", "floor"}, checked as ev3-agent checks its
-    // state file (ev3io::read_membership).
+    // state file (ev3proto::parse_durable).
     const Json& el = in["election"];
     c.election.enabled = el["enabled"].boolean(false);
     if (el.has("score")) c.election.score = static_cast<std::uint32_t>(el["score"].num(0));
-    c.election.durable.epoch = static_cast<std::uint32_t>(el["epoch"].num(1));
-    c.election.durable.voted_for = static_cast<std::uint16_t>(el["voted_for"].num(0));
-    if (!restore_membership(el, c.election.durable, err)) return false;
+    if (!restore_durable(el, c.election.durable, err)) return false;
     if (!c.timers.valid()) {
       err = "timers: paused must be greater than loss";
       return false;
@@ -206,31 +204,29 @@ class Driver {
   }
 
  private:
-  /// The membership of config's "election" object into @p d (epoch set): the state file's keys,
-  /// by the state file's rule. False with the key named in @p err.
-  static bool restore_membership(const Json& el, ev3proto::Durable& d, std::string& err) {
-    std::map<std::string, std::string> kv;
+  /// The durable state of config's "election" object (epoch, voted_for, members, members_epoch,
+  /// floor) into @p d, read and checked as ev3-agent reads its state file: the same keys as text,
+  /// the library's rule (ev3proto/durable.hpp). False with the key named in @p err.
+  static bool restore_durable(const Json& el, ev3proto::Durable& d, std::string& err) {
+    auto number = [](const Json& v) { return v.kind == Json::Kind::number ? std::to_string(v.num()) : std::string("?"); };
+    std::string text = "epoch=" + (el.has("epoch") ? number(el["epoch"]) : std::string("1")) +
+                       "\nvoted_for=" + (el.has("voted_for") ? number(el["voted_for"]) : std::string("0")) + "\n";
     if (el.has("members")) {
       if (el["members"].kind != Json::Kind::array) {
         err = "election: members must be an array of agent ids";
         return false;
       }
       std::string ids;
-      for (const Json& id : el["members"].a)
-        ids += (ids.empty() ? "" : ",") + (id.kind == Json::Kind::number ? std::to_string(id.num()) : std::string("?"));
-      kv["members"] = ids;
+      for (const Json& id : el["members"].a) ids += (ids.empty() ? "" : ",") + number(id);
+      text += "members=" + ids + "\n";
     }
     for (const char* k : {"members_epoch", "floor"})
-      if (el.has(k)) kv[k] = el[k].kind == Json::Kind::number ? std::to_string(el[k].num()) : std::string("?");
-    ev3io::StoredMembership m;
-    if (!ev3io::read_membership(kv, d.epoch, true, m, err)) {
-      err = "election: " + err;
+      if (el.has(k)) text += std::string(k) + "=" + number(el[k]) + "\n";
+    ev3proto::DurableError why;
+    if (!ev3proto::parse_durable(text, d, why)) {
+      err = "election: " + std::string(why.view());
       return false;
     }
-    d.mepoch = m.members_epoch;
-    d.floor = m.floor;
-    d.member_count = 0;
-    for (std::uint16_t id : m.members) d.members[d.member_count++] = id;
     return true;
   }
 

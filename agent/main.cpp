@@ -17,6 +17,7 @@
 #include <string>
 #include <vector>
 
+#include <ev3proto/durable.hpp>
 #include <ev3proto/node.hpp>
 #include <ev3proto/robot/behaviours.hpp>
 #include <ev3proto/robot_link.hpp>
@@ -446,51 +447,34 @@ class Program {
 
   // ------------------------------------------------------------------ relay and election
   /// The election state file: DIR/ev3-agent.state (epoch, voted_for, and the membership the agent
-  /// knows: members, members_epoch, floor; a file without those three keys knows no membership);
-  /// none without --state-dir.
+  /// knows: members, members_epoch, floor; a file without those three keys knows no membership),
+  /// read and checked by the library's rule (ev3proto/durable.hpp); none without --state-dir.
   bool load_state(ev3proto::ElectionConfig& e) {
     if (opt_.state_dir.empty()) return true;
     state_path_ = opt_.state_dir + "/ev3-agent.state";
-    std::map<std::string, std::string> kv;
-    std::string err;
-    if (!ev3io::read_state_file(state_path_, kv, err)) {
+    std::string text, err;
+    if (!ev3io::read_state_file(state_path_, text, err)) {
       if (err.empty()) return true;  // first start
       std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s\n", err.c_str());
       return false;
     }
-    std::uint64_t epoch = 1, voted = 0;
-    if (!ev3io::to_uint(kv["epoch"], 1, 0xFFFFFFFFu, epoch) || !ev3io::to_uint(kv["voted_for"], 0, 65535, voted)) {
-      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged (expected epoch=N, voted_for=N)\n",
-                   state_path_.c_str());
+    ev3proto::DurableError why;
+    if (!ev3proto::parse_durable(text, e.durable, why)) {
+      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: %s\n", state_path_.c_str(),
+                   std::string(why.view()).c_str());
       return false;
     }
-    ev3proto::Durable& d = e.durable;
-    d.epoch = static_cast<std::uint32_t>(epoch);
-    d.voted_for = static_cast<std::uint16_t>(voted);
-    ev3io::StoredMembership m;  // the rule ev3-master and the driver share (no keys: none known)
-    if (!ev3io::read_membership(kv, d.epoch, true, m, err)) {
-      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: %s\n", state_path_.c_str(), err.c_str());
-      return false;
-    }
-    d.mepoch = m.members_epoch;
-    d.floor = m.floor;
-    for (std::uint16_t id : m.members) d.members[d.member_count++] = id;
     return true;
   }
 
   /// Writes the election state (epoch, voted_for, the membership) the node reported changed.
   void save_state(const ev3proto::Durable& d) {
-    const std::string members = ev3io::format_id_list(std::vector<std::uint16_t>(d.members, d.members + d.member_count));
+    const std::string members(ev3proto::IdListText().ids(d.members, d.member_count).view());
     log_.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
              members.c_str(), d.mepoch, d.floor);
     if (state_path_.empty()) return;
     std::string err;
-    if (!ev3io::write_state_file(state_path_, {{"epoch", std::to_string(d.epoch)},
-                                               {"voted_for", std::to_string(d.voted_for)},
-                                               {"members", members},
-                                               {"members_epoch", std::to_string(d.mepoch)},
-                                               {"floor", std::to_string(d.floor)}}, err))
-      log_.log(kError, "%s", err.c_str());
+    if (!ev3io::write_state_file(state_path_, ev3proto::durable_text(d).view(), err)) log_.log(kError, "%s", err.c_str());
   }
 
   /// --master-script: console commands for the Master core, from the moment this agent won.

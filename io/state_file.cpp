@@ -1,11 +1,5 @@
 #include "ev3io/state_file.hpp"
 
-#include <algorithm>
-
-#include "ev3io/cli.hpp"
-
-#include <ev3proto/election.hpp>
-
 #include <fcntl.h>
 #include <unistd.h>
 
@@ -16,9 +10,7 @@
 
 namespace ev3io {
 
-bool write_state_file(const std::string& path, const std::map<std::string, std::string>& kv, std::string& err) {
-  std::string doc;
-  for (const auto& e : kv) doc += e.first + "=" + e.second + "\n";
+bool write_state_file(const std::string& path, std::string_view doc, std::string& err) {
   const std::string tmp = path + ".tmp";
   const int fd = ::open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
   if (fd < 0) {
@@ -79,86 +71,11 @@ bool read_lines(const std::string& path, std::vector<std::string>& lines, std::s
   return true;
 }
 
-bool read_state_file(const std::string& path, std::map<std::string, std::string>& kv, std::string& err) {
+bool read_state_file(const std::string& path, std::string& text, std::string& err) {
   std::vector<std::string> lines;
   if (!read_lines(path, lines, err)) return false;
-  for (const std::string& l : lines) {
-    const std::size_t eq = l.find('=');
-    if (eq == std::string::npos || l.empty() || l[0] == '#') continue;
-    kv[l.substr(0, eq)] = l.substr(eq + 1);
-  }
-  return true;
-}
-
-bool parse_id_list(const std::string& s, std::vector<std::uint16_t>& out) {
-  out.clear();
-  for (std::size_t pos = 0; pos < s.size();) {
-    std::size_t comma = s.find(',', pos);
-    if (comma == std::string::npos) comma = s.size();
-    std::uint64_t id = 0;
-    if (!to_uint(std::string_view(s).substr(pos, comma - pos), 2, 49999, id) ||
-        std::find(out.begin(), out.end(), static_cast<std::uint16_t>(id)) != out.end()) {
-      out.clear();
-      return false;
-    }
-    out.push_back(static_cast<std::uint16_t>(id));
-    pos = comma + 1;
-    if (comma + 1 == s.size()) {  // a trailing comma
-      out.clear();
-      return false;
-    }
-  }
-  return true;
-}
-
-std::string format_id_list(const std::vector<std::uint16_t>& ids) {
-  std::string s;
-  for (std::uint16_t id : ids) s += (s.empty() ? "" : ",") + std::to_string(id);
-  return s;
-}
-
-}  // namespace ev3io
-
-namespace ev3io {
-
-bool read_membership(const std::map<std::string, std::string>& kv, std::uint32_t epoch, bool with_floor,
-                     StoredMembership& out, std::string& err) {
-  out = StoredMembership{};
-  auto value = [&kv](const char* key) {
-    const auto it = kv.find(key);
-    return it == kv.end() ? std::string() : it->second;
-  };
-  const std::string members = value("members"), mepoch = value("members_epoch"), floor = value("floor");
-  const std::string e = std::to_string(epoch);
-  if (!parse_id_list(members, out.members) || out.members.size() > ev3proto::kMaxMembership) {
-    err = "members: '" + members + "' is not a list of at most " + std::to_string(ev3proto::kMaxMembership) +
-          " distinct agent ids 2..49999, comma-separated";
-    return false;
-  }
-  std::uint64_t n = 0;
-  if (!mepoch.empty() && !to_uint(mepoch, 0, epoch, n)) {
-    err = "members_epoch: '" + mepoch + "' is not a number 0.." + e + " (the epoch)";
-    return false;
-  }
-  out.members_epoch = static_cast<std::uint32_t>(n);
-  if (!out.members.empty() && out.members_epoch == 0) {
-    err = "members_epoch: " + std::string(mepoch.empty() ? "missing" : "0") +
-          ", but members lists agents (the epoch that published them is needed)";
-    return false;
-  }
-  if (!with_floor) return true;
-  n = 0;
-  if (!floor.empty() && !to_uint(floor, 0, epoch, n)) {
-    err = "floor: '" + floor + "' is not a number " + std::to_string(out.members_epoch) + ".." + e +
-          " (members_epoch..epoch)";
-    return false;
-  }
-  out.floor = static_cast<std::uint32_t>(n);
-  if (out.floor < out.members_epoch) {
-    err = "floor: " + (floor.empty() ? std::string("missing, but members_epoch is ") : floor + " is below members_epoch ") +
-          std::to_string(out.members_epoch) + " (learning a membership raises the floor to its epoch)";
-    return false;
-  }
+  text.clear();
+  for (const std::string& l : lines) text += l + "\n";
   return true;
 }
 

@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include <ev3proto/durable.hpp>
 #include <ev3proto/master.hpp>
 #include <ev3proto/trace.hpp>
 
@@ -313,39 +314,32 @@ class Program {
   /// master then starts as a candidate (Election Restart(PC), docs/core.md).
   bool load_state(ev3proto::MasterConfig& cfg, std::string& note) {
     if (opt_.state_file.empty()) return true;
-    std::map<std::string, std::string> kv;
-    std::string err;
-    if (!ev3io::read_state_file(opt_.state_file, kv, err)) {
+    std::string text, err;
+    if (!ev3io::read_state_file(opt_.state_file, text, err)) {
       if (err.empty()) return true;  // first start
       std::fprintf(stderr, "ev3-master: bad value for --state-file: %s\n", err.c_str());
       return false;
     }
-    std::uint64_t id = 0, msgid = 0, epoch = 0;
-    if (!ev3io::to_uint(kv["next_id"], ev3proto::kFirstAssignedId, 65535, id) ||
-        !ev3io::to_uint(kv["next_msgid"], 1, 0xFFFFFFFFu, msgid) || !ev3io::to_uint(kv["epoch"], 1, 0xFFFFFFFFu, epoch)) {
-      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged (expected next_id, next_msgid, epoch)\n",
-                   opt_.state_file.c_str());
-      return false;
-    }
-    cfg.next_id = static_cast<std::uint16_t>(id);
-    cfg.next_msgid = static_cast<std::uint32_t>(msgid);
-    cfg.epoch = static_cast<std::uint32_t>(epoch);
-    // The membership of the epoch members_epoch: what LEADER carried, what votes count
-    // against. A list without its epoch (no members_epoch key) is refused: the floor of the
-    // agents' votes rests on it.
-    const std::string members = kv["members"];
-    ev3io::StoredMembership m;  // the rule ev3-agent shares (the PC keeps no floor)
-    if (!ev3io::read_membership(kv, cfg.epoch, false, m, err)) {
+    // The library's rule (ev3proto/durable.hpp), the one ev3-agent's file is read by (the PC keeps no
+    // floor). The membership is that of the epoch members_epoch: what LEADER carried, what votes
+    // count against; a list without its epoch is refused: the floor of the agents' votes rests on it.
+    ev3proto::MasterDurable d;
+    ev3proto::DurableError why;
+    if (!ev3proto::parse_master_durable(text, d, why)) {
       std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged: %s\n", opt_.state_file.c_str(),
-                   err.c_str());
+                   std::string(why.view()).c_str());
       return false;
     }
-    cfg.members = m.members;
-    cfg.members_epoch = m.members_epoch;
+    cfg.next_id = d.next_id;
+    cfg.next_msgid = d.next_msgid;
+    cfg.epoch = d.epoch;
+    cfg.members.assign(d.members, d.members + d.member_count);
+    cfg.members_epoch = d.members_epoch;
     cfg.candidate = cfg.election;
-    note = "restarted from " + opt_.state_file + ": next id " + std::to_string(id) + ", msgid " +
-           std::to_string(msgid) + ", epoch " + std::to_string(epoch) + ", members " + (members.empty() ? "none" : members) +
-           (cfg.election ? "; standing to take the fleet back" : "");
+    const std::string members(ev3proto::IdListText().ids(d.members, d.member_count).view());
+    note = "restarted from " + opt_.state_file + ": next id " + std::to_string(d.next_id) + ", msgid " +
+           std::to_string(d.next_msgid) + ", epoch " + std::to_string(d.epoch) + ", members " +
+           (members.empty() ? "none" : members) + (cfg.election ? "; standing to take the fleet back" : "");
     return true;
   }
 
@@ -357,19 +351,23 @@ class Program {
                       ev3proto::msgid_newer(msgid_limit_, master_->next_msgid() + kMsgidBlock / 2);
     if (!force && same && master_->members_rev() == saved_rev_) return;  // no walk per datagram
     saved_rev_ = master_->members_rev();
-    const std::string members = ev3io::format_id_list(master_->published()) + "@" + std::to_string(master_->published_epoch());
+    const std::vector<std::uint16_t>& published = master_->published();
+    ev3proto::MasterDurable d;
+    d.members_epoch = master_->published_epoch();
+    for (std::uint16_t id : published)
+      if (d.member_count < ev3proto::kMaxMembership) d.members[d.member_count++] = id;
+    const std::string members =
+        std::string(ev3proto::IdListText().ids(d.members, d.member_count).view()) + "@" + std::to_string(d.members_epoch);
     if (!force && same && members == saved_members_) return;
     msgid_limit_ = master_->next_msgid() + kMsgidBlock;
     saved_id_ = master_->next_id();
     saved_epoch_ = master_->epoch();
     saved_members_ = members;
+    d.next_id = saved_id_;
+    d.next_msgid = msgid_limit_;
+    d.epoch = saved_epoch_;
     std::string err;
-    if (!ev3io::write_state_file(opt_.state_file, {{"next_id", std::to_string(saved_id_)},
-                                                   {"next_msgid", std::to_string(msgid_limit_)},
-                                                   {"epoch", std::to_string(saved_epoch_)},
-                                                   {"members", ev3io::format_id_list(master_->published())},
-                                                   {"members_epoch", std::to_string(master_->published_epoch())}},
-                                 err) && !state_warned_) {
+    if (!ev3io::write_state_file(opt_.state_file, ev3proto::durable_text(d).view(), err) && !state_warned_) {
       log_.log(kError, "%s", err.c_str());
       state_warned_ = true;
     }

@@ -24,12 +24,12 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
-#include <map>
 #include <memory>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include <ev3proto/durable.hpp>
 #include <ev3proto/node.hpp>
 #include <ev3proto/robot/behaviours.hpp>
 #include <ev3proto/robot_link.hpp>
@@ -93,23 +93,21 @@ bool parse_endpoint(const std::string& s, sockaddr_in& a) {
 }
 
 // ------------------------------------------------------------------------------ the durable state
-// What Durable holds (election.hpp), as the key=value lines ev3-agent's state file has too. Written
-// to FILE.tmp, flushed to the disk, renamed over FILE, and the directory flushed: after a crash the
-// file is the old state or the new one, never half of each.
+// What Durable holds (election.hpp), as the library writes it and checks it (durable.hpp: the
+// key=value lines ev3-agent's state file has too). This program does the I/O: written to FILE.tmp,
+// flushed to the disk, renamed over FILE, and the directory flushed: after a crash the file is the
+// old state or the new one, never half of each.
 
 std::string members_text(const Durable& d) {
-  std::string s;
-  for (std::size_t i = 0; i < d.member_count; ++i) s += (i ? "," : "") + std::to_string(d.members[i]);
-  return s;
+  return std::string(ev3proto::IdListText().ids(d.members, d.member_count).view());
 }
 
 bool save_state(const std::string& path, const Durable& d) {
-  const std::string text = "epoch=" + std::to_string(d.epoch) + "\nvoted_for=" + std::to_string(d.voted_for) +
-                           "\nmembers=" + members_text(d) + "\nmembers_epoch=" + std::to_string(d.mepoch) +
-                           "\nfloor=" + std::to_string(d.floor) + "\n";
+  const ev3proto::DurableText text = ev3proto::durable_text(d);
   const std::string tmp = path + ".tmp";
   const int fd = open(tmp.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0644);
-  bool ok = fd >= 0 && write(fd, text.data(), text.size()) == static_cast<ssize_t>(text.size()) && fsync(fd) == 0;
+  bool ok = fd >= 0 && write(fd, text.view().data(), text.view().size()) == static_cast<ssize_t>(text.view().size()) &&
+            fsync(fd) == 0;
   if (fd >= 0) ok = close(fd) == 0 && ok;
   ok = ok && rename(tmp.c_str(), path.c_str()) == 0;
   const std::size_t slash = path.rfind('/');
@@ -121,36 +119,18 @@ bool save_state(const std::string& path, const Durable& d) {
   return ok;
 }
 
-// 1: read into @p d; 0: no file (a robot's first start: the defaults); -1: unreadable or damaged.
-int load_state(const std::string& path, Durable& d) {
+// 1: read into @p d; 0: no file (a robot's first start: the defaults); -1: unreadable, or damaged
+// (@p why names the key).
+int load_state(const std::string& path, Durable& d, ev3proto::DurableError& why) {
   std::FILE* f = std::fopen(path.c_str(), "r");
   if (f == nullptr) return errno == ENOENT ? 0 : -1;
-  std::map<std::string, std::string> kv;
-  char line[256];
-  while (std::fgets(line, sizeof line, f) != nullptr) {
-    std::string l(line);
-    if (!l.empty() && l.back() == '\n') l.pop_back();
-    const std::size_t eq = l.find('=');
-    if (eq != std::string::npos) kv[l.substr(0, eq)] = l.substr(eq + 1);
-  }
+  std::string text;
+  char buf[256];
+  for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) text.append(buf, n);
+  const bool failed = std::ferror(f) != 0;
   std::fclose(f);
-  unsigned long epoch = 0, voted = 0, mepoch = 0, floor = 0, id = 0;
-  if (!parse_number(kv["epoch"], 0xFFFFFFFFul, epoch) || epoch == 0 || !parse_number(kv["voted_for"], 65535, voted) ||
-      !parse_number(kv["members_epoch"], epoch, mepoch) || !parse_number(kv["floor"], epoch, floor) || floor < mepoch)
-    return -1;
-  const std::string& m = kv["members"];  // "7,8,9", or empty
-  for (std::size_t pos = 0, comma = 0; !m.empty() && comma != std::string::npos; pos = comma + 1) {
-    comma = m.find(',', pos);
-    const std::string one = m.substr(pos, comma == std::string::npos ? comma : comma - pos);
-    if (d.member_count == ev3proto::kMaxMembership || !parse_number(one, 49999, id) || id < 2) return -1;
-    d.members[d.member_count++] = static_cast<std::uint16_t>(id);
-  }
-  if (d.member_count > 0 && mepoch == 0) return -1;  // a membership names the epoch that published it
-  d.epoch = static_cast<std::uint32_t>(epoch);
-  d.voted_for = static_cast<std::uint16_t>(voted);
-  d.mepoch = static_cast<std::uint32_t>(mepoch);
-  d.floor = static_cast<std::uint32_t>(floor);
-  return 1;
+  if (failed) return -1;
+  return ev3proto::parse_durable(text, d, why) ? 1 : -1;
 }
 
 // ------------------------------------------------------------------------------ the robot
@@ -364,10 +344,11 @@ int main(int argc, char** argv) {
   if (!o.timers.valid()) return usage("--timer: paused must be longer than loss");
 
   Durable d;
-  const int loaded = load_state(o.state, d);
+  ev3proto::DurableError why;
+  const int loaded = load_state(o.state, d, why);
   if (loaded < 0) {
-    std::fprintf(stderr, "minirobot: %s is unreadable or damaged; not starting with a guessed state\n",
-                 o.state.c_str());
+    std::fprintf(stderr, "minirobot: %s is unreadable or damaged%s%s; not starting with a guessed state\n",
+                 o.state.c_str(), why.view().empty() ? "" : ": ", std::string(why.view()).c_str());
     return 2;
   }
   std::printf("minirobot: port %u, state %s: %s epoch %u, voted for %u, members [%s] of epoch %u, floor %u\n",

@@ -257,7 +257,10 @@ struct alignas(64) RegistryEntry {
                                 ///< command overrides, and for an entry adopted by an elected master:
                                 ///< no reconcile until the operator's next desired-setting command.
   std::uint16_t via = 0;        ///< The relay this agent is reached through (0 = direct; RELAY_ROUTE).
-  std::uint32_t last_msgid = 0; ///< [hi] Highest msgid heard from the agent (orders its PANICs).
+  /// [hi] Newest msgid heard from the agent, in serial-number order (msgid_newer, as the agent
+  /// orders the master's msgids): an agent's msgids may wrap from 4294967295 to 0. MasterLogic.tla
+  /// compares msgids with > within small bounds, where the two orders agree.
+  std::uint32_t last_msgid = 0;
   std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
   std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
   Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
@@ -679,7 +682,7 @@ class Master {
         // it, the entry would never be dropped and the agent would stay in PANIC (TLC
         // fleet_agent_restart, BUG HeardByTemp); unheard, it is dropped and the agent registers anew.
         if (!e.synced || s == e.id) e.heard = now_;
-        if (m.type == MsgType::PANIC && e.synced && s == e.id && m.msgid > e.last_msgid) {
+        if (m.type == MsgType::PANIC && e.synced && s == e.id && msgid_newer(m.msgid, e.last_msgid)) {
           // The agent lost us while we still hold it (its PONGs were lost): sync it again, a new
           // MASTER; its queued commands follow once it ACKs, reconcile restores its desired state.
           set_synced(e, false);
@@ -689,7 +692,7 @@ class Master {
           e.sent_at = now_;
           e.resends = 0;
         }
-        if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
+        if (msgid_newer(m.msgid, e.last_msgid)) e.last_msgid = m.msgid;
         send_pending(e);
         rearm(e);
       }
@@ -725,7 +728,7 @@ class Master {
   /// makes the desired state unknown (no reconcile) unless a command still queued sets it.
   void MasterAnswer(const Message& m) {
     RegistryEntry& e = *reg_.find(m.sender);
-    if (m.msgid > e.last_msgid) e.last_msgid = m.msgid;
+    if (msgid_newer(m.msgid, e.last_msgid)) e.last_msgid = m.msgid;
     const auto ref = m.param_u32(0);
     if (!e.pending || !ref || *ref != e.mid) return;
     e.heard = now_;
@@ -767,12 +770,12 @@ class Master {
   /// keep it from ever panicking and taking the pending MASTER (TLC fleet_late, BUG PongUnsynced).
   /// Reconcile: a synced agent with nothing pending or queued whose reported state is not the
   /// desired one gets the commands that restore it (Restore), after the PONG. Only a fresh PING
-  /// (msgid above every msgid heard from the agent) reconciles: a stale one, sent before the agent's
+  /// (msgid newer than every msgid heard from the agent) reconciles: a stale one, sent before the agent's
   /// last answer, reports a state it has left.
   void MasterPing(const Message& m, Peer from) {
     RegistryEntry& e = *reg_.find(m.sender);
     e.heard = now_;
-    const bool fresh = m.msgid > e.last_msgid;
+    const bool fresh = msgid_newer(m.msgid, e.last_msgid);
     if (fresh) e.last_msgid = m.msgid;
     const auto st = m.param_state(0);
     if (st && fresh && (!e.has_state || *st != e.state)) {  // a stale PING's state is old news

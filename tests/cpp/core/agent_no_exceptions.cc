@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "ev3proto/agent.hpp"
+#include "ev3proto/durable.hpp"
 
 #include "../firmware_check.hpp"
 
@@ -67,6 +68,19 @@ int main() {
   // The master returns and gives the id back.
   CHECK(agent.handle_datagram("1:7:40:2:7", 2, 9000).action == Action::RecvMaster);
   CHECK(agent.state() == State::ACTIVE && agent.behaviour().name.empty());
+
+  // The durable state's text and rule (durable.hpp) build the same way: fixed buffers, no heap.
+  Durable d;
+  d.epoch = 5;
+  d.voted_for = 7;
+  d.mepoch = 4;
+  d.floor = 5;
+  d.members[d.member_count++] = 7;
+  Durable back;
+  DurableError why;
+  CHECK(parse_durable(durable_text(d).view(), back, why) && back == d);
+  CHECK(!parse_durable("epoch=5\nvoted_for=0\nmembers=7\nmembers_epoch=4\nfloor=3\n", back, why) &&
+        why.view() == "floor: 3 is below members_epoch 4 (learning a membership raises the floor to its epoch)");
   std::printf("agent core, -fno-exceptions -fno-rtti: ok (sizeof(Agent<>) = %zu bytes)\n", sizeof agent);
   return 0;
 }

@@ -200,6 +200,27 @@ TEST(MasterReceipts, SayWhatWasTakenAndWhyTheRestWasIgnored) {
   expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 16), Action::MasterReport, MasterIgnored::duplicate);
 }
 
+TEST(MasterMsgids, AnAgentWhoseMsgidsWrapIsStillHeardFresh) {
+  // The master orders an agent's msgids as the agent orders the master's: serial-number order
+  // (msgid_newer). An agent whose msgid wraps from 4294967295 to 0 is heard fresh; a late copy of
+  // one sent before the wrap is stale.
+  Master<> m(MasterConfig{}, 0);
+  m.handle_datagram("50001:0:4294967294:1:A", 11, 1);
+  EXPECT_EQ(sent(m), std::vector<std::string>{"1:2:1:2:50001"});
+  expect_receipt(m.handle_datagram("2:1:4294967295:3:1", 11, 2), Action::MasterAnswer, MasterIgnored::none);
+  EXPECT_EQ(m.registry().at(2).last_msgid, 4294967295u);
+  m.handle_datagram("2:1:0:5:WORKING", 11, 3);  // after the wrap: fresh, its state is news
+  EXPECT_EQ(m.registry().at(2).last_msgid, 0u);
+  EXPECT_TRUE(m.registry().at(2).has_state);
+  EXPECT_EQ(m.registry().at(2).state, AgentState::WORKING);
+  m.handle_datagram("2:1:4294967295:5:PAUSED", 11, 4);  // a copy from before the wrap: stale
+  EXPECT_EQ(m.registry().at(2).last_msgid, 0u);
+  EXPECT_EQ(m.registry().at(2).state, AgentState::WORKING);
+  m.handle_datagram("2:1:1:5:PAUSED", 11, 5);
+  EXPECT_EQ(m.registry().at(2).last_msgid, 1u);
+  EXPECT_EQ(m.registry().at(2).state, AgentState::PAUSED);
+}
+
 TEST(MasterReceipts, CopiesReachTheHandlerUnlessDropCopiesIsOn) {
   Master<> spec(MasterConfig{}, 0);  // MasterLogic: every copy goes through its handler
   for (int copy = 0; copy < 3; ++copy)

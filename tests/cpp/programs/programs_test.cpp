@@ -395,9 +395,9 @@ TEST(Files, ReadLinesKeepsEveryLine) {
   std::string err;
   ASSERT_TRUE(ev3io::read_lines(path, lines, err)) << err;
   EXPECT_EQ(lines, (std::vector<std::string>{"a=1", "", "# c", "last"}));
-  std::map<std::string, std::string> kv;
-  ASSERT_TRUE(ev3io::read_state_file(path, kv, err)) << err;
-  EXPECT_EQ(kv, (std::map<std::string, std::string>{{"a", "1"}}));
+  std::string text;
+  ASSERT_TRUE(ev3io::read_state_file(path, text, err)) << err;
+  EXPECT_EQ(text, "a=1\n\n# c\nlast\n");
   std::remove(path.c_str());
   lines.clear();
   EXPECT_FALSE(ev3io::read_lines(path, lines, err));
@@ -429,48 +429,3 @@ TEST(TraceFile, LinesFlushedEvery200ms) {
 
 }  // namespace
 
-// The membership a state file keeps: one rule for ev3-agent (with its floor), ev3-master
-// and ev3-agent --driver; every refusal names the key.
-TEST(Files, StoredMembershipRule) {
-  using KV = std::map<std::string, std::string>;
-  ev3io::StoredMembership m;
-  std::string err;
-  ASSERT_TRUE(ev3io::read_membership(KV{{"members", "7,8,9"}, {"members_epoch", "2"}, {"floor", "3"}}, 3, true, m, err)) << err;
-  EXPECT_EQ(m.members, (std::vector<std::uint16_t>{7, 8, 9}));
-  EXPECT_EQ(m.members_epoch, 2u);
-  EXPECT_EQ(m.floor, 3u);
-  // An older file (no key) knows no membership; the PC's empty list of a fresh start has an epoch.
-  ASSERT_TRUE(ev3io::read_membership(KV{}, 3, true, m, err)) << err;
-  EXPECT_TRUE(m.members.empty());
-  EXPECT_EQ(m.members_epoch + m.floor, 0u);
-  ASSERT_TRUE(ev3io::read_membership(KV{{"members", ""}, {"members_epoch", "1"}}, 1, false, m, err)) << err;
-  EXPECT_EQ(m.members_epoch, 1u);
-  struct Case {
-    KV kv;
-    bool with_floor;
-    const char* said;
-  } const refused[] = {
-      {{{"members", "7,x"}, {"members_epoch", "1"}}, false,
-       "members: '7,x' is not a list of at most 30 distinct agent ids 2..49999, comma-separated"},
-      {{{"members", "7,7"}, {"members_epoch", "1"}}, true,
-       "members: '7,7' is not a list of at most 30 distinct agent ids 2..49999, comma-separated"},
-      {{{"members", "7"}, {"members_epoch", "4"}}, false, "members_epoch: '4' is not a number 0..3 (the epoch)"},
-      {{{"members", "7"}, {"members_epoch", "x"}, {"floor", "1"}}, true, "members_epoch: 'x' is not a number 0..3 (the epoch)"},
-      {{{"members", "7"}}, false, "members_epoch: missing, but members lists agents (the epoch that published them is needed)"},
-      {{{"members", "7"}, {"members_epoch", "0"}, {"floor", "0"}}, true,
-       "members_epoch: 0, but members lists agents (the epoch that published them is needed)"},
-      {{{"members", "7"}, {"members_epoch", "2"}, {"floor", "4"}}, true, "floor: '4' is not a number 2..3 (members_epoch..epoch)"},
-      {{{"members", "7"}, {"members_epoch", "2"}, {"floor", "1"}}, true,
-       "floor: 1 is below members_epoch 2 (learning a membership raises the floor to its epoch)"},
-      {{{"members", "7"}, {"members_epoch", "2"}}, true,
-       "floor: missing, but members_epoch is 2 (learning a membership raises the floor to its epoch)"},
-  };
-  for (const Case& c : refused) {
-    EXPECT_FALSE(ev3io::read_membership(c.kv, 3, c.with_floor, m, err)) << c.said;
-    EXPECT_EQ(err, c.said);
-  }
-  std::string many;
-  for (int id = 2; id < 33; ++id) many += (many.empty() ? "" : ",") + std::to_string(id);  // 31 ids
-  EXPECT_FALSE(ev3io::read_membership(KV{{"members", many}, {"members_epoch", "1"}}, 3, false, m, err));
-  EXPECT_EQ(err.rfind("members: '2,3,", 0), 0u) << err;
-}

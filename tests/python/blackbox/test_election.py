@@ -315,20 +315,20 @@ def test_a_damaged_membership_in_a_state_file_is_refused(master_exe, agent_exe, 
     """The membership is kept with the epoch: a state file whose list is damaged, whose list
     lacks the epoch that published it or names one above the file's epoch, or (the agent's) whose
     floor is below that epoch, stops the program with the entry named (one rule for both programs,
-    ev3io::read_membership)."""
+    ev3proto/durable.hpp)."""
     import subprocess
     (tmp_path / "s").mkdir()
     cases = [
         (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
          "epoch=3\nvoted_for=0\nmembers=2,x\nmembers_epoch=2\nfloor=2\n", "damaged: members: '2,x'"),
         (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
-         "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=7\nfloor=2\n", "damaged: members_epoch: '7'"),
+         "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=7\nfloor=2\n", "damaged: members_epoch: 7 is above epoch 3"),
         (agent_exe, ["--election", "--state-dir", str(tmp_path / "s")], tmp_path / "s" / "ev3-agent.state",
          "epoch=3\nvoted_for=0\nmembers=2,3\nmembers_epoch=3\nfloor=2\n", "damaged: floor: 2 is below members_epoch 3"),
         (master_exe, ["--election", "--state-file", str(tmp_path / "m.state")], tmp_path / "m.state",
          "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\n", "damaged: members_epoch: missing"),
         (master_exe, ["--election", "--state-file", str(tmp_path / "m.state")], tmp_path / "m.state",
-         "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\nmembers_epoch=5\n", "damaged: members_epoch: '5'"),
+         "next_id=5\nnext_msgid=100\nepoch=4\nmembers=2,3,4\nmembers_epoch=5\n", "damaged: members_epoch: 5 is above epoch 4"),
     ]
     for exe, args, path, text, said in cases:
         path.write_text(text)

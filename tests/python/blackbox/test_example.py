@@ -127,12 +127,17 @@ def test_sync_behaviour_master_killed_paused_panic_elected(minirobot, master_exe
     said(again, f"state {state}: read back: epoch {epoch + 1}, voted for {rid}, members [{rid}] of epoch {epoch + 1}")
 
 
-def test_damaged_state_file_refused(minirobot, tmp_path):
+@pytest.mark.parametrize("text, said", [
+    ("epoch=3\nvoted_for=2\nmembers=2,x\nmembers_epoch=3\nfloor=3\n", "damaged: members: '2,x'"),
+    ("epoch=3\nvoted_for=2\nmembers=2\nmembers_epoch=3\nfloor=2\n", "damaged: floor: 2 is below members_epoch 3"),
+])
+def test_damaged_state_file_refused(minirobot, tmp_path, text, said):
+    """The library's rule (ev3proto/durable.hpp) refuses the file and names the key."""
     state = tmp_path / "robot.state"
-    state.write_text("epoch=3\nvoted_for=2\nmembers=2,x\nmembers_epoch=3\nfloor=3\n")
+    state.write_text(text)
     r = subprocess.run([str(minirobot), "--state", str(state), "--port", "0", "--bind", "127.0.0.1"],
                        capture_output=True, text=True, timeout=10)
-    assert r.returncode == 2 and "damaged" in r.stderr, r
+    assert r.returncode == 2 and said in r.stderr, r
 
 
 def test_armel_minirobot_syncs_and_runs_wait_under_qemu(minirobot_arm, master_exe, programs, tmp_path):

@@ -81,8 +81,8 @@ def test_the_driver_restores_the_membership_of_its_state():
 
 @pytest.mark.parametrize("membership, said", [
     ({"members": [7, 8], "members_epoch": 2, "floor": 1}, "election: floor: 1 is below members_epoch 2"),
-    ({"members": [7, 8], "members_epoch": 4, "floor": 4}, "election: members_epoch: '4' is not a number 0..3"),
-    ({"members": [7, 1]}, "election: members: '7,1' is not a list"),
+    ({"members": [7, 8], "members_epoch": 4, "floor": 4}, "election: members_epoch: 4 is above epoch 3"),
+    ({"members": [7, 1]}, "election: members: 1 is not an agent id 2..49999"),
     ({"members": [7, 8]}, "election: members_epoch: missing, but members lists agents"),
 ])
 def test_the_driver_refuses_a_damaged_membership(membership, said):
