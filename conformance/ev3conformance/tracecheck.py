@@ -333,13 +333,8 @@ def agent_data(path: Path, consts: dict | None = None, node: str = "agent", temp
               "InitVotedFor": int(c.get("VotedFor", 0) or 0),
               "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
               "InitMEpoch": int(c.get("MEpoch", 0) or 0), "InitFloor": int(c.get("Floor", 0) or 0),
-<<<<<<< HEAD
               # the core records the membership only when it changes (a restored agent that
               # hears the list it kept records none); a trace without it checks no membership
-=======
-              # the core records the membership (only when it changes: a restored agent that
-              # hears the list it kept records none); a trace of an older core has none of it
->>>>>>> pyreplay
               "WithMembers": bool(c.get("Members") or c.get("MEpoch") or c.get("Floor")) or any(
                   {"members", "mepoch", "floor"} & r.get("changed", {}).keys() for r in mine)})
     return NodeData(node, "MCElectionTrace", "AgentLogic + Election (per-agent projection)", mine, items, k, tf,
@@ -475,11 +470,7 @@ def master_data(path: Path, consts: dict, node: str | None = None) -> NodeData:
               "InitEpoch": int(c.get("Epoch", 1) or 1),
               "InitMembers": frozenset(int(x) for x in (c.get("Members") or [])),
               "InitMEpoch": int(c.get("MEpoch") or c.get("Epoch", 1) or 1),
-<<<<<<< HEAD
               # the core records the membership of its epoch when it changes
-=======
-              # the core records the membership of its epoch when it changes (an older core: never)
->>>>>>> pyreplay
               "WithMembers": any({"members", "mepoch"} & r.get("changed", {}).keys() for r in recs)})
     return NodeData(node or "master", "MCMasterElectionTrace", "MasterLogic + Election (the PC's rules)", recs,
                     _master_election_records(recs), k, tf, ", election")
@@ -557,11 +548,7 @@ def _el_msg(text: str) -> tuple[dict, dict | None, list[int]]:
         d["e"] = _num(ps, 0)
     if t in ("RREQ", "ELECT"):
         d["sc"] = _num(ps, 1)
-<<<<<<< HEAD
         d["k"] = _num(ps, 2)  # members_epoch (0 when the sender left it out)
-=======
-        d["k"] = _num(ps, 2)  # members_epoch (0 when an older sender left it out)
->>>>>>> pyreplay
     if t in ("ROFFER", "RACCEPT"):
         d["x"] = _num(ps, 1)
     if t == "HB":
@@ -657,11 +644,7 @@ def _master_election_records(recs: list[dict]) -> list[dict]:
             ech["epoch"] = int(ch["epoch"])
         if "votes" in ch:
             ech["votes"] = frozenset(int(v) for v in ch["votes"])
-<<<<<<< HEAD
         if "members" in ch:  # the membership of the epoch (the core records it)
-=======
-        if "members" in ch:  # the membership of the epoch (an older core does not record it)
->>>>>>> pyreplay
             ech["members"] = frozenset(int(v) for v in ch["members"])
         if "mepoch" in ch:
             ech["mepoch"] = int(ch["mepoch"])
