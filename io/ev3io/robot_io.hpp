@@ -1,6 +1,6 @@
 /// @file robot_io.hpp
 /// @brief The I/O half of the robot loop: moves bytes between the device layer (Ev3Devices) and
-///        the robot runtime (libev3proto robot/runtime.hpp), so that the agent program's loop is
+///        the robot runtime (libev3proto robot_runtime.hpp), so that the agent program's loop is
 ///        thin (docs/devices.md "The robot runtime"):
 ///
 ///     if (now >= io.next_scan()) io.scan(rt, now);        // plugged / unplugged, once a second
@@ -14,7 +14,7 @@
 #include <cstddef>
 #include <vector>
 
-#include <ev3proto/robot/runtime.hpp>
+#include <ev3proto/robot_runtime.hpp>
 #include <ev3proto/timers.hpp>
 
 #include "ev3io/devices.hpp"

@@ -1,6 +1,6 @@
 /// @file robot_link.hpp
 /// @brief Between a robot node (node.hpp: the agent core, and the Master core while elected) and
-///        the robot runtime (robot/runtime.hpp): what each output of one is as an input of the
+///        the robot runtime (robot_runtime.hpp): what each output of one is as an input of the
 ///        other. Sans-I/O like both; the agent program (agent/main.cpp) only moves bytes around it.
 ///
 ///  node -> runtime   LED pattern -> led(); behaviour control (start, pause, resume, stop,
@@ -39,7 +39,7 @@
 #include <string_view>
 
 #include "node.hpp"
-#include "robot/runtime.hpp"
+#include "robot_runtime.hpp"
 
 namespace ev3proto::robot {
 

@@ -49,7 +49,7 @@
 #include <string>
 #include <vector>
 
-#include "ev3proto/robot/runtime.hpp"
+#include "ev3proto/robot_runtime.hpp"
 #include "world.hpp"
 
 namespace ev3test {

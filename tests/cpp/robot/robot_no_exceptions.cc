@@ -6,7 +6,7 @@
 #include <cstring>
 #include <string_view>
 
-#include "ev3proto/robot/runtime.hpp"
+#include "ev3proto/robot_runtime.hpp"
 #include "fixtures.hpp"
 
 #include "../firmware_check.hpp"

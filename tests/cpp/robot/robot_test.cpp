@@ -16,7 +16,7 @@
 #include "ev3proto/behaviour/checker.hpp"
 #include "ev3proto/behaviour/definition.hpp"
 #include "ev3proto/behaviour/model.hpp"
-#include "ev3proto/robot/runtime.hpp"
+#include "ev3proto/robot_runtime.hpp"
 #include "fixtures.hpp"
 
 #include "../count_new.hpp"  // g_news: every allocation of this test binary

@@ -1,4 +1,4 @@
-/// @file runtime.hpp
+/// @file robot_runtime.hpp
 /// @brief The robot runtime: the sans-I/O robot side of an agent. It takes the agent core's
 ///        controls (start / pause / resume / stop / restart of the loaded behaviour, LED patterns),
 ///        the devices the device layer finds and loses, the readings it takes, and time; it gives
@@ -32,17 +32,17 @@
 #include <cstdint>
 #include <string_view>
 
-#include "../behaviour/automaton.hpp"
-#include "../behaviour/request.hpp"
-#include "../core.hpp"
-#include "actions.hpp"
-#include "behaviours.hpp"
-#include "command.hpp"
-#include "device.hpp"
-#include "events.hpp"
-#include "leds.hpp"
-#include "model.hpp"
-#include "text.hpp"
+#include "behaviour/automaton.hpp"
+#include "behaviour/request.hpp"
+#include "core.hpp"
+#include "robot/actions.hpp"
+#include "robot/behaviours.hpp"
+#include "robot/command.hpp"
+#include "robot/device.hpp"
+#include "robot/events.hpp"
+#include "robot/leds.hpp"
+#include "robot/model.hpp"
+#include "robot/text.hpp"
 
 namespace ev3proto::robot {
 
