@@ -107,3 +107,102 @@ def test_one_json_string_escaper() -> None:
             if re.search(r'"\\\\u00"|\\\\u%04x', text):
                 writers.append(str(src.relative_to(REPO)))
     assert writers == ["libev3proto/include/ev3proto/json.hpp"]
+
+
+# ---------------------------------------------------------------- inside the library
+
+LIB = Path("libev3proto/include/ev3proto")
+
+# The library's layers, lowest first (docs/core.md, "The library's layers"). A header may include
+# headers of its own layer and of the layers below it, never one above. Each entry names the headers
+# of a layer by their paths under libev3proto/include/ev3proto/ (a folder: every header in it).
+LIBRARY_LAYERS = [
+    ("vocabulary", ["timers.hpp", "messages.hpp", "msgids.hpp", "json.hpp", "dedupe.hpp", "deadline_list.hpp",
+                    "wire.hpp", "core.hpp"]),
+    ("robot", ["robot/"]),
+    ("behaviour", ["behaviour/"]),
+    ("cores", ["election.hpp", "durable.hpp", "agent.hpp", "master.hpp", "node.hpp"]),
+    ("joins", ["robot_runtime.hpp", "robot_link.hpp", "rules.hpp", "trace.hpp"]),
+]
+
+
+def layer_of(rel: str, layers=LIBRARY_LAYERS) -> int | None:
+    """The index in @p layers of the header at @p rel (a path under ev3proto/), or None."""
+    for i, (_, members) in enumerate(layers):
+        for m in members:
+            if rel == m or (m.endswith("/") and rel.startswith(m)):
+                return i
+    return None
+
+
+def library_includes(root: Path = REPO) -> dict[str, list[str]]:
+    """Each header of the library (its path under ev3proto/) and the library headers it includes,
+    resolved as the build resolves them: next to the header, then from libev3proto/include. A header
+    the build generates (behaviour/builtins_text.hpp) is named by the path it is included by."""
+    lib = root / LIB
+    out: dict[str, list[str]] = {}
+    for src in sorted(lib.rglob("*.hpp")):
+        names = []
+        for name in INCLUDE.findall(src.read_text(encoding="utf-8")):
+            where = resolve(root, src, name, ["libev3proto/include"])
+            if where is not None:
+                try:
+                    names.append(where.relative_to(lib.resolve()).as_posix())
+                except ValueError:
+                    pass  # outside the library
+            elif name.startswith("ev3proto/"):
+                names.append(name[len("ev3proto/"):])
+        out[src.relative_to(lib).as_posix()] = names
+    return out
+
+
+def layering_violations(root: Path = REPO, layers=LIBRARY_LAYERS) -> list[str]:
+    """Headers in no layer, includes that reach a layer above, and include cycles."""
+    graph = library_includes(root)
+    bad = []
+    for src, names in graph.items():
+        mine = layer_of(src, layers)
+        if mine is None:
+            bad.append(f"{src}: in no layer of LIBRARY_LAYERS")
+            continue
+        for name in names:
+            theirs = layer_of(name, layers)
+            if theirs is not None and theirs > mine:
+                bad.append(f"{src} ({layers[mine][0]}): #include of {name} ({layers[theirs][0]}, a layer above)")
+    # No cycle, even inside one layer: a depth-first walk that meets a header still on its path.
+    state: dict[str, int] = {}
+
+    def walk(h: str, path: list[str]) -> None:
+        state[h] = 1
+        for n in graph.get(h, []):
+            if state.get(n) == 1:
+                bad.append("include cycle: " + " -> ".join(path[path.index(n):] + [n]))
+            elif n not in state:
+                walk(n, path + [n])
+        state[h] = 2
+
+    for h in sorted(graph):
+        if h not in state:
+            walk(h, [h])
+    return bad
+
+
+def test_the_library_is_layered() -> None:
+    bad = layering_violations()
+    assert bad == [], "\n".join(bad)
+
+
+def test_the_layering_check_sees_an_upward_include_and_a_cycle(tmp_path: Path) -> None:
+    """The check itself, on a small library: robot/ including behaviour/ (a layer above) while
+    behaviour/ includes robot/, and a header in no layer."""
+    lib = tmp_path / LIB
+    (lib / "robot").mkdir(parents=True)
+    (lib / "behaviour").mkdir()
+    (lib / "robot" / "runtime.hpp").write_text('#include "../behaviour/automaton.hpp"\n#include "../timers.hpp"\n')
+    (lib / "behaviour" / "automaton.hpp").write_text('#include "ev3proto/robot/runtime.hpp"\n')
+    (lib / "timers.hpp").write_text("#pragma once\n")
+    (lib / "stray.hpp").write_text("#pragma once\n")
+    found = layering_violations(tmp_path)
+    assert found == ["robot/runtime.hpp (robot): #include of behaviour/automaton.hpp (behaviour, a layer above)",
+                     "stray.hpp: in no layer of LIBRARY_LAYERS",
+                     "include cycle: behaviour/automaton.hpp -> robot/runtime.hpp -> behaviour/automaton.hpp"], found
