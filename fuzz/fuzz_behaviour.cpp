@@ -45,7 +45,7 @@ void round_trip(std::string_view text) {
   check(def, kModelA, f);
   for (std::uint8_t k = 0; k < f.count; ++k)
     if (!place_inside(text, f.items[k]) && f.items[k].pos.line != 0) violation();
-  check(def, kModelA, kModelA.devices & ~bit(Device::touch), f);
+  check(def, kModelA, kModelA.devices & ~role_bit(Role::touch), f);
   Text c(text_buf, sizeof text_buf);
   compact(c, def);
   if (c.overflow()) violation();

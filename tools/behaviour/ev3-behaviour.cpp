@@ -72,10 +72,10 @@ std::size_t datagram_size(std::string_view text) {
   return custom_datagram_size(text, buf);
 }
 
-bool device_named(std::string_view n, Device& d) {
-  for (std::uint8_t k = 0; k < kDeviceCount; ++k)
-    if (role_name(static_cast<Device>(k)) == n) {
-      d = static_cast<Device>(k);
+bool device_named(std::string_view n, Role& d) {
+  for (std::uint8_t k = 0; k < ev3proto::robot::kAllRoleCount; ++k)
+    if (to_string(static_cast<Role>(k)) == n) {
+      d = static_cast<Role>(k);
       return true;
     }
   return false;
@@ -105,9 +105,9 @@ int cmd_check(const std::vector<std::string>& args) {
       const std::string v = args[++i];
       if (a == "--model" && v != "A") return usage_error("unknown model '" + v + "' (known: A)");
       if (a == "--without") {
-        Device d;
+        Role d;
         if (!device_named(v, d)) return usage_error("unknown device '" + v + "'");
-        robot &= ~bit(d);
+        robot &= ~role_bit(d);
       }
       if (a == "--set") sets.push_back(v);
     } else if (a.size() > 1 && a[0] == '-' && a != "-") {

@@ -732,7 +732,7 @@ class Runtime {
       case Outcome::finished: auto_.finished(); break;
       case Outcome::failed: auto_.failed(); break;
       case Outcome::interrupted:
-        if (!auto_.event(static_cast<behaviour::Event>(runner_.cause()))) auto_.failed();
+        if (!auto_.event(runner_.cause())) auto_.failed();
         break;
     }
     follow(now);
@@ -763,7 +763,7 @@ class Runtime {
           ActionResult r;
           r.outcome = Outcome::interrupted;
           r.detail = runner_.detail();
-          r.warning = o.event == behaviour::Event::PROXIMITY_ALERT ? Warning::PROXIMITY_ALERT : Warning::OBSTACLE_DETECTED;
+          r.warning = o.event == EventKind::PROXIMITY_ALERT ? Warning::PROXIMITY_ALERT : Warning::OBSTACLE_DETECTED;
           push_result(r);
           break;
         }

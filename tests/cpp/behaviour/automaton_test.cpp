@@ -118,10 +118,10 @@ class Driver {
       }
     return false;
   }
-  static bool event_named(const std::string& n, Event& e) {
-    for (std::size_t k = 0; k < kEventCount; ++k)
-      if (to_string(static_cast<Event>(k)) == n) {
-        e = static_cast<Event>(k);
+  static bool event_named(const std::string& n, EventKind& e) {
+    for (std::size_t k = 0; k < ev3proto::robot::kEventKindCount; ++k)
+      if (to_string(static_cast<EventKind>(k)) == n) {
+        e = static_cast<EventKind>(k);
         return true;
       }
     return false;
@@ -166,7 +166,7 @@ class Driver {
     } else if (verb == "fail") {
       a_.failed();
     } else if (verb == "event" && args.size() == 1) {
-      Event e;
+      EventKind e;
       if (!event_named(args[0], e)) {
         out_ << "error: unknown event " << args[0] << "\n";
         return;

@@ -306,11 +306,11 @@ TEST(Runtime, ReactionsConditionsAndValues) {
       << bhvtest::diag_line(g);
   const std::uint8_t f = d.find_state("f"), b = d.find_state("b");
   // The state's own reaction first, else the behaviour-wide one; ignore is a reaction.
-  EXPECT_EQ(d.on_event(f, Event::OBSTACLE_DETECTED)->target, kIgnore);
-  EXPECT_EQ(d.on_event(b, Event::OBSTACLE_DETECTED)->target, b);
-  EXPECT_EQ(d.on_event(f, Event::PROXIMITY_ALERT)->target, b);
-  EXPECT_EQ(d.on_event(f, Event::DEVICE_CONNECTED), nullptr);
-  EXPECT_EQ(d.on_event(d.stop, Event::OBSTACLE_DETECTED), nullptr);
+  EXPECT_EQ(d.on_event(f, EventKind::OBSTACLE_DETECTED)->target, kIgnore);
+  EXPECT_EQ(d.on_event(b, EventKind::OBSTACLE_DETECTED)->target, b);
+  EXPECT_EQ(d.on_event(f, EventKind::PROXIMITY_ALERT)->target, b);
+  EXPECT_EQ(d.on_event(f, EventKind::DEVICE_CONNECTED), nullptr);
+  EXPECT_EQ(d.on_event(d.stop, EventKind::OBSTACLE_DETECTED), nullptr);
   // Conditions: the state's, then the behaviour-wide ones.
   ASSERT_NE(d.condition(f, 0), nullptr);
   EXPECT_EQ(d.condition(f, 0)->sensor, Sensor::colour);
@@ -359,17 +359,17 @@ TEST(Devices, NeededByModelA) {
   Diagnostic g;
   ASSERT_TRUE(parse(find_builtin("explore")->text, d, g));  // it reports the colour too
   EXPECT_EQ(devices_needed(d, kModelA),
-            kDriveMotors | bit(Device::touch) | bit(Device::ultrasonic) | bit(Device::colour));
+            kDriveMotors | role_bit(Role::touch) | role_bit(Role::ultrasonic) | role_bit(Role::colour));
   ASSERT_TRUE(parse(find_builtin("exploit")->text, d, g));
   EXPECT_EQ(devices_needed(d, kModelA),
-            kDriveMotors | bit(Device::touch) | bit(Device::ultrasonic) | bit(Device::colour));
+            kDriveMotors | role_bit(Role::touch) | role_bit(Role::ultrasonic) | role_bit(Role::colour));
   ASSERT_TRUE(parse(find_builtin("wait")->text, d, g));
   EXPECT_EQ(devices_needed(d, kModelA), 0u);
   // A model without an ultrasonic sensor never raises PROXIMITY_ALERT: reacting to it needs nothing.
   ASSERT_TRUE(parse(find_builtin("drive")->text, d, g));
   Model no_us = kModelA;
-  no_us.devices &= ~bit(Device::ultrasonic);
-  EXPECT_EQ(devices_needed(d, no_us), kDriveMotors | bit(Device::touch));
+  no_us.devices &= ~role_bit(Role::ultrasonic);
+  EXPECT_EQ(devices_needed(d, no_us), kDriveMotors | role_bit(Role::touch));
 }
 
 }  // namespace

@@ -71,7 +71,7 @@ int main() {
   const std::uint8_t ports[kSensorCount] = {8, 1, 4, 0};
   a.load(def, ports);
   a.start(0);
-  CHECK(a.event(Event::OBSTACLE_DETECTED));
+  CHECK(a.event(EventKind::OBSTACLE_DETECTED));
   a.finished();
   a.pause();
   a.resume(10);

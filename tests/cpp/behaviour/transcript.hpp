@@ -101,10 +101,10 @@ inline std::string dump(const Definition& d) {
   return o.str();
 }
 
-inline bool device_named(const std::string& n, Device& d) {
-  for (std::uint8_t k = 0; k < kDeviceCount; ++k)
-    if (role_name(static_cast<Device>(k)) == n) {
-      d = static_cast<Device>(k);
+inline bool device_named(const std::string& n, Role& d) {
+  for (std::uint8_t k = 0; k < ev3proto::robot::kAllRoleCount; ++k)
+    if (to_string(static_cast<Role>(k)) == n) {
+      d = static_cast<Role>(k);
       return true;
     }
   return false;
@@ -136,9 +136,9 @@ inline std::string run_case(const std::vector<std::string>& input) {
     if (opt == "--set") {
       sets.push_back(val);
     } else if (opt == "--without") {
-      Device dev;
+      Role dev;
       if (!device_named(val, dev)) return "bad case: unknown device " + val + "\n";
-      robot &= ~bit(dev);
+      robot &= ~role_bit(dev);
     } else if (opt == "--lacks") {
       std::uint8_t a = 0;
       while (a < kActionCount && to_string(static_cast<Action>(a)) != val) ++a;

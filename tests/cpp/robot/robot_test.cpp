@@ -324,24 +324,19 @@ TEST(Behaviours, ModelADeclaresItsActionsAndBehaviours) {
   }
 }
 
-// The behaviour language (ev3proto/behaviour/) names the robot's events, devices and stop
-// actions with its own enums "in the order and with the values of" robot/'s, so the runtime can pass
-// one as the other: checked here, for both sides.
-TEST(Behaviours, TheLanguagesEnumsAreTheRobots) {
-  namespace bhv = ev3proto::behaviour;
-  static_assert(bhv::kEventCount == kEventKindCount);
-  for (std::size_t i = 0; i < kEventKindCount; ++i) {
-    EXPECT_EQ(bhv::to_string(static_cast<bhv::Event>(i)), to_string(static_cast<EventKind>(i)));
-    EXPECT_EQ(bhv::is_critical(static_cast<bhv::Event>(i)), severity_of(static_cast<EventKind>(i)) == Severity::critical);
-  }
-  for (Role r : {Role::left, Role::right, Role::ultrasonic, Role::touch, Role::colour}) {
-    const auto d = static_cast<bhv::Device>(static_cast<std::uint8_t>(r));
-    EXPECT_EQ(bhv::bit(d), role_bit(r));
-    EXPECT_EQ(bhv::role_name(d), to_string(r));
-  }
-  EXPECT_EQ(bhv::kModelA.devices & kModelADevices, kModelADevices);
-  for (auto a : {StopAction::coast, StopAction::brake, StopAction::hold})
-    EXPECT_EQ(bhv::to_string(static_cast<bhv::StopMode>(static_cast<std::uint8_t>(a))), to_string(a));
+// The behaviour language (ev3proto/behaviour/) names devices by robot::Role, gyro included; model A
+// has a port for every role but the gyro, and --ports knows no gyro.
+TEST(Behaviours, RolesNameTheirDevices) {
+  EXPECT_EQ(to_string(Role::gyro), "gyro");
+  EXPECT_EQ(device_name(Role::gyro), "gyro sensor");
+  EXPECT_EQ(role_bit(Role::gyro), 32u);
+  for (std::size_t i = 0; i < kRoleCount; ++i)
+    EXPECT_EQ(kModelADeviceNames[i], device_name(static_cast<Role>(i)));
+  EXPECT_EQ(ev3proto::behaviour::kModelA.devices, kModelADevices);
+  PortMap m;
+  Reason why;
+  EXPECT_FALSE(parse_ports("gyro=in2", m, why));
+  EXPECT_EQ(why.view(), "unknown role 'gyro' (left, right, touch, colour, ultrasonic)");
 }
 
 TEST(Behaviours, BuildPlans) {

@@ -53,7 +53,7 @@ struct Output {
   Kind kind = Kind::start;
   std::uint8_t state = kNone;
   std::uint32_t id = 0;
-  Event event = Event::OBSTACLE_DETECTED;
+  EventKind event = EventKind::OBSTACLE_DETECTED;
   Sensor sensor = Sensor::distance;
   robot::StopAction stop = robot::StopAction::brake;
 };
@@ -175,13 +175,13 @@ class Automaton {
 
   /// Event @p e interrupted the plan, or came while it runs: its reaction is taken. Returns true when
   /// the state reacts to it with a state (the plan is then over).
-  bool event(Event e) noexcept {
+  bool event(EventKind e) noexcept {
     if (phase_ != Phase::running) return false;
     const Reaction* r = def_.on_event(state_, e);
     if (r == nullptr || r->target == kIgnore) return false;
     if (r->target != def_.stop) {
       enter(r->target);
-    } else if (e == Event::OBSTACLE_DETECTED || e == Event::PROXIMITY_ALERT) {
+    } else if (e == EventKind::OBSTACLE_DETECTED || e == EventKind::PROXIMITY_ALERT) {
       Output o = make(Output::Kind::interrupted);
       o.id = id_;
       o.event = e;
@@ -316,8 +316,8 @@ class Automaton {
       return;
     }
     robot::EventSet interrupts = 0;
-    for (std::size_t e = 0; e < kEventCount; ++e) {
-      const Reaction* r = def_.on_event(s, static_cast<Event>(e));
+    for (std::size_t e = 0; e < robot::kEventKindCount; ++e) {
+      const Reaction* r = def_.on_event(s, static_cast<EventKind>(e));
       if (r != nullptr && r->target != kIgnore)
         interrupts = static_cast<robot::EventSet>(interrupts | robot::event_bit(static_cast<robot::EventKind>(e)));
     }

@@ -57,16 +57,16 @@ inline std::uint32_t devices_needed(const Definition& def, const Model& model) n
   for (std::uint8_t k = 0; k < def.reaction_count; ++k) {
     const Reaction& r = def.reactions[k];
     if (r.trigger == Trigger::condition) {
-      need |= bit(device_of(r.sensor));
+      need |= role_bit(device_of(r.sensor));
     } else if (r.target != kIgnore) {
-      const Device d = r.event == Event::OBSTACLE_DETECTED ? Device::touch
-                       : r.event == Event::PROXIMITY_ALERT ? Device::ultrasonic
-                                                            : Device::gyro;
-      if ((r.event == Event::OBSTACLE_DETECTED || r.event == Event::PROXIMITY_ALERT) && (model.devices & bit(d)))
-        need |= bit(d);
+      const Role d = r.event == EventKind::OBSTACLE_DETECTED ? Role::touch
+                       : r.event == EventKind::PROXIMITY_ALERT ? Role::ultrasonic
+                                                            : Role::gyro;
+      if ((r.event == EventKind::OBSTACLE_DETECTED || r.event == EventKind::PROXIMITY_ALERT) && (model.devices & role_bit(d)))
+        need |= role_bit(d);
     }
   }
-  for (std::uint8_t k = 0; k < def.report.count; ++k) need |= bit(device_of(def.report.sensors[k]));
+  for (std::uint8_t k = 0; k < def.report.count; ++k) need |= role_bit(device_of(def.report.sensors[k]));
   return need;
 }
 
@@ -112,7 +112,7 @@ struct Checker {
     if (st.next != kNone) f(st.next, kNone);
     auto take = [&](std::uint8_t i) {
       const Reaction& r = def.reactions[i];
-      if (r.target == kIgnore || (course && r.trigger == Trigger::event && r.event == Event::DEVICE_ERROR)) return;
+      if (r.target == kIgnore || (course && r.trigger == Trigger::event && r.event == EventKind::DEVICE_ERROR)) return;
       f(r.target, i);
     };
     for (std::uint8_t k = 0; k < st.reaction_count; ++k) take(static_cast<std::uint8_t>(st.first_reaction + k));
@@ -226,9 +226,9 @@ struct Checker {
 
   void robot_devices() noexcept {
     const std::uint32_t missing = devices_needed(def, model) & ~robot;
-    for (std::uint8_t d = 0; d < kDeviceCount; ++d) {
-      if (!(missing & bit(static_cast<Device>(d)))) continue;
-      const Device dev = static_cast<Device>(d);
+    for (std::uint8_t d = 0; d < robot::kAllRoleCount; ++d) {
+      if (!(missing & role_bit(static_cast<Role>(d)))) continue;
+      const Role dev = static_cast<Role>(d);
       // The first place that needs it.
       Pos at = def.name_pos;
       char what[48];
@@ -244,7 +244,7 @@ struct Checker {
       };
       for (std::uint8_t k = 0; k < def.step_count; ++k) {
         const Step& s = def.steps[k];
-        if (s.action != Action::wait && (kDriveMotors & bit(dev)) && s.pos.line != 0)
+        if (s.action != Action::wait && (kDriveMotors & role_bit(dev)) && s.pos.line != 0)
           take(s.pos, [&](Text& t) { t << to_string(s.action); });
       }
       for (std::uint8_t k = 0; k < def.reaction_count; ++k) {
@@ -252,15 +252,15 @@ struct Checker {
         if (r.trigger == Trigger::condition && device_of(r.sensor) == dev)
           take(r.pos, [&](Text& t) { t << "when " << to_string(r.sensor); });
         if (r.trigger == Trigger::event && r.target != kIgnore &&
-            ((r.event == Event::OBSTACLE_DETECTED && dev == Device::touch) ||
-             (r.event == Event::PROXIMITY_ALERT && dev == Device::ultrasonic)))
+            ((r.event == EventKind::OBSTACLE_DETECTED && dev == Role::touch) ||
+             (r.event == EventKind::PROXIMITY_ALERT && dev == Role::ultrasonic)))
           take(r.pos, [&](Text& t) { t << "on " << to_string(r.event); });
       }
       for (std::uint8_t k = 0; k < def.report.count; ++k)
         if (device_of(def.report.sensors[k]) == dev)
           take(def.report.pos, [&](Text& t) { t << "report " << to_string(def.report.sensors[k]); });
       find(Code::robot_device, at, [&](Text& m) {
-        m << "the robot has no " << to_string(dev) << " (" << w.view() << " needs it)";
+        m << "the robot has no " << device_name(dev) << " (" << w.view() << " needs it)";
       });
     }
   }
@@ -371,7 +371,7 @@ struct Checker {
   void unguarded() noexcept {
     for (std::uint8_t s = 0; s < def.state_count; ++s) {
       if (!reach[s] || s == def.stop || !def.moves(s)) continue;
-      for (const Event e : {Event::OBSTACLE_DETECTED, Event::PROXIMITY_ALERT}) {
+      for (const EventKind e : {EventKind::OBSTACLE_DETECTED, EventKind::PROXIMITY_ALERT}) {
         if (def.on_event(s, e) != nullptr) continue;
         find(Code::unguarded, def.states[s].pos, [&](Text& m) {
           m << "state " << def.states[s].name.view() << " moves but has no reaction to " << to_string(e) << ": ";

@@ -82,27 +82,8 @@ struct Number {
   Dim dim = Dim::plain;
 };
 
-/// Stop modes of the Stop action, as ev3dev's stop_action names them.
-enum class StopMode : std::uint8_t { coast, brake, hold };
 /// Colours of the colour sensor in COL-COLOR mode; the value is ev3dev's value0.
 enum class Colour : std::uint8_t { none, black, blue, green, yellow, red, white, brown };
-
-/// Events of the robot (thesis 5.2.2), in the order and with the values of robot/events.hpp
-/// EventKind, so the runtime can convert one into the other.
-enum class Event : std::uint8_t {
-  DEVICE_CONNECTED,    ///< a device appeared on a port
-  PROXIMITY_ALERT,     ///< the ultrasonic sensor below its threshold (once until it goes away)
-  OBSTACLE_DETECTED,   ///< the touch sensor (bumper) pressed (once per press)
-  DEVICE_ERROR,        ///< a device gave garbage or is not what the model expects
-  DEVICE_DISCONNECTED, ///< critical: a device vanished (the lifecycle's, no reaction allowed)
-  BATTERY_LOW,         ///< critical: voltage below the threshold (the lifecycle's)
-};
-inline constexpr std::size_t kEventCount = 6;
-
-/// True for the events the lifecycle handles (a behaviour may not react to them).
-constexpr bool is_critical(Event e) noexcept {
-  return e == Event::DEVICE_DISCONNECTED || e == Event::BATTERY_LOW;
-}
 
 /// A sensor reading a condition tests or a report sends.
 enum class Sensor : std::uint8_t {
@@ -162,7 +143,7 @@ enum class Trigger : std::uint8_t { event, condition };
 struct Reaction {
   std::uint8_t owner = kEveryState; ///< the state it belongs to, or kEveryState
   Trigger trigger = Trigger::event;
-  Event event = Event::OBSTACLE_DETECTED; ///< trigger == event
+  EventKind event = EventKind::OBSTACLE_DETECTED; ///< trigger == event
   Sensor sensor = Sensor::distance;       ///< trigger == condition
   Op op = Op::lt;                         ///< trigger == condition
   Arg value;                              ///< trigger == condition: what the reading is compared with
@@ -247,7 +228,7 @@ struct Definition {
 
   /// The reaction of state @p s to event @p e: its own, else the behaviour-wide one, else nullptr
   /// (the event is ignored). A reaction whose target is kIgnore handles the event by doing nothing.
-  const Reaction* on_event(std::uint8_t s, Event e) const noexcept {
+  const Reaction* on_event(std::uint8_t s, EventKind e) const noexcept {
     if (s >= state_count || s == stop) return nullptr;
     const State& st = states[s];
     for (std::uint8_t k = 0; k < st.reaction_count; ++k) {
@@ -426,18 +407,6 @@ inline void write(Text& out, const Diagnostic& d) {
 
 // ---- Names of the language's words --------------------------------------------------------------
 
-/// The language's spelling of an event (the protocol's EVENT name).
-constexpr std::string_view to_string(Event e) noexcept {
-  switch (e) {
-    case Event::OBSTACLE_DETECTED: return "OBSTACLE_DETECTED";
-    case Event::PROXIMITY_ALERT: return "PROXIMITY_ALERT";
-    case Event::DEVICE_CONNECTED: return "DEVICE_CONNECTED";
-    case Event::DEVICE_ERROR: return "DEVICE_ERROR";
-    case Event::DEVICE_DISCONNECTED: return "DEVICE_DISCONNECTED";
-    case Event::BATTERY_LOW: return "BATTERY_LOW";
-  }
-  return "?";
-}
 constexpr std::string_view to_string(Sensor s) noexcept {
   switch (s) {
     case Sensor::distance: return "distance";
@@ -470,14 +439,6 @@ constexpr std::string_view to_string(Unit u) noexcept {
   }
   return "";
 }
-constexpr std::string_view to_string(StopMode m) noexcept {
-  switch (m) {
-    case StopMode::coast: return "coast";
-    case StopMode::brake: return "brake";
-    case StopMode::hold: return "hold";
-  }
-  return "?";
-}
 constexpr std::string_view to_string(Colour c) noexcept {
   switch (c) {
     case Colour::none: return "none";
@@ -493,14 +454,14 @@ constexpr std::string_view to_string(Colour c) noexcept {
 }
 
 /// The device a sensor reading comes from.
-constexpr Device device_of(Sensor s) noexcept {
+constexpr Role device_of(Sensor s) noexcept {
   switch (s) {
-    case Sensor::distance: return Device::ultrasonic;
-    case Sensor::touch: return Device::touch;
-    case Sensor::colour: return Device::colour;
-    case Sensor::gyro: return Device::gyro;
+    case Sensor::distance: return Role::ultrasonic;
+    case Sensor::touch: return Role::touch;
+    case Sensor::colour: return Role::colour;
+    case Sensor::gyro: return Role::gyro;
   }
-  return Device::gyro;
+  return Role::gyro;
 }
 
 /// The ev3dev mode a sensor reading is taken in (SENSOR_VALUE's mode param).

@@ -47,10 +47,10 @@ inline void to_dot(Text& out, const Definition& def) {
     write_action(out, def, st, ", ", true);
     if (s == def.stop) out << "\\n(also after a failed action)";
     bool first = true;
-    for (std::uint8_t e = 0; e < kEventCount && s != def.stop; ++e) {
-      const Reaction* r = def.on_event(s, static_cast<Event>(e));
+    for (std::uint8_t e = 0; e < robot::kEventKindCount && s != def.stop; ++e) {
+      const Reaction* r = def.on_event(s, static_cast<EventKind>(e));
       if (r == nullptr || r->target != kIgnore) continue;
-      out << (first ? "\\nignores " : ", ") << to_string(static_cast<Event>(e));
+      out << (first ? "\\nignores " : ", ") << to_string(static_cast<EventKind>(e));
       first = false;
     }
     out << '"';

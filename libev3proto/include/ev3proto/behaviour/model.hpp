@@ -2,9 +2,8 @@
 /// @brief What the behaviour language and its checker need to know about a robot model: the devices
 /// it declares, the actions it implements and the limits of its motors.
 ///
-/// The checker reads a model from here only. Its device bits are the robot layer's
-/// (libev3proto/include/ev3proto/robot/ role bits; the test Behaviours.TheLanguagesEnumsAreTheRobots
-/// keeps them equal); its actions name the robot layer's action kinds, plus `repeat`. Model A's
+/// The checker reads a model from here only. Its devices are robot/'s roles (robot::Role) and their
+/// bits; its actions name the robot layer's action kinds, plus `repeat`. Model A's
 /// figures come from the ev3dev reference trees (tests/data/ev3dev: the large motor
 /// `lego-ev3-l-motor` has max_speed 1050 and count_per_rot 360, so tacho counts per second are
 /// degrees per second of the wheel) and from the thesis' test robot (docs/brief.md section 6).
@@ -13,50 +12,19 @@
 #include <cstdint>
 #include <string_view>
 
+#include "../robot/device.hpp"
+#include "../robot/events.hpp"
+#include "../robot/model.hpp"
+
 namespace ev3proto::behaviour {
 
-/// A device a behaviour may need. The value is the bit position in Model::devices: the same bits as
-/// robot::Role (robot/model.hpp role_bit: left 1, right 2, ultrasonic 4, touch 8, colour 16)
-/// and the agent core's Capabilities::devices, so a robot's plugged mask can be passed as it is.
-enum class Device : std::uint8_t {
-  left_motor = 0,  ///< large motor driving the left wheel (model A: outB)
-  right_motor = 1, ///< large motor driving the right wheel (model A: outC)
-  ultrasonic = 2,  ///< ultrasonic sensor facing forward (model A: in4); raises PROXIMITY_ALERT
-  touch = 3,       ///< touch sensor, the front bumper (model A: in1); raises OBSTACLE_DETECTED
-  colour = 4,      ///< colour sensor facing the floor (model A: in3)
-  gyro = 5,        ///< gyro sensor (not on model A; no role in robot/ yet)
-};
-inline constexpr std::size_t kDeviceCount = 6;
-
-/// Bit of a device in a device mask.
-constexpr std::uint32_t bit(Device d) noexcept { return std::uint32_t{1} << static_cast<unsigned>(d); }
-
-/// The device's name in messages ("the robot has no gyro").
-constexpr std::string_view to_string(Device d) noexcept {
-  switch (d) {
-    case Device::left_motor: return "left motor";
-    case Device::right_motor: return "right motor";
-    case Device::ultrasonic: return "ultrasonic sensor";
-    case Device::touch: return "touch sensor";
-    case Device::colour: return "colour sensor";
-    case Device::gyro: return "gyro sensor";
-  }
-  return "?";
-}
-
-/// The device's role name as robot::Role and `--ports` spell it (left, right, ultrasonic, touch,
-/// colour; gyro).
-constexpr std::string_view role_name(Device d) noexcept {
-  switch (d) {
-    case Device::left_motor: return "left";
-    case Device::right_motor: return "right";
-    case Device::ultrasonic: return "ultrasonic";
-    case Device::touch: return "touch";
-    case Device::colour: return "colour";
-    case Device::gyro: return "gyro";
-  }
-  return "?";
-}
+/// The robot's words the language uses as they are: a device by its role (robot::Role, robot/model.hpp;
+/// its bit in a device mask, robot::role_bit, is the agent core's Capabilities::devices bit, so a
+/// robot's plugged mask can be passed as it is), an event by robot::EventKind (robot/events.hpp), a
+/// stop mode by robot::StopAction (robot/device.hpp).
+using robot::EventKind;
+using robot::Role;
+using robot::StopAction;
 
 /// An action of the behaviour language: one of the robot layer's actions (robot/actions.hpp
 /// action::Kind, other values), or `repeat`. The value is the bit position in Model::actions. `repeat` is Repeat(n, ...): a state that runs its
@@ -92,19 +60,19 @@ constexpr std::string_view to_string(Action a) noexcept {
 /// A robot model as the checker sees it.
 struct Model {
   std::string_view name;       ///< as announced in AGENT ("A")
-  std::uint32_t devices = 0;   ///< devices the model is built with (bit(Device))
+  std::uint32_t devices = 0;   ///< devices the model is built with (role_bit(Role))
   std::uint32_t actions = 0;   ///< actions it implements (bit(Action))
   std::int32_t max_speed = 0;  ///< drive motors' max_speed, degrees of the wheel per second
 };
 
 /// Both drive motors.
-inline constexpr std::uint32_t kDriveMotors = bit(Device::left_motor) | bit(Device::right_motor);
+inline constexpr std::uint32_t kDriveMotors = robot::kMotors;
 
-/// Model A, the thesis' test robot: two large motors, touch, colour and ultrasonic sensors (robot/'s
-/// kModelADevices); every action. max_speed is the large motor's (robot/ reads it from the motor).
+/// Model A, the thesis' test robot: two large motors, touch, colour and ultrasonic sensors
+/// (robot::kModelADevices); every action. max_speed is the large motor's (robot/ reads it from the motor).
 inline constexpr Model kModelA{
     "A",
-    kDriveMotors | bit(Device::touch) | bit(Device::colour) | bit(Device::ultrasonic),
+    robot::kModelADevices,
     bit(Action::run) | bit(Action::drive) | bit(Action::turn) | bit(Action::stop) | bit(Action::pause) |
         bit(Action::wait) | bit(Action::repeat),
     1050,

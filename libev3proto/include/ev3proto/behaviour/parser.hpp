@@ -118,8 +118,8 @@ inline bool word_value(std::string_view w, Number& out) noexcept {
       out = Number{c, Unit::none, Dim::colour};
       return true;
     }
-  for (std::uint8_t m = 0; m <= static_cast<std::uint8_t>(StopMode::hold); ++m)
-    if (to_string(static_cast<StopMode>(m)) == w) {
+  for (std::uint8_t m = 0; m <= static_cast<std::uint8_t>(StopAction::hold); ++m)
+    if (to_string(static_cast<StopAction>(m)) == w) {
       out = Number{m, Unit::none, Dim::stop_mode};
       return true;
     }
@@ -490,7 +490,7 @@ struct Parser {
       case Action::pause: case Action::wait: main_slot = Slot::duration; moves = false; break;
       case Action::repeat: break;
     }
-    const Number brake{static_cast<std::int32_t>(StopMode::brake), Unit::none, Dim::stop_mode};
+    const Number brake{static_cast<std::int32_t>(StopAction::brake), Unit::none, Dim::stop_mode};
     if (has_main) {
       if (!make_arg(main, main_slot, a.text, s.main)) return false;
     } else if (main_needed) {
@@ -637,7 +637,7 @@ struct Parser {
   }
 
   /// An earlier reaction of the same owner to the same event, or nullptr.
-  const Reaction* same_event(std::uint8_t owner, Event e) const noexcept {
+  const Reaction* same_event(std::uint8_t owner, EventKind e) const noexcept {
     const std::uint8_t from = owner == kEveryState ? 0 : def.states[owner].first_reaction;
     for (std::uint8_t k = from; k < def.reaction_count; ++k) {
       const Reaction& r = def.reactions[k];
@@ -654,14 +654,14 @@ struct Parser {
       if (k >= kMaxReactions)
         return error(Code::limit, t.pos, [&](Text& m) { m << "too many reactions (at most " << kMaxReactions << ")"; });
       std::uint8_t e = 0;
-      while (e < kEventCount && to_string(static_cast<Event>(e)) != t.text) ++e;
-      if (e == kEventCount)
+      while (e < robot::kEventKindCount && to_string(static_cast<EventKind>(e)) != t.text) ++e;
+      if (e == robot::kEventKindCount)
         return error(Code::meaning, t.pos, [&](Text& m) {
           m << "unknown event '" << t.text
             << "' (events: OBSTACLE_DETECTED, PROXIMITY_ALERT, DEVICE_CONNECTED, DEVICE_ERROR)";
         });
-      const Event ev = static_cast<Event>(e);
-      if (is_critical(ev))
+      const EventKind ev = static_cast<EventKind>(e);
+      if (severity_of(ev) == robot::Severity::critical)
         return error(Code::meaning, t.pos, [&](Text& m) {
           m << t.text << " is critical: the lifecycle handles it (the behaviour stops), a behaviour cannot react to it";
         });
@@ -762,7 +762,7 @@ struct Parser {
     if (end == kNone) {  // the predefined stop state: stop brake
       Step s;
       s.action = Action::stop;
-      s.main = implicit_arg(Number{static_cast<std::int32_t>(StopMode::brake), Unit::none, Dim::stop_mode}, Pos{});
+      s.main = implicit_arg(Number{static_cast<std::int32_t>(StopAction::brake), Unit::none, Dim::stop_mode}, Pos{});
       if (def.step_count >= kMaxSteps)
         return error(Code::limit, def.name_pos, [&](Text& m) { m << "too many actions (at most " << kMaxSteps << ", the stop state's included)"; });
       State& st = def.states[def.state_count];

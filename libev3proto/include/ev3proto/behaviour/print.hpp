@@ -20,7 +20,7 @@ inline void write(Text& out, const Number& n) {
     return;
   }
   if (n.dim == Dim::stop_mode) {
-    out << to_string(static_cast<StopMode>(n.value));
+    out << to_string(static_cast<StopAction>(n.value));
     return;
   }
   const std::int64_t f = factor_of(n.unit);

@@ -17,14 +17,27 @@
 
 namespace ev3proto::robot {
 
-/// A device's part in the model.
-enum class Role : std::uint8_t { left, right, ultrasonic, touch, colour };
+/// A device's part in a robot. The behaviour language names devices by these too
+/// (behaviour/model.hpp): a behaviour that reads the gyro needs a robot with one.
+enum class Role : std::uint8_t { left, right, ultrasonic, touch, colour, gyro };
+/// The roles model A has a port for: every role but gyro (PortMap, `--ports`).
 inline constexpr std::size_t kRoleCount = 5;
+/// Every role, gyro included.
+inline constexpr std::size_t kAllRoleCount = 6;
 
+/// The role's name as `--ports` spells it (left, right, ultrasonic, touch, colour; gyro).
 constexpr std::string_view to_string(Role r) noexcept {
-  constexpr std::string_view kNames[kRoleCount] = {"left", "right", "ultrasonic", "touch", "colour"};
+  constexpr std::string_view kNames[kAllRoleCount] = {"left", "right", "ultrasonic", "touch", "colour", "gyro"};
   const auto i = static_cast<std::size_t>(r);
-  return i < kRoleCount ? kNames[i] : std::string_view{};
+  return i < kAllRoleCount ? kNames[i] : std::string_view{};
+}
+
+/// The device that plays the role, as messages name it ("the robot has no colour sensor").
+constexpr std::string_view device_name(Role r) noexcept {
+  constexpr std::string_view kNames[kAllRoleCount] = {"left motor",   "right motor",   "ultrasonic sensor",
+                                                      "touch sensor", "colour sensor", "gyro sensor"};
+  const auto i = static_cast<std::size_t>(r);
+  return i < kAllRoleCount ? kNames[i] : std::string_view{"?"};
 }
 
 /// The device bit of a role in the agent core's Capabilities::devices (the same bits ev3-agent
@@ -40,8 +53,9 @@ inline constexpr std::uint32_t kMotors = kMotorLeft | kMotorRight;
 inline constexpr std::uint32_t kModelADevices = kMotors | kUltrasonic | kTouch | kColour;
 /// The name of each device bit of model A (index: the role), for the agent core's NOT "missing
 /// device: the robot has no colour sensor (explore needs it)" (Capabilities::device_names).
-inline constexpr std::string_view kModelADeviceNames[kRoleCount] = {"left motor", "right motor", "ultrasonic sensor",
-                                                                    "touch sensor", "colour sensor"};
+inline constexpr std::string_view kModelADeviceNames[kRoleCount] = {
+    device_name(Role::left), device_name(Role::right), device_name(Role::ultrasonic), device_name(Role::touch),
+    device_name(Role::colour)};
 
 /// The driver a role's device must have.
 constexpr Driver driver_of(Role r) noexcept {
@@ -51,6 +65,7 @@ constexpr Driver driver_of(Role r) noexcept {
     case Role::ultrasonic: return Driver::ev3_ultrasonic;
     case Role::touch: return Driver::ev3_touch;
     case Role::colour: return Driver::ev3_color;
+    case Role::gyro: return Driver::ev3_gyro;
   }
   return Driver::unknown;
 }
