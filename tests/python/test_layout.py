@@ -1,6 +1,8 @@
 """The tree's dependency rule (docs/programs.md, "Layout"): programs -> programs/ (the shared program
 library, ev3prog) -> io/ -> libev3proto. agent/ and master/ include and link nothing of each other;
 the shared layers include nothing of a program, and sim/ and tools/ nothing of agent/ or master/. And one JSON string escaper (ev3proto/json.hpp).
+Inside the library (docs/core.md, "The library's layers"): what joins the layers -> the cores ->
+behaviour/ -> robot/ -> the vocabulary, each header including only its own layer and those below, with no cycle.
 
 Read from the sources as text: a quoted #include is resolved the way the build resolves it (next to
 the including file, then the include directories of the layers it may use), and each CMakeLists.txt
