@@ -40,6 +40,12 @@ BUILD = os.path.join(ROOT, "build", "spec")
 MANIFEST = os.path.join(SPEC, "manifest.json")
 DOCS = os.path.join(ROOT, "docs")
 JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"]
+# A run expected to take less than C1_SECONDS (the manifest's figure; a run with none: a refute
+# variant or a spec mutation, which stop at the first violation) leaves out the JVM's optimising
+# compiler (C2): on runs of seconds its compiler threads cost more CPU than they win back, about half
+# of a run of a few seconds (docs/spec.md "Commands").
+C1_SECONDS = 10
+C1_ONLY = ["-XX:TieredStopAtLevel=1"]
 # TLC runs at a time in check and refute (one JVM each; a model's own -workers as the manifest says).
 JOBS = int(os.environ.get("SPEC_JOBS", "2"))
 
@@ -61,11 +67,36 @@ def run(cmd, timeout=None, cwd=SPEC):
     return p.returncode, p.stdout, time.monotonic() - t0
 
 
-def in_parallel(fn, items):
+# Every TLC run of one `check` or `refute` goes into one pool of JOBS runs, the costliest first (the
+# manifest's seconds times the model's workers), so that a long run does not end alone while the other
+# core idles; the results are printed in the manifest's order.
+_POOL = None
+_STARTED = {}
+
+
+def start_all(jobs):
+    """jobs: [(key, fn, item, cost)]: fn(item) started in the pool, the costliest first; in_parallel
+    takes the result of a started key instead of running it again."""
+    global _POOL
+    if _POOL is None:
+        _POOL = ThreadPoolExecutor(max(1, JOBS))
+    for key, fn, item, _ in sorted(jobs, key=lambda j: -j[3]):
+        if key not in _STARTED:
+            _STARTED[key] = _POOL.submit(fn, item)
+
+
+def in_parallel(fn, items, key=None):
     """fn(item) for each item, JOBS at a time; the results in the order of items, each as soon as
-    it and those before it are done (so the printed lines keep the manifest's order)."""
-    with ThreadPoolExecutor(max(1, JOBS)) as ex:
-        yield from ex.map(fn, items)
+    it and those before it are done. A run start_all started (its key(item)) is not run again."""
+    keys = [key(it) if key else ("run", id(it)) for it in items]
+    start_all([(k, fn, it, 0) for k, it in zip(keys, items)])
+    for k in keys:
+        yield _STARTED[k].result()
+
+
+def cost(m):
+    """The expected CPU seconds of a run of manifest model m (its measured seconds times workers)."""
+    return m.get("measured", {}).get("seconds", 10.0) * m.get("workers", 1)
 
 
 def metadir(name):
@@ -83,12 +114,14 @@ def sany(module):
         raise SystemExit("SANY failed on %s" % module)
 
 
-def tlc(module, cfg, workers=2, extra=(), name=None, cwd=SPEC, timeout=None):
-    """TLC on module (a .tla in cwd, the spec directory unless a mutant's copy) with cfg."""
+def tlc(module, cfg, workers=2, extra=(), name=None, cwd=SPEC, timeout=None, seconds=None):
+    """TLC on module (a .tla in cwd, the spec directory unless a mutant's copy) with cfg; seconds:
+    how long the run is expected to take, if known (C1_SECONDS)."""
     md = metadir(name or module)
     # Its own java.io.tmpdir too: TLC extracts the standard modules there, and parallel runs sharing
     # /tmp race on those files (tlaplus/tlaplus#378).
-    cmd = JAVA + ["-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.TLC", "-workers", str(workers), "-metadir", md,
+    jvm = JAVA + (C1_ONLY if seconds is None or seconds < C1_SECONDS else [])
+    cmd = jvm + ["-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.TLC", "-workers", str(workers), "-metadir", md,
                   "-config", cfg] + list(extra) + [module + ".tla"]
     rc, out, secs = run(cmd, timeout=timeout, cwd=cwd)
     shutil.rmtree(md, ignore_errors=True)
@@ -152,11 +185,12 @@ def check_model(m):
     replay` takes it (build/conformance/NAME-graph.dot, recorded with the spec's digest): make
     conformance then replays the graph of this run instead of running TLC on the model again."""
     if not m.get("dump"):
-        return tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"])
+        return tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"],
+                   seconds=m.get("measured", {}).get("seconds"))
     sys.path.insert(0, os.path.join(ROOT, "conformance"))
     from ev3conformance import graph
     rc, out, secs = tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"],
-                        extra=graph.dump_args(m["dump"]))
+                        extra=graph.dump_args(m["dump"]), seconds=m.get("measured", {}).get("seconds"))
     if rc == 0 and "Model checking completed. No error has been found." in out:
         graph.record_dump(m["module"], m["cfg"], m["dump"], out)
     return rc, out, secs
@@ -177,7 +211,7 @@ def cmd_check(args):
     for mod in sorted({m["module"] for m in models}):
         sany(mod)
     # One worker: TLC's reported depth is only exact with a single worker.
-    runs = in_parallel(check_model, models)
+    runs = in_parallel(check_model, models, key=lambda m: ("check", m["name"]))
     for m, (rc, out, secs) in zip(models, runs):
         fig = figures(out)
         v = violation(out)
@@ -301,16 +335,28 @@ def variants_declared():
     print("variants: %d BUG switches, each refuted by a model make spec runs" % len(refuted))
 
 
+def refute_base(v):
+    """The make-spec model a lifecycle variant v is refuted on."""
+    return next(m for m in load_manifest()["models"] if m["name"] == v["model"] and m["size"] == "small")
+
+
+def refute_run(v):
+    man = load_manifest()
+    base = refute_base(v)
+    cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]],
+                      name="%s-%s" % (v["bug"], v["model"]))
+    return tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"], seconds=v.get("seconds"))
+
+
+def refute_key(v):
+    return ("refute", v["bug"], v["model"])
+
+
 def cmd_refute(args):
     variants_declared()
     man = load_manifest()
     failed = False
-    def one(v):
-        base = next(m for m in man["models"] if m["name"] == v["model"] and m["size"] == "small")
-        cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]],
-                          name="%s-%s" % (v["bug"], v["model"]))
-        return tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"])
-    for v, (rc, out, secs) in zip(man["refute"], in_parallel(one, man["refute"])):
+    for v, (rc, out, secs) in zip(man["refute"], in_parallel(refute_run, man["refute"], key=refute_key)):
         got = violation(out)
         live = [p for p in v.get("all", []) if is_liveness(p)]
         if got == "temporal" and len(live) == 1:
@@ -591,14 +637,23 @@ def cmd_diagram(args):
 #   chart      docs/thesis-split-brain.svg, drawn by tools/seqchart.py from a fresh thesis trace.
 # Election cfgs say CHECK_DEADLOCK FALSE themselves (bounded models stop).
 
-def election_tlc(entry, name, extra=()):
+def election_tlc(entry, name, extra=(), seconds=None):
     workers = entry.get("workers", 2)
-    return tlc(entry["module"], entry["cfg"], workers=workers, name=name, extra=list(extra))
+    return tlc(entry["module"], entry["cfg"], workers=workers, name=name, extra=list(extra),
+               seconds=seconds if seconds is not None else entry.get("measured", {}).get("seconds"))
+
+
+def thesis_run(th):
+    return election_tlc(th, "thesis", seconds=5)
+
+
+def election_model(m):
+    return election_tlc(m, m["name"])
 
 
 def election_thesis(el):
     th = el["thesis"]
-    rc, out, secs = election_tlc(th, "thesis")
+    rc, out, secs = next(in_parallel(thesis_run, [th], key=lambda th: ("thesis",)))
     got = violation(out)
     ok = rc == 12 and got == th["property"]
     print("%-4s thesis         expect exit 12 on %s: got exit %d on %s  %5.1fs" % (
@@ -617,7 +672,7 @@ def election_check(args):
     if args.size in ("small", "quick"):
         failed |= not election_thesis(el)[0]
     models = [m for m in el["models"] + el.get("live", []) if of_size(m, args.size)]
-    for m, (rc, out, secs) in zip(models, in_parallel(lambda m: election_tlc(m, m["name"]), models)):
+    for m, (rc, out, secs) in zip(models, in_parallel(election_model, models, key=lambda m: ("el", m["name"]))):
         fig = figures(out)
         v = violation(out)
         if rc != 0 or v or fig is None or "Model checking completed. No error has been found." not in out:
@@ -670,21 +725,33 @@ def election_check(args):
     return not failed
 
 
+def election_refute_base(v):
+    """The make-spec model an election variant v is refuted on."""
+    el = load_manifest()["election"]
+    return next(m for m in el["models"] + el.get("live", []) if m["name"] == v["model"] and m["size"] == "small")
+
+
+def election_refute_run(v):
+    base = election_refute_base(v)
+    # "only": the variant is checked on these properties alone (another property the bug
+    # also breaks would be found first and hide whether this one is reached)
+    cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-%s-%s" % (v["bug"], v["model"]),
+                      sets=v.get("set"))
+    return election_tlc(dict(base, cfg=cfg), "refute-" + v["bug"], seconds=v.get("seconds"))
+
+
+def election_refute_key(v):
+    return ("el-refute", v["bug"], v["model"])
+
+
 def election_refute(args):
     """Each variant: the constants of the CI model it names, with its BUG switch (and the protocol
     switches in "set" turned off), all the model's properties (or those of "only"); it must fail on
     the one named."""
     el = load_manifest()["election"]
     failed = False
-    def one(v):
-        base = next(m for m in el["models"] + el.get("live", [])
-                    if m["name"] == v["model"] and m["size"] == "small")
-        # "only": the variant is checked on these properties alone (another property the bug
-        # also breaks would be found first and hide whether this one is reached)
-        cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-%s-%s" % (v["bug"], v["model"]),
-                          sets=v.get("set"))
-        return election_tlc(dict(base, cfg=cfg), "refute-" + v["bug"])
-    for v, (rc, out, secs) in zip(el["refute"], in_parallel(one, el["refute"])):
+    for v, (rc, out, secs) in zip(el["refute"], in_parallel(election_refute_run, el["refute"],
+                                                            key=election_refute_key)):
         got = violation(out)
         # exit 12: an invariant is violated; 13: a temporal property (the Live variant)
         ok = rc == v.get("exit", 12) and got == v["property"]
@@ -751,6 +818,24 @@ def trace_modules():
         raise SystemExit(1)
 
 
+def all_jobs(args):
+    """Every TLC run of `check` (lifecycle and election models, the thesis) or of `refute` (every
+    variant), for start_all: one pool for both parts."""
+    man = load_manifest()
+    el = man["election"]
+    if args.cmd == "check":
+        jobs = [(("check", m["name"]), check_model, m, cost(m)) for m in man["models"] if of_size(m, args.size)]
+        if args.size in ("small", "quick"):
+            jobs.append((("thesis",), thesis_run, el["thesis"], 5))
+        return jobs + [(("el", m["name"]), election_model, m, cost(m))
+                       for m in el["models"] + el.get("live", []) if of_size(m, args.size)]
+    if args.cmd == "refute":
+        return ([(refute_key(v), refute_run, v, v.get("seconds", 5)) for v in man["refute"]]
+                + [(election_refute_key(v), election_refute_run, v, v.get("seconds", 5) * election_refute_base(v).get("workers", 2))
+                   for v in el["refute"]])
+    return []
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -768,6 +853,7 @@ def main():
     if args.cmd == "mutate":
         cmd_mutate(args)
         return
+    start_all(all_jobs(args))
     {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
     if args.cmd == "check" and args.size != "quick":
         trace_modules()
