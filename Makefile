@@ -19,7 +19,7 @@
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
-.PHONY: help deps build demo test check test-unit test-python test-python-quick spec-quick test-blackbox test-fuzz test-arm test-example fuzz fuzz-build \
+.PHONY: help deps build demo test check conformance-agent conformance-master-fleet test-unit test-python test-python-quick spec-quick test-blackbox test-fuzz test-arm test-example fuzz fuzz-build \
         bench bench-master arm conformance conformance-full mutate \
         spec spec-full spec-mutate diagrams clean
 
@@ -62,12 +62,13 @@ check: build
 test-unit: build
 	@cd build/native && ctest --output-on-failure -j $(JOBS)
 
+# Two pytest processes (pytest-xdist), one per core: most of these tests wait on TLC or ev3-codec.
 test-python: build
-	@EV3_BIN=$(BIN) $(PY) -m pytest -q tests/python --ignore=tests/python/blackbox
+	@EV3_BIN=$(BIN) $(PY) -m pytest -q -n 2 tests/python --ignore=tests/python/blackbox
 
 # The Python tests that do not run TLC (marker `tlc`, tests/python/pytest.ini).
 test-python-quick: build
-	@EV3_BIN=$(BIN) $(PY) -m pytest -q tests/python --ignore=tests/python/blackbox -m "not tlc"
+	@EV3_BIN=$(BIN) $(PY) -m pytest -q -n 2 tests/python --ignore=tests/python/blackbox -m "not tlc"
 
 # ev3-agent and ev3-master over real UDP on loopback (tests/python/blackbox), including the static
 # armel ev3-agent under qemu-arm against the native ev3-master (test_example.py is test-example's).
@@ -121,9 +122,16 @@ demo: build
 # relay, pre-vote, elections, HANDOVER; --election-num, --election-depth) against the PC's, the
 # agents' and the elected agents' Master cores' drivers (docs/driver.md, docs/spec.md
 # "Conformance"; the fleet ~25-60 s, the election ~25-30 s more).
+# The agent's replay runs beside the master's and then the fleet's (each keeps about one core busy).
 AGENT_SAMPLE := 8
 conformance: build
+	@python3 tools/suite.py --together "make conformance" conformance-agent conformance-master-fleet
+
+# (its two halves, run by conformance after the build)
+conformance-agent:
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model agent --sample $(AGENT_SAMPLE)
+
+conformance-master-fleet:
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model master
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model fleet --seed 1 --num 40 --depth 300 \
 		--election-num 40 --election-depth 150
