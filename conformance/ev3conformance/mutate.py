@@ -8,8 +8,9 @@ guard XOk, wherever they are defined: the action's name is the rule, docs/core.m
 ("fn:name") or a state table ("table:kStays"); the site's text must contain the mutant's code exactly
 once (compared with any whitespace between tokens). So a mutant follows its handler through a
 restructuring (moved to another header, split into XOk / X, reformatted) and is reported "stale" only
-when the code it breaks is gone from its site. Agent and election mutants look in the agent side's
-headers (every header but master*.hpp), master mutants in master*.hpp.
+when the code it breaks is gone from its site. The headers are the library's top level and its
+election/ folder; agent and election mutants look in the agent side's (every header but master*.hpp
+and election/master.hpp), master mutants in those.
 
 Checks, stopping at the first that fails:
   agent mutants:    agent replay of MCAgent's state graph (stops at the first mismatch), one driver
@@ -117,17 +118,17 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("E03-no-fencing", "fn:Obeys", "return leader == sender && following == e && e == epoch;",
            "(void)sender; (void)e; return true;", "election",
            "a command of any master applied (Election BUG NoFencing)"),
-    Mutant("E04-minority-quorum", "BecomeMaster", "QuorumOf(votes, 0)", "votes.size() > 0",
+    Mutant("E04-minority-quorum", "BecomeMaster", "QuorumOf(votes, members, 0)", "votes.size() > 0",
            "election", "master with a minority of votes (Election BUG MinorityQuorum)"),
-    Mutant("E05-no-pre-vote", "fn:PreVoteQuorum", "QuorumOf(prevotes, me)", "me != 0", "election",
+    Mutant("E05-no-pre-vote", "fn:PreVoteQuorum", "QuorumOf(prevotes, members, me)", "me != 0", "election",
            "stands without the pre-votes of a majority (Election PreVote = FALSE)"),
-    Mutant("E06-keep-table-on-panic", "fn:unfollow", "drop_relays();", "", "election",
+    Mutant("E06-keep-table-on-panic", "fn:unfollow", "drop_relays(n);", "", "election",
            "the relay table kept when the master is lost (Election BUG KeepTableOnPanic)"),
     Mutant("E07-offer-while-relayed", "fn:DirectFollower", "via == 0", "true", "election",
            "a relayed agent offers to relay (Election BUG OfferWhileRelayed)"),
-    Mutant("E08-newer-epoch-keeps-vote", "fn:NewerEpoch", "el_.voted_for = 0;", "", "election",
+    Mutant("E08-newer-epoch-keeps-vote", "fn:NewerEpoch", "voted_for = 0;", "", "election",
            "a newer epoch adopted with the old epoch's vote"),
-    Mutant("E09-master-does-not-step-down", "fn:step_down", "if (el_.role != Role::none) become_masterless();", "",
+    Mutant("E09-master-does-not-step-down", "fn:SteppedDown", "if (role != Role::none) become_masterless(me);", "",
            "election", "a master or candidate keeps its role in a newer epoch"),
     Mutant("E10-older-offer-accepted", "AcceptRelay", "*e >= epoch &&", "", "election",
            "a relay offer of an older epoch taken"),
@@ -137,9 +138,9 @@ MUTANTS: tuple[Mutant, ...] = (
            "a pre-vote granted to a stronger asker"),
     Mutant("E13-pre-vote-counted-twice", "HandlePreVote", "!prevotes.contains(m.sender) &&", "", "election",
            "a copy of a PREVOTE_OK counted again"),
-    Mutant("E14-relays-kept-on-master-change", "HandleHeartbeat", "drop_relays();", "", "election",
+    Mutant("E14-relays-kept-on-master-change", "HandleHeartbeat", "drop_relays(n);", "", "election",
            "the relay table kept when the master changes"),
-    Mutant("E15-newer-epoch-not-adopted", "fn:NewerEpoch", "el_.epoch = e;", "(void)e;", "election",
+    Mutant("E15-newer-epoch-not-adopted", "fn:NewerEpoch", "epoch = e;", "(void)e;", "election",
            "a newer epoch not adopted (the agent steps down but stays in its epoch)"),
     Mutant("E16-relay-drop-from-anyone", "RelayDropped", "m.sender == via &&", "", "election",
            "a RELAY_DROP from an agent that is not our relay obeyed"),
@@ -159,7 +160,7 @@ MUTANTS: tuple[Mutant, ...] = (
            "master reusing msgids for commands"),
     Mutant("M04-answer-ref-unchecked", "MasterAnswer", "!e.pending || !ref || *ref != e.mid", "!e.pending || !ref",
            "master", "dropped guard: an ACK of any msgid answers"),
-    Mutant("M05-pong-wrong-ref", "MasterPing", "number(m.msgid, num)", "number(m.msgid + 1, num)", "master",
+    Mutant("M05-pong-wrong-ref", "MasterPing", "decimal(m.msgid, num)", "decimal(m.msgid + 1, num)", "master",
            "wrong msgid in PONG's ref"),
     Mutant("M06-drop-off-by-one", "MasterTick", "now_ - e.heard >= cfg_.timers[Timer::drop]",
            "now_ - e.heard > cfg_.timers[Timer::drop]", "master", "off-by-one: drop one tick late"),
@@ -274,7 +275,7 @@ def locate(texts: dict[str, str], m: Mutant) -> tuple[str, int, int, str] | str:
 
 
 def headers_for(kind: str, headers: dict[str, str]) -> dict[str, str]:
-    master = {f: t for f, t in headers.items() if f.startswith("master")}
+    master = {f: t for f, t in headers.items() if f.rsplit("/", 1)[-1].startswith("master")}
     return master if kind == "master" else {f: t for f, t in headers.items() if f not in master}
 
 
@@ -451,7 +452,9 @@ class Workspace:
                 shutil.copytree(self.root / d, self.src / d, symlinks=True)
         # A mutant may leave a parameter unused: warnings stay on, but not as errors, in the copy.
         (self.src / "CMakeLists.txt").write_text(top.replace(" -Werror", ""))
-        self.pristine = {p.name: p.read_text() for p in (self.src / INC).glob("*.hpp")}
+        inc = self.src / INC
+        self.pristine = {p.relative_to(inc).as_posix(): p.read_text()
+                         for p in [*inc.glob("*.hpp"), *inc.glob("election/*.hpp")]}
         cmd = ["cmake", "-S", str(self.src), "-B", str(self.bld), "-G", "Ninja", "-DEV3_TESTS=ON",
                "-DCMAKE_BUILD_TYPE=Debug", "-DCMAKE_CXX_FLAGS_DEBUG=-O0",
                f"-DCMAKE_RUNTIME_OUTPUT_DIRECTORY={self.bin}"]

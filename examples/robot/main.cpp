@@ -93,7 +93,7 @@ bool parse_endpoint(const std::string& s, sockaddr_in& a) {
 }
 
 // ------------------------------------------------------------------------------ the durable state
-// What Durable holds (election.hpp), as the library writes it and checks it (durable.hpp: the
+// What Durable holds (election/common.hpp), as the library writes it and checks it (durable.hpp: the
 // key=value lines ev3-agent's state file has too). This program does the I/O: written to FILE.tmp,
 // flushed to the disk, renamed over FILE, and the directory flushed: after a crash the file is the
 // old state or the new one, never half of each.

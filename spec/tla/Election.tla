@@ -478,8 +478,8 @@ HandleVote(n, m) ==
 \* publishes it changed by one agent towards its registry (want), never to
 \* an empty one: so the PC's membership is empty only if it always was (a
 \* fresh start), nobody knows a membership, and the PC needs no vote.
-\* The list stops growing at MaxMembers, all that one LEADER carries (master.hpp
-\* kMaxMembership); a full list still sheds an agent that is not wanted.
+\* The list stops growing at MaxMembers, all that one LEADER carries (election/
+\* common.hpp kMaxMembership); a full list still sheds an agent that is not wanted.
 MaxMembers == 30
 OneStep(L, w) ==
     LET grow == IF Cardinality(L) < MaxMembers THEN {L \cup {a} : a \in w \ L} ELSE {}
@@ -531,8 +531,8 @@ HandleStaleNext(n, s, m) ==
 \*    whose master changes is PAUSED until the new master resumes it.
 \*  - the PC follows nobody: a LEADER of a newer epoch is HandleStale's rule
 \*    with its epoch (the PC adopts it and stands again, its votes of the
-\*    older epoch void); one of its own epoch changes nothing (master.hpp
-\*    HandleHeartbeat, the PC's part).
+\*    older epoch void); one of its own epoch changes nothing (election/
+\*    master.hpp HandleHeartbeat, the PC's part).
 Stale(s, m) == m.e < s.epoch /\ BUG # "NoEpochCheck"
 MasterChange(s, m) == s.leader # m.src \/ s.following # m.e
 NewMembers(s, m) == "members" \in DOMAIN s /\ (s.members # m.mem \/ s.mepoch # m.e)

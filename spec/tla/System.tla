@@ -19,7 +19,7 @@
 (*    it follows restarts its timer and changes nothing else);             *)
 (*  - HANDOVER (type 32): an elected agent that hears the LEADER of a newer *)
 (*    epoch sends its membership to the new master and steps down (master  *)
-(*    core HandleHeartbeat, master.hpp); the PC, master, takes it into its *)
+(*    core HandleHeartbeat, election/master.hpp); the PC takes it into its *)
 (*    registry (MasterHandover), which later reconfigurations publish one  *)
 (*    agent at a time (Election "Membership");                             *)
 (*  - history variables of the environment, read by the whole-system      *)
@@ -127,7 +127,7 @@ Refresh(a, m) ==
 \* HandleHeartbeatOk / HandleHeartbeatNext, the same environment part).  If v
 \* is an elected agent's master and the LEADER is of a newer epoch, v's master
 \* core hands its membership to the new master (HANDOVER(e, members...), once:
-\* v steps down with it) -- master.hpp HandleHeartbeat.  The broken variant
+\* v steps down with it) -- election/master.hpp HandleHeartbeat.  The broken variant
 \* HandoverKeepsMaster sends HANDOVER but keeps the node a master of its epoch
 \* (the master core not stopped).  v's timer restarts on a LEADER it takes (not
 \* on an older one, answered EPOCH_STALE).  The PC has no timer and hands
@@ -151,8 +151,8 @@ SysHandleHeartbeat(v, m) ==
     /\ lastAction' = <<"HandleHeartbeat", v, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied, obeyed>>
 
-\* The PC, master, gets a HANDOVER of an epoch not newer than its own (master.hpp
-\* MasterHandoverOk): the agents it lists join its registry (want); the PC
+\* The PC, master, gets a HANDOVER of an epoch not newer than its own (election/
+\* master.hpp MasterHandoverOk): the agents it lists join its registry (want); the PC
 \* publishes them one at a time by reconfiguring (Election Reconfigure), never
 \* into the membership of its current epoch (with DynamicMembership, the unsafe
 \* rule, the published list follows the registry at once).

@@ -6,10 +6,11 @@
 /// No heap, no exceptions, no RTTI, no clocks, no globals, no randomness (the temporary id is drawn
 /// by the caller). All memory is sized at compile time by the template parameters.
 ///
-/// Every spec action has one handler of the same name (RecvMaster ... RobotEvent, and Election.tla's:
-/// election.hpp holds their guards); a datagram enters through one prelude (Step: the handler chosen
-/// first, epochs handled once), the state table is the guard of every state change, roles change
-/// only in the become_* functions, and the armed deadlines are a TimerTable (docs/core.md).
+/// Every AgentLogic action has one handler of the same name (RecvMaster ... RobotEvent); Election.tla's
+/// rules are election/agent.hpp's (AgentElection: variables, guards, transitions). A datagram enters
+/// through one prelude (Step: the handler chosen first, epochs handled once), the state table is the
+/// guard of every state change (an election transition's LifecycleEffect too), and the armed
+/// deadlines are a TimerTable besides the election's two (docs/core.md).
 #pragma once
 
 #include <cstddef>
@@ -17,204 +18,16 @@
 #include <cstring>
 #include <string_view>
 
+#include "agent_types.hpp"
 #include "core.hpp"
 #include "dedupe.hpp"
-#include "election.hpp"
+#include "election/agent.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
 
 namespace ev3proto {
-
-/// A behaviour the robot can run and the devices it needs (bit mask of the robot's device bits).
-struct BehaviourSpec {
-  std::string_view name;      ///< Name as the master sends it in BEHAVIOUR ("explore").
-  std::uint32_t devices = 0;  ///< Device bits it needs (see Capabilities::devices).
-};
-
-/// The robot's own reason for refusing a BEHAVIOUR request (its check on receipt), carried in NOT:
-/// "line 4 col 12: unknown action 'trun' (...)". Bounded (no heap): a longer reason keeps its first
-/// kMax - 3 bytes (never half a UTF-8 character) and ends with "...", so that the NOT, escaped, fits
-/// the agent's datagram.
-struct CheckReason {
-  static constexpr std::size_t kMax = 120; ///< bytes kept
-  char text[kMax] = {};
-  std::uint8_t len = 0;
-  /// The reason.
-  std::string_view view() const noexcept { return std::string_view(text, len); }
-  /// Replaces the reason with @p s (cut as above when longer than kMax).
-  void set(std::string_view s) noexcept {
-    std::size_t n = s.size();
-    const bool cut = n > kMax;
-    if (cut) {
-      n = kMax - 3;
-      while (n > 0 && (static_cast<unsigned char>(s[n]) & 0xC0u) == 0x80u) --n;  // s[n] starts a character
-    }
-    if (n != 0) std::memcpy(text, s.data(), n);
-    if (cut) {
-      std::memcpy(text + n, "...", 3);
-      n += 3;
-    }
-    len = static_cast<std::uint8_t>(n);
-  }
-};
-
-/// The robot's check of a BEHAVIOUR request on receipt, before the agent answers (spec
-/// AgentLogic RecvBehaviour, Refused): the name and the params after it as they came; true to
-/// accept, false to refuse with the reason written in @p why. The robot program joins it to the
-/// robot runtime (robot_link.hpp: parse, arguments, checker on the robot's model). No I/O, no heap.
-struct BehaviourCheck {
-  using Fn = bool (*)(void* ctx, std::string_view name, const std::string_view* params, std::size_t count,
-                      CheckReason& why) noexcept;
-  Fn fn = nullptr;     ///< nullptr: every behaviour of the table passes (no robot behind the core)
-  void* ctx = nullptr; ///< passed to fn (the runtime); must outlive the agent
-  /// The verdict on @p name with @p params: true when there is no check or it accepts.
-  bool operator()(std::string_view name, const std::string_view* params, std::size_t count,
-                  CheckReason& why) const noexcept {
-    return fn == nullptr || fn(ctx, name, params, count, why);
-  }
-};
-
-/// What a robot can do, fixed at construction: its model, its behaviours, its devices.
-struct Capabilities {
-  std::string_view model;                   ///< Model announced in AGENT ("A").
-  const BehaviourSpec* behaviours = nullptr; ///< Behaviours it implements.
-  std::size_t behaviour_count = 0;          ///< Entries of @c behaviours.
-  std::uint32_t devices = 0;                ///< Device bits of the model, all plugged at start.
-  /// The name of each device bit (index: the bit; "colour sensor"), for NOT "missing device: the
-  /// robot has no colour sensor (explore needs it)"; a bit without a name gets "missing device".
-  const std::string_view* device_names = nullptr;
-  std::size_t device_name_count = 0;        ///< Entries of @c device_names.
-};
-
-/// Construction parameters of an Agent.
-struct AgentConfig {
-  Capabilities caps;             ///< Behaviours and devices (the table must outlive the agent).
-  BehaviourCheck check;          ///< The robot's check of a BEHAVIOUR on receipt (none: all pass).
-  Timers timers;                 ///< Deadlines (timers.hpp); the agent uses sync, heartbeat, loss,
-                                 ///< paused, relay_retry, backoff, backoff_step, candidate.
-  std::uint16_t temp_id = 50000; ///< Temporary id drawn at random by the caller (50000..65535).
-  std::uint32_t first_msgid = 1; ///< msgid of the first datagram the agent sends.
-  ElectionConfig election;       ///< Relay and election (off by default).
-  std::size_t window = 0;        ///< Dedupe window entries (spec Window): 0 = the Window template
-                                 ///< argument; at most that (one compiled core serves every size).
-};
-
-/// The answer recorded in the dedupe window for a command: sent again for a duplicate.
-struct StoredAnswer {
-  std::uint16_t src = 0;                      ///< Sender id the answer was sent with.
-  std::uint32_t ref = 0;                      ///< The answered msgid.
-  bool ack = true;                            ///< ACK (true) or NOT (false).
-  Refusal reason = Refusal::wrong_state;      ///< NOT's reason (unless the check refused).
-  CheckReason check;                          ///< NOT's words when not @c reason's spelling: the
-                                              ///< robot's check's, or the missing device named.
-  /// NOT's reason as sent: the check's words, or the spelling of @c reason.
-  std::string_view reason_text() const noexcept { return check.len != 0 ? check.view() : to_string(reason); }
-};
-
-/// A datagram the agent wants sent. @c bytes points into the agent and stays valid until the next
-/// call that feeds the agent (handle_datagram, advance, an event).
-struct Transmit {
-  Dest dest = Dest::broadcast; ///< master, broadcast, or peer (relay and election answers).
-  Peer peer = 0;               ///< Dest::master: the master's peer handle (the relay's when
-                               ///< relayed; 0 if unknown); Dest::peer: the receiver's handle.
-  std::string_view bytes;      ///< The encoded datagram (send it 3 times, as the transport does).
-};
-
-/// An event for the robot program: a state change, a LED pattern, or a behaviour control.
-struct AgentEvent {
-  /// Which field is meaningful.
-  /// (Election changes are observers here, Agent::role(), Agent::durable(); the node reports them
-  /// as events: node.hpp.)
-  enum class Kind : std::uint8_t { state, led, control } kind = Kind::state;
-  State state = State::IDLE;               ///< New state (Kind::state).
-  Led led = Led::YELLOW_BLINK;             ///< New LED pattern (Kind::led).
-  ControlKind control = ControlKind::stop; ///< What the behaviour runner must do (Kind::control);
-                                           ///< start/restart run Agent::behaviour().
-};
-
-/// The loaded behaviour: name and key=value arguments as BEHAVIOUR carried them.
-struct BehaviourView {
-  std::string_view name;       ///< Behaviour name ("" when none is loaded: spec NoBehaviour).
-  const char* data = nullptr;  ///< Argument bytes (internal).
-  const std::uint16_t* ends = nullptr; ///< Argument end offsets (internal).
-  std::size_t arg_count = 0;   ///< Number of arguments.
-  /// Argument @p i ("speed=3"), or "" when out of range.
-  std::string_view arg(std::size_t i) const noexcept {
-    if (i >= arg_count) return {};
-    const std::size_t b = i == 0 ? 0u : ends[i - 1];
-    return std::string_view(data + b, ends[i] - b);
-  }
-};
-
-/// The spec variables of one agent (AgentLogic `AgentType`) at one instant, for trace records.
-struct AgentVars {
-  State state = State::IDLE; ///< state
-  Led led = Led::YELLOW_BLINK; ///< led
-  std::uint16_t id = 0;      ///< id
-  char beh[32] = {};         ///< beh ("NONE" is spelled as an empty name)
-  std::uint8_t beh_len = 0;  ///< length of beh
-  std::uint32_t step = 0;    ///< step
-  Wait wait = Wait::NONE;    ///< wait
-  bool motors = false;       ///< motors ("ON" / "OFF")
-  bool dev_ok = true;        ///< devOk
-  Millis silence = 0;        ///< silence (ms = ticks)
-  Millis clk = 0;            ///< clk (ms since the periodic phase origin, modulo heartbeat)
-  std::uint32_t win_rev = 0; ///< changes whenever win changes (the window itself: Agent::window())
-  // Election.tla variables (traced only when the election is enabled).
-  bool election = false;     ///< Election enabled (trace the variables below).
-  Role role = Role::none;    ///< With state: Election life (CANDIDATE, MASTER are PANIC + role).
-  std::uint32_t epoch = 1;   ///< epoch
-  std::uint16_t voted_for = 0; ///< votedFor (0 = NoNode)
-  std::uint16_t leader = 0;  ///< leader (0 = NoNode)
-  std::uint32_t following = 0; ///< following
-  std::uint16_t via = 0;     ///< via (0 = NoNode)
-  std::uint32_t relay_rev = 0; ///< changes whenever relays / offered / votes change
-  std::uint32_t mepoch = 0;    ///< Election mepoch: the epoch that published the membership
-  std::uint32_t floor = 0;     ///< Election floor
-  std::uint32_t members_rev = 0; ///< changes whenever the membership (Election members) may change
-  /// The next msgid (not a spec variable): a record that sent datagrams moved it, so the trace
-  /// names the msgids each record sent (the merge of a run's traces, docs/spec.md "Whole-run traces").
-  std::uint32_t msgid = 0;
-  /// The behaviour name.
-  std::string_view beh_name() const noexcept { return std::string_view(beh, beh_len); }
-};
-
-/// One trace record: a spec action the agent took, its arguments, and the variables around it.
-struct AgentTraceRecord {
-  Action action = Action::Tick; ///< The spec action (handler) taken.
-  std::string_view msg;         ///< Receive handlers: the datagram as received.
-  std::string_view event;       ///< ActionInterrupted: the warning name; RobotEvent: the event's.
-  std::string_view port;        ///< DeviceUnplugged, DevicePlugged, RobotEvent: the port.
-  std::string_view check;       ///< RecvBehaviour (also inside ApplyCommand): the reason the robot's
-                                ///< check refused the request with ("" if it accepted or was not asked).
-  Millis ticks = 0;             ///< Tick: number of consecutive spec Ticks this record stands for.
-  Millis now = 0;               ///< Time after the action.
-  Action cmd = Action::Ignore;  ///< ApplyCommand: the receive handler that took the inner datagram.
-  AgentVars before;             ///< Variables before.
-  AgentVars after;              ///< Variables after.
-};
-
-/// What handle_datagram() did with one datagram: the spec action taken, or why none was.
-struct Handled {
-  Action action = Action::Ignore; ///< The spec action taken (Ignore: none; see why).
-  Ignored why = Ignored::no;      ///< Why no action took it (Ignored::no when one did).
-  Action inner = Action::Ignore;  ///< ApplyCommand: the receive handler of the inner datagram.
-  DecodeResult decode;            ///< Ignored::undecodable: the codec's reason and field.
-  /// True when a spec action took the datagram.
-  bool taken() const noexcept { return why == Ignored::no; }
-};
-
-/// The agent core's armed deadlines (one TimerTable entry each).
-enum class AgentTimer : std::uint8_t {
-  periodic,  ///< The heartbeat phase completes: AGENT / PING / PANIC (spec clk wraps).
-  lifecycle, ///< SyncTimeout (IDLE) or HeartbeatLost (ACTIVE, WORKING: loss; PAUSED: paused).
-  relay,     ///< PANIC: the next RELAY_REQ (Election RequestRelay).
-  stand,     ///< PANIC with a pre-vote quorum: the back-off is over (Election StartElection).
-};
-/// Number of agent timers.
-inline constexpr std::size_t kAgentTimerCount = 4;
 
 /// The agent core.
 /// @tparam Trace trace sink: NoTrace (default, compiles to nothing) or a type with
@@ -243,13 +56,13 @@ class Agent {
   static constexpr Millis kNever = ~Millis{0};
   /// The dedupe window type (payload: the recorded answer).
   using WindowType = DedupeWindow<Window, StoredAnswer>;
-  /// The election part (Election.tla's variables and guards).
+  /// The election part (Election.tla's variables, guards and transitions).
   using ElectionType = AgentElection<RelaySlots, kMaxMembership>;  // fleet members kept: kMaxMembership
 
   /// A fresh agent in IDLE at time @p now (spec Init with id = temp id).
   Agent(const AgentConfig& config, Millis now, Trace* trace = nullptr) noexcept
       : cfg_(config), trace_(trace), id_(config.temp_id), msgid_(config.first_msgid), now_(now),
-        heard_(now), plugged_(config.caps.devices), el_(config.election), durable_(el_.durable()) {
+        heard_(now), plugged_(config.caps.devices), el_(config.election, config.timers), durable_(el_.durable()) {
     win_.set_limit(config.window);
     timers_.set(AgentTimer::periodic, now + cfg_.timers[Timer::heartbeat]);
     arm_lifecycle();
@@ -275,18 +88,21 @@ class Agent {
         continue;
       }
       if (RequestRelayOk()) {
-        traced(Action::RequestRelay, [this] { RequestRelay(); });
+        traced(Action::RequestRelay, [this] { el_.RequestRelay(lifecycle(), *this); });
         continue;
       }
       if (StartElectionOk()) {
-        traced(Action::StartElection, [this] { StartElection(); });
+        traced(Action::StartElection, [this] {
+          el_.StartElection(lifecycle(), *this);
+          durable_changed();
+        });
         continue;
       }
       if (BecomeMasterOk()) {
         traced(Action::BecomeMaster, [this] { BecomeMaster(); });
         continue;
       }
-      const Millis due = timers_.next();
+      const Millis due = next_due();
       const Millis target = due < now ? due : now;
       if (target <= now_) break;
       Tick(target);
@@ -443,7 +259,7 @@ class Agent {
 
   /// When the caller must call advance() next at the latest (kNever in OFF): the earliest armed
   /// timer.
-  Millis next_deadline() const noexcept { return state_ == State::OFF ? kNever : timers_.next(); }
+  Millis next_deadline() const noexcept { return state_ == State::OFF ? kNever : next_due(); }
 
   // ---------------------------------------------------------------- observers
 
@@ -478,7 +294,11 @@ class Agent {
   /// Datagrams or events dropped because the caller did not drain the queues.
   std::uint32_t overflowed() const noexcept { return overflowed_; }
   /// The armed deadline of timer @p t (kNever when stopped).
-  Millis deadline(AgentTimer t) const noexcept { return timers_.get(t); }
+  Millis deadline(AgentTimer t) const noexcept {
+    if (t == AgentTimer::relay) return el_.relay_at;
+    if (t == AgentTimer::stand) return el_.StandDeadline(id_);
+    return timers_.get(t);
+  }
 
   // ------------------------------------------------------ election observers
 
@@ -569,6 +389,8 @@ class Agent {
   Action Handler(const Message& m) const noexcept { return Handler(m, master_id()); }
 
  private:
+  friend ElectionType;  // its transitions send through emit, emit_to, emit_raw
+
   struct TxSlot {
     Dest dest = Dest::broadcast;
     Peer peer = 0;
@@ -594,7 +416,7 @@ class Agent {
       inner = &inner_;
     const Verdict v = Choose(m, inner);
     if (v.stale) {
-      Stale(m.sender, from);
+      el_.AnswerStale(m.sender, from, *this);
     } else {
       if (v.epoch > el_.epoch) NewerEpoch(v.epoch, v.action);
       Run(v, m, inner, from);
@@ -604,7 +426,7 @@ class Agent {
     if (v.action != Action::ShareMembers && !v.stale && el_.ShareMembersOk(m, lifecycle())) {
       // Election ShareMembers, besides OfferRelay / GrantPreVote on the same RELAY_REQ: a second step.
       const AgentVars b = vars();
-      ShareMembers(m, from);
+      el_.ShareMembers(m, from, *this);
       record(Action::ShareMembers, b, bytes, {}, 0);
     }
     if (BecomeMasterOk()) traced(Action::BecomeMaster, [this] { BecomeMaster(); });
@@ -671,19 +493,28 @@ class Agent {
   /// Runs the handler @p v chose.
   void Run(const Verdict& v, const Message& m, const Message* inner, Peer from) noexcept {
     switch (v.action) {
-      case Action::OfferRelay: OfferRelay(m, from); break;
-      case Action::GrantPreVote: GrantPreVote(m, from); break;
-      case Action::HandlePreVote: HandlePreVote(m); break;
-      case Action::AcceptRelay: AcceptRelay(m, from); break;
-      case Action::HandleAccept: HandleAccept(m, from); break;
-      case Action::Forward: Forward(m); break;
-      case Action::RelayDropped: RelayDropped(m); break;
-      case Action::HandleElect: HandleElect(m, from); break;
-      case Action::HandleVote: HandleVote(m); break;
-      case Action::HandleHeartbeat: HandleHeartbeat(m, from); break;
-      case Action::HandleStale: HandleStale(m); break;
-      case Action::ShareMembers: ShareMembers(m, from); break;
-      case Action::LearnMembers: LearnMembers(m); break;
+      case Action::OfferRelay: el_.OfferRelay(m, from, *this); break;
+      case Action::GrantPreVote: el_.GrantPreVote(m, from, *this); break;
+      case Action::HandlePreVote: el_.HandlePreVote(m); break;
+      case Action::AcceptRelay: Apply(el_.AcceptRelay(m, from, *this), v.action, from); break;
+      case Action::HandleAccept: el_.HandleAccept(m, from, *this); break;
+      case Action::Forward: el_.Forward(m, *this); break;
+      case Action::RelayDropped: Apply(el_.RelayDropped(m), v.action, from); break;
+      case Action::HandleElect:
+        el_.HandleElect(m, from, lifecycle(), *this);
+        durable_changed();
+        break;
+      case Action::HandleVote: el_.HandleVote(m); break;
+      case Action::HandleHeartbeat:
+        Apply(el_.HandleHeartbeat(m, *this), v.action, from);
+        durable_changed();
+        break;
+      case Action::HandleStale: el_.HandleStale(m); break;
+      case Action::ShareMembers: el_.ShareMembers(m, from, *this); break;
+      case Action::LearnMembers:
+        el_.LearnMembers(m, lifecycle());
+        durable_changed();
+        break;
       case Action::ApplyCommand: ApplyCommand(v.inner, *inner, from, m.sender, *m.param_u32(0)); break;
       default: Receive(v.action, m, from, master_id(), 1); break;
     }
@@ -726,113 +557,56 @@ class Agent {
   }
 
   /// A newer epoch than ours, seen in a datagram a handler takes: Election SteppedDown (a WORKING
-  /// agent pauses, a master or candidate goes back to plain PANIC, nobody is followed any more),
-  /// then the epoch is adopted with no vote and no pre-votes in it.
+  /// agent pauses; AgentElection::NewerEpoch: a master or candidate goes back to plain PANIC, nobody
+  /// is followed any more), then the epoch is adopted with no vote and no pre-votes in it.
   void NewerEpoch(std::uint32_t e, Action by) noexcept {
     step_down(by);
-    el_.epoch = e;
-    el_.voted_for = 0;
-    clear_prevotes();
+    el_.NewerEpoch(e, lifecycle(), *this);
     durable_changed();
   }
 
-  // ------------------------------------------------------------ role changes (raft's become*)
+  // ------------------------------------------------------------ lifecycle changes of the election
 
-  /// Follow master @p leader of epoch @p e, through relay @p via (0: directly) at peer @p peer: no
-  /// role, no relay requests, no standing, no pre-votes; the master counts as heard.
-  void become_follower(std::uint16_t leader, std::uint32_t e, std::uint16_t via, Peer peer) noexcept {
-    set_role(Role::none);
-    el_.leader = leader;
-    el_.following = e;
-    el_.via = via;
+  /// Applies the lifecycle effect @p fx of election step @p by through the state table; @p from:
+  /// the datagram's peer (where the master followed now is reached).
+  void Apply(const LifecycleEffect& fx, Action by, Peer from) noexcept {
+    if (fx.pause) step_down(by);
+    if (fx.follow) {
+      if (state_ == State::PANIC) {
+        Goto(next_state(state_, by).to);
+        reset_clk();
+      }
+      master_peer_ = from;
+      hear();
+    }
+    if (fx.panic) enter_panic(by);
+  }
+  /// Follow master @p leader of epoch @p e, through relay @p via (0: directly) at peer @p peer
+  /// (AgentElection::become_follower); the master counts as heard.
+  void follow(std::uint16_t leader, std::uint32_t e, std::uint16_t via, Peer peer) noexcept {
+    el_.become_follower(leader, e, via);
     master_peer_ = peer;
     hear();
-    timers_.stop(AgentTimer::relay);
-    stand_at_ = kNever;
-    clear_prevotes();
-  }
-  /// Without a master (PANIC, or a candidate / master stepping down): no role; with the election on
-  /// and an assigned id, relay requests at once and standing after the back-off.
-  void become_masterless() noexcept {
-    set_role(Role::none);
-    clear_prevotes();
-    if (!el_.enabled) return;
-    const bool can = is_assigned_id(id_);
-    timers_.set(AgentTimer::relay, can ? now_ : kNever);
-    stand_at_ = can && el_.members.size() > 0 ? now_ + backoff() : kNever;
-    arm_stand();
-  }
-  /// Stand in the next epoch: vote for itself, count its own vote, ask again (pre-votes for the
-  /// epoch after) if this candidacy stalls, then stand again after the back-off.
-  void become_candidate() noexcept {
-    ++el_.epoch;
-    el_.voted_for = id_;
-    durable_changed();
-    el_.votes.restart();
-    if (el_.members.contains(id_)) el_.votes.add(id_);
-    set_role(Role::candidate);
-    clear_prevotes();
-    timers_.set(AgentTimer::relay, now_ + cfg_.timers[Timer::candidate]);
-    stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
-    arm_stand();
-  }
-  /// Master of its epoch: a Master core runs for it (node.hpp); no relay requests, no standing.
-  void become_master() noexcept {
-    set_role(Role::master);
-    timers_.stop(AgentTimer::relay);
-    stand_at_ = kNever;
-    arm_stand();
   }
   /// The lifecycle enters PANIC by action @p by (SyncTimeout, HeartbeatLost, RelayDropped): the
-  /// behaviour stops, PANIC is broadcast at once (spec !.clk = 0), the master is no longer
-  /// followed (the relay table is dropped with RELAY_DROP), then become_masterless().
+  /// behaviour stops, PANIC is broadcast at once (spec !.clk = 0), then the election's part
+  /// (AgentElection::Panic: the master no longer followed, the relay table dropped with RELAY_DROP,
+  /// relay requests and standing).
   void enter_panic(Action by) noexcept {
     Stopped();
     Goto(next_state(state_, by).to);
     hear();
     reset_clk();
     emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
-    unfollow();
-    become_masterless();
+    el_.Panic(lifecycle(), *this);
   }
-  /// Election SteppedDown(n, s) by action @p by: WORKING pauses (motors off, progress kept), a
-  /// candidate or master is masterless again, the old master is not followed.
+  /// Election SteppedDown(n, s) by action @p by, the lifecycle's part: WORKING pauses (motors off,
+  /// progress kept).
   void step_down(Action by) noexcept {
     if (state_ == State::WORKING) {
       Goto(next_state(state_, by).to);
       motors_pause();
     }
-    if (el_.role != Role::none) become_masterless();
-    unfollow();
-  }
-  /// leader, following, via cleared; relays dropped (RELAY_DROP), offers forgotten.
-  void unfollow() noexcept {
-    el_.leader = 0;
-    el_.following = 0;
-    el_.via = 0;
-    drop_relays();
-  }
-  /// Every relayed agent gets RELAY_DROP(epoch); the relay table and the offers are forgotten.
-  void drop_relays() noexcept {
-    for (std::size_t i = 0; i < el_.relays.size(); ++i) {
-      char num[10];
-      const std::string_view p[1] = {number(el_.epoch, num)};
-      emit_to(el_.relays[i].peer, el_.relays[i].id, MsgType::RELAY_DROP, p, 1);
-    }
-    el_.relays.clear();
-    el_.offered.clear();
-  }
-  /// The role changes (only through the become_* functions above): a candidate's votes are
-  /// forgotten when it is one no more; becoming master records the epoch won.
-  void set_role(Role r) noexcept {
-    if (r == el_.role) return;
-    if (r == Role::master) el_.master_epoch = el_.epoch;
-    el_.role = r;
-    if (r != Role::candidate) el_.votes.clear();
-  }
-  void clear_prevotes() noexcept {
-    el_.prevotes.clear();
-    arm_stand();
   }
 
   // ------------------------------------------------------------ spec helpers
@@ -912,7 +686,7 @@ class Agent {
     if (s != state_) {
       // Pre-votes are for standing from this PANIC: leaving it (a master found) forgets them, as
       // Election's HandleHeartbeat and AcceptRelay do.
-      if (state_ == State::PANIC) clear_prevotes();
+      if (state_ == State::PANIC) el_.prevotes.clear();
       state_ = s;
       push_event(AgentEvent{AgentEvent::Kind::state, s, Led::DARK, ControlKind::stop});
       arm_lifecycle();
@@ -1008,7 +782,7 @@ class Agent {
 
   void send_answer(const StoredAnswer& a) noexcept {
     char num[10];
-    const std::string_view ref = number(a.ref, num);
+    const std::string_view ref = decimal(a.ref, num);
     if (a.ack) {
       const std::string_view p[1] = {ref};
       emit_from(a.src, Dest::master, master_id(), MsgType::ACK, p, 1);
@@ -1031,7 +805,7 @@ class Agent {
   void RecvMaster(const Message& m, Peer from, std::uint16_t master, std::uint32_t e) noexcept {
     Goto(next_state(state_, Action::RecvMaster).to);
     id_ = m.receiver;
-    become_follower(master, e, 0, from);
+    follow(master, e, 0, from);
     Stopped();
     unload();
     reset_clk();
@@ -1199,179 +973,30 @@ class Agent {
 
   // ------------------------------------------------ relay and election (Election.tla)
 
-  /// What the election's guards need from the lifecycle.
+  /// What the election's guards and transitions need from the lifecycle.
   Lifecycle lifecycle() const noexcept {
     Lifecycle l;
     l.state = state_;
     l.id = id_;
     l.score = score();
     l.hears_master = el_.Following(state_) && now_ - heard_ < cfg_.timers[Timer::loss];
+    l.now = now_;
     return l;
   }
 
   /// Spec RequestRelay's enabling condition: PANIC (or a candidate), the retry period is due.
-  bool RequestRelayOk() const noexcept {
-    return el_.RequestRelayOk(state_) && timers_.due(AgentTimer::relay, now_);
-  }
-  /// Spec RequestRelay: RELAY_REQ(epoch, score, mepoch) broadcast, again after relay_retry. It is
-  /// also the pre-vote request (peers without a master answer PREVOTE_OK) and says which membership
-  /// we know (a peer that knows a newer one sends us a copy: ShareMembers).
-  void RequestRelay() noexcept {
-    timers_.set(AgentTimer::relay, now_ + cfg_.timers[Timer::relay_retry]);
-    char num[10], sc[10], me[10];
-    const std::string_view p[3] = {number(el_.epoch, num), number(score(), sc), number(el_.mepoch, me)};
-    emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 3);
-  }
-
-  /// Spec ShareMembers: a copy of the LEADER that published our membership, LEADER(mepoch, 0,
-  /// members...) to the asker (leader 0: no master is claimed); nothing else changes.
-  void ShareMembers(const Message& m, Peer from) noexcept { emit_leader(el_.mepoch, 0, Dest::peer, m.sender, from); }
-
-  /// Spec LearnMembers (a newer epoch was adopted by the prelude, as from EPOCH_STALE): the copy's
-  /// membership is the one of its epoch; without a master we may now stand with it.
-  void LearnMembers(const Message& m) noexcept {
-    el_.Learned(m, *m.param_u32(0));
-    durable_changed();
-    if (state_ == State::PANIC && el_.role == Role::none && stand_at_ == kNever && el_.members.size() > 0)
-      stand_at_ = now_ + backoff();
-    arm_stand();
-  }
-
-  /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else changes.
-  void GrantPreVote(const Message& m, Peer from) noexcept {
-    const std::string_view p[1] = {m.param(0)};
-    emit_to(from, m.sender, MsgType::PREVOTE_OK, p, 1);
-  }
-
-  /// Spec HandlePreVote: one more pre-vote for standing in the next epoch.
-  void HandlePreVote(const Message& m) noexcept {
-    el_.prevotes.add(m.sender);
-    arm_stand();
-  }
-
-  /// Spec OfferRelay: RELAY_OFFER(epoch, master) to the requester, remembered in offered.
-  void OfferRelay(const Message& m, Peer from) noexcept {
-    el_.offered.add(m.sender, from);
-    char num[10], who[10];
-    const std::string_view p[2] = {number(el_.epoch, num), number(el_.leader, who)};
-    emit_to(from, m.sender, MsgType::RELAY_OFFER, p, 2);
-  }
-
-  /// Spec AcceptRelay: follow the relay's master in its epoch through it (ACTIVE), RELAY_ACCEPT.
-  void AcceptRelay(const Message& m, Peer from) noexcept {
-    Goto(next_state(state_, Action::AcceptRelay).to);
-    become_follower(*m.param_u16(1), *m.param_u32(0), m.sender, from);
-    reset_clk();
-    const std::string_view p[2] = {m.param(0), m.param(1)};
-    emit_to(from, m.sender, MsgType::RELAY_ACCEPT, p, 2);
-  }
-
-  /// Spec HandleAccept: the agent enters the relay table; RELAY_ROUTE(epoch, agent) to the master.
-  void HandleAccept(const Message& m, Peer from) noexcept {
-    el_.offered.remove(m.sender);
-    el_.relays.add(m.sender, from);
-    char num[10], who[10];
-    const std::string_view p[2] = {number(el_.epoch, num), number(m.sender, who)};
-    emit(Dest::master, el_.leader, MsgType::RELAY_ROUTE, p, 2);
-  }
-
-  /// Spec Forward: the inner datagram goes on unchanged (sender, msgid: dedupe end to end).
-  void Forward(const Message& m) noexcept {
-    if (m.sender == el_.leader) {
-      emit_raw(Dest::peer, el_.relays.find(*m.param_u16(0))->peer, m.param(1));
-    } else {
-      emit_raw(Dest::master, 0, m.param(1));
-    }
-  }
-
-  /// Spec RelayDropped: back to PANIC (behaviour stopped), then relay requests / standing.
-  void RelayDropped(const Message&) noexcept { enter_panic(Action::RelayDropped); }
-
+  bool RequestRelayOk() const noexcept { return el_.RequestRelayOk(state_) && el_.relay_at <= now_; }
   /// Spec StartElection's enabling condition: Election's, and the back-off over.
   bool StartElectionOk() const noexcept {
-    return el_.StartElectionOk(lifecycle()) && timers_.due(AgentTimer::stand, now_);
+    return el_.StartElectionOk(lifecycle()) && el_.StandDeadline(id_) <= now_;
   }
-  /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, mepoch) broadcast.
-  void StartElection() noexcept {
-    become_candidate();
-    char e[10], sc[10], me[10];
-    const std::string_view p[3] = {number(el_.epoch, e), number(score(), sc), number(el_.mepoch, me)};
-    emit(Dest::broadcast, kBroadcastId, MsgType::ELECT, p, 3);
-  }
-
-  /// Spec HandleElect (a newer epoch was adopted by the prelude): grant the one vote of the epoch
-  /// to a candidate not stronger than us whose membership is not older than our floor (VOTE), and
-  /// give it time to win before standing ourselves. A vote for the PC raises the floor to the epoch
-  /// of its membership (Election Voted): it may be replacing it.
-  void HandleElect(const Message& m, Peer from) noexcept {
-    const std::uint32_t e = *m.param_u32(0);
-    const std::uint32_t k = m.param_u32(2).value_or(0);
-    const bool grant = el_.ElectGrant(m.sender, e, *m.param_u32(1), score(), k);
-    if (grant) {
-      el_.voted_for = m.sender;
-      if (m.sender == kMasterId) el_.Raised(k);
-      if (state_ == State::PANIC && el_.role == Role::none) {
-        stand_at_ = now_ + cfg_.timers[Timer::candidate] + backoff();
-        arm_stand();
-      }
-    }
-    durable_changed();
-    if (grant) {
-      char num[10], who[10];
-      const std::string_view p[2] = {number(e, num), number(m.sender, who)};
-      emit_to(from, m.sender, MsgType::VOTE, p, 2);
-    }
-  }
-
-  /// Spec HandleVote: one more vote.
-  void HandleVote(const Message& m) noexcept { el_.votes.add(m.sender); }
-
   /// Spec BecomeMaster's enabling condition: a candidate with votes of a strict majority.
   bool BecomeMasterOk() const noexcept { return el_.BecomeMasterOk(); }
-  /// Spec BecomeMaster: master of its epoch with the membership it counted against (now of this
-  /// epoch: mepoch, floor); first LEADER(epoch, id, members) broadcast; a Master core runs for it
-  /// from now on (node.hpp).
+  /// Spec BecomeMaster: AgentElection::BecomeMaster; a Master core runs for it from now on (node.hpp).
   void BecomeMaster() noexcept {
-    become_master();
-    el_.mepoch = el_.epoch;
-    el_.Raised(el_.epoch);
-    durable_changed();
-    emit_leader(el_.epoch, id_, Dest::broadcast, kBroadcastId, 0);
-  }
-  /// LEADER(@p e, @p leader, members...): our membership, the one of epoch @p e; broadcast by a new
-  /// master (BecomeMaster), or a copy to peer @p to at @p peer (ShareMembers: leader 0).
-  void emit_leader(std::uint32_t e, std::uint16_t leader, Dest dest, std::uint16_t to, Peer peer) noexcept {
-    char ep[10], who[10], ids[kMaxMembership][10];
-    std::string_view p[kMaxParams];
-    p[0] = number(e, ep);
-    p[1] = number(leader, who);
-    for (std::size_t i = 0; i < el_.members.size(); ++i) p[2 + i] = number(el_.members[i], ids[i]);
-    emit_from(id_, dest, to, MsgType::LEADER, p, 2 + el_.members.size(), peer);
-  }
-
-  /// Spec HandleHeartbeat (a newer epoch was adopted by the prelude): follow this master directly
-  /// (PANIC / candidate / master -> ACTIVE; WORKING whose master changed -> PAUSED), learn the
-  /// membership, and drop the relay table when the master changed.
-  void HandleHeartbeat(const Message& m, Peer from) noexcept {
-    const std::uint32_t e = *m.param_u32(0);
-    if (el_.leader != m.sender || el_.following != e) {
-      drop_relays();
-      if (state_ == State::WORKING) {
-        Goto(next_state(state_, Action::HandleHeartbeat).to);
-        motors_pause();
-      }
-    }
-    if (state_ == State::PANIC) {
-      Goto(next_state(state_, Action::HandleHeartbeat).to);
-      reset_clk();
-    }
-    become_follower(m.sender, e, 0, from);
-    el_.Learned(m, e);
+    el_.BecomeMaster(lifecycle(), *this);
     durable_changed();
   }
-
-  /// Spec HandleStale: the newer epoch is all it brings; the prelude adopted it (stepping down).
-  void HandleStale(const Message&) noexcept {}
 
   /// Spec ApplyCommand: the inner datagram @p inner of master @p master in epoch @p e is handled as
   /// AgentLogic's Handler picked (@p h: RecvStart, a refusal, RecvDuplicate...); the answer goes to
@@ -1380,19 +1005,6 @@ class Agent {
     Receive(h, inner, from, master, e);
   }
 
-  /// EPOCH_STALE(epoch) to @p to at @p peer: the sender is behind.
-  void Stale(std::uint16_t to, Peer peer) noexcept {
-    char num[10];
-    const std::string_view p[1] = {number(el_.epoch, num)};
-    emit_to(peer, to, MsgType::EPOCH_STALE, p, 1);
-  }
-
-  /// Back-off before standing: backoff + score x backoff_step, spread by id (ties stand apart).
-  Millis backoff() const noexcept {
-    const std::uint32_t sc = score() < 1000u ? score() : 1000u;
-    const Millis step = cfg_.timers[Timer::backoff_step];
-    return cfg_.timers[Timer::backoff] + sc * step + (id_ % 16u) * step / 16u;
-  }
   void durable_changed() noexcept {
     const Durable d = el_.durable();
     if (d == durable_) return;
@@ -1414,11 +1026,10 @@ class Agent {
     Timer t = Timer::sync;
     timers_.set(AgentTimer::lifecycle, lifecycle_timer(state_, t) ? heard_ + cfg_.timers[t] : kNever);
   }
-  /// Stand timer: the back-off's end, armed once the pre-votes make a quorum (without them the
-  /// next event is a relay request's retry or a PREVOTE_OK arriving, not the back-off's end), and
-  /// the membership known is not older than the floor (else the next event is learning a newer one).
-  void arm_stand() noexcept {
-    timers_.set(AgentTimer::stand, el_.PreVoteQuorum(id_) && el_.MembershipCurrent() ? stand_at_ : kNever);
+  /// The earliest deadline: the TimerTable's or the election's (relay request, standing).
+  Millis next_due() const noexcept {
+    const Millis t = timers_.next(), e = el_.Deadline(id_);
+    return e < t ? e : t;
   }
   Millis clk_origin() const noexcept {
     return timers_.get(AgentTimer::periodic) - cfg_.timers[Timer::heartbeat];
@@ -1442,7 +1053,7 @@ class Agent {
   /// step counts up (spec: modulo Steps, the model's bound).
   void ActionOk() noexcept {
     char num[10];
-    const std::string_view p[1] = {number(step_, num)};
+    const std::string_view p[1] = {decimal(step_, num)};
     emit(Dest::master, master_id(), MsgType::ACTION_OK, p, 1);
     ++step_;
   }
@@ -1454,7 +1065,7 @@ class Agent {
     wait_ = Wait::CONTINUE;
     motors_pause();
     char num[10];
-    const std::string_view p[2] = {number(step_, num), to_string(w)};
+    const std::string_view p[2] = {decimal(step_, num), to_string(w)};
     emit(Dest::master, master_id(), MsgType::ACTION_INTERR, p, 2);
   }
 
@@ -1465,7 +1076,7 @@ class Agent {
     wait_ = Wait::RESTART;
     motors_pause();
     char num[10];
-    const std::string_view p[2] = {number(step_, num), f};
+    const std::string_view p[2] = {decimal(step_, num), f};
     if (emit(Dest::master, master_id(), MsgType::ACTION_ERR, p, 2)) return;
     const std::string_view plain[2] = {p[0], "error"};  // f escaped (and relayed) does not fit
     emit(Dest::master, master_id(), MsgType::ACTION_ERR, plain, 2);
@@ -1563,11 +1174,6 @@ class Agent {
     }
   }
 
-  static std::string_view number(std::uint32_t v, char (&buf)[10]) noexcept {
-    char* e = detail::write_decimal(buf, v);
-    return std::string_view(buf, static_cast<std::size_t>(e - buf));
-  }
-
   bool emit(Dest dest, std::uint16_t to, MsgType type, const std::string_view* params,
             std::size_t count) noexcept {
     return emit_from(id_, dest, to, type, params, count);
@@ -1591,7 +1197,7 @@ class Agent {
       char inner[TxBytes];
       std::memcpy(inner, s.bytes, r.size);
       char num[10];
-      const std::string_view p[2] = {number(to, num), std::string_view(inner, r.size)};
+      const std::string_view p[2] = {decimal(to, num), std::string_view(inner, r.size)};
       r = encode_parts(from, el_.via, msgid_, static_cast<std::uint8_t>(MsgType::RELAY), p, 2, s.bytes,
                        TxBytes);
       if (!r.ok()) return false;
@@ -1659,7 +1265,7 @@ class Agent {
   Millis now_;
   Millis heard_;  // spec silence = now_ - heard_ (0 in PANIC)
   std::uint32_t plugged_;
-  TimerTable<AgentTimer, kAgentTimerCount> timers_;  // periodic: spec clk = (now - (periodic - heartbeat)) % heartbeat
+  TimerTable<AgentTimer, kAgentTableTimers> timers_;  // periodic: spec clk = (now - (periodic - heartbeat)) % heartbeat
   Peer master_peer_ = 0;
   bool motors_ = false;
   bool instance_ = false;  // the behaviour runner holds a run (started, maybe paused)
@@ -1680,7 +1286,6 @@ class Agent {
   ElectionType el_;               // Election.tla's variables (fixed capacity, no heap)
   Durable durable_;               // durable() when durable_rev_ last changed
   std::uint32_t durable_rev_ = 0;
-  Millis stand_at_ = kNever;      // the back-off's end (the stand timer, once a pre-vote quorum holds)
   CheckReason refused_;           // the robot's check refused the BEHAVIOUR of this step with this
   bool refused_now_ = false;      // ... (for its trace record; reset after it)
   Message rx_;                    // the datagram handle_datagram() decoded

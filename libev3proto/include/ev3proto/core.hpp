@@ -229,7 +229,7 @@ inline constexpr Transition kStays[] = {
 /// PANIC with a Role; docs/election.md sec. 5): relay accepted or a master's LEADER followed
 /// (PANIC -> ACTIVE), the relay dropped us (ACTIVE / WORKING / PAUSED -> PANIC), the master changed
 /// or a newer epoch seen while WORKING (-> PAUSED until the new master resumes it). The election's
-/// guards are Election.tla's (election.hpp); these rows give the state each change leads to.
+/// guards are Election.tla's (election/agent.hpp); these rows give the state each change leads to.
 inline constexpr Transition kElectionTransitions[] = {
     {State::PANIC, State::ACTIVE, Action::AcceptRelay},
     {State::PANIC, State::ACTIVE, Action::HandleHeartbeat},

@@ -2,7 +2,7 @@
 /// @brief The durable state as a file keeps it: text and validation, one rule for every program.
 ///
 /// The durable state is what a node must find again after a restart (an SD card, a disk): the
-/// agent's Durable (election.hpp: epoch, vote, the membership it knows and its floor) and the
+/// agent's Durable (election/common.hpp: epoch, vote, the membership it knows and its floor) and the
 /// master's MasterDurable (next id, next msgid, epoch, the membership it published). Both are
 /// `key=value` lines, one key a line, in any order; a line without '=' or starting with '#' is
 /// skipped, a key given twice counts with its last value, an unknown key is ignored:
@@ -28,7 +28,7 @@
 #include <string_view>
 
 #include "core.hpp"
-#include "election.hpp"
+#include "election/common.hpp"
 #include "wire.hpp"
 
 namespace ev3proto {

@@ -23,7 +23,8 @@
 #include "core.hpp"
 #include "deadline_list.hpp"
 #include "dedupe.hpp"
-#include "election.hpp"
+#include "election/master.hpp"
+#include "master_registry.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
 #include "timers.hpp"
@@ -68,42 +69,6 @@ struct MasterConfig {
     return c;
   }
 };
-
-/// The master's part in the election (Election.tla life of the master node).
-enum class MasterRole : std::uint8_t {
-  master,       ///< MASTER: commands, LEADER heartbeats.
-  candidate,    ///< CANDIDATE (the PC back, or told of a newer epoch): stands until it wins.
-  stepped_down, ///< An elected agent's master that saw a newer epoch: silent; the program drops it.
-};
-
-/// Spelling of a master role.
-constexpr std::string_view to_string(MasterRole r) noexcept {
-  switch (r) {
-    case MasterRole::master: return "MASTER";
-    case MasterRole::candidate: return "CANDIDATE";
-    case MasterRole::stepped_down: return "STEPPED_DOWN";
-  }
-  return {};
-}
-
-/// An operator command for one agent: a master command type and, for BEHAVIOUR, name and args.
-struct Command {
-  MsgType type = MsgType::START;  ///< BEHAVIOUR, START, STOP, PAUSE, RESUME, STANDBY, CONTINUE, RESTART.
-  std::string name;               ///< BEHAVIOUR: behaviour name.
-  std::vector<std::string> args;  ///< BEHAVIOUR: key=value arguments.
-
-  /// BEHAVIOUR(name, args...).
-  static Command assign(std::string behaviour, std::vector<std::string> arguments = {}) {
-    return Command{MsgType::BEHAVIOUR, std::move(behaviour), std::move(arguments)};
-  }
-  /// A command without params (START, STOP, ...).
-  static Command simple(MsgType t) { return Command{t, {}, {}}; }
-};
-
-/// True for the message types an operator may send as a command.
-constexpr bool is_command(MsgType t) noexcept {
-  return t >= MsgType::BEHAVIOUR && t <= MsgType::RESTART;
-}
 
 /// Something the operator (UI, log, mission logic) should know.
 struct OperatorEvent {
@@ -214,166 +179,6 @@ struct MasterReceipt {
   bool taken() const noexcept { return action != Action::Ignore; }
 };
 
-/// MasterConfig::drop_copies: the (sender, msgid) pairs taken lately. On the heap, and only when
-/// asked for: a Master is copied by the conformance driver's snapshots.
-class CopyWindow {
- public:
-  /// A window when @p on, else nothing (every datagram is a first time).
-  explicit CopyWindow(bool on) : w_(on ? std::make_unique<Window>() : nullptr) {}
-  CopyWindow(const CopyWindow& o) : w_(o.w_ ? std::make_unique<Window>(*o.w_) : nullptr) {}
-  CopyWindow& operator=(const CopyWindow& o) {
-    w_ = o.w_ ? std::make_unique<Window>(*o.w_) : nullptr;
-    return *this;
-  }
-  CopyWindow(CopyWindow&&) noexcept = default;
-  CopyWindow& operator=(CopyWindow&&) noexcept = default;
-  ~CopyWindow() = default;
-
-  /// True when (sender, msgid) was not taken lately (and remembers it), or there is no window.
-  bool first_time(std::uint16_t sender, std::uint32_t msgid) {
-    return w_ == nullptr || w_->first_time(sender, msgid);
-  }
-
- private:
-  using Window = DedupeWindow<4096>;
-  std::unique_ptr<Window> w_;
-};
-
-/// One registry entry (MasterLogic EntryType; spec field names in brackets), plus what the operator
-/// needs.
-/// Aligned to a cache line, with what every datagram reads in its first 64 bytes (ids, flags, times,
-/// the queue's bounds): at 10,000 agents an entry is rarely in cache when its agent's PING comes, and
-/// one line costs less than the two or three an unaligned entry spans (docs/benchmarks.md).
-struct alignas(64) RegistryEntry {
-  std::uint16_t id = 0;         ///< [id] Assigned id.
-  std::uint16_t ann = 0;        ///< [ann] Announced id (temporary, or the old id of a PANIC agent).
-  Peer peer = 0;                ///< [ep] Where the agent is.
-  bool synced = false;          ///< [synced] The agent acknowledged MASTER.
-  bool pending = false;         ///< [pending] A command (or MASTER while !synced) waits for its answer.
-  bool has_state = false;       ///< A PING reported @c state.
-  AgentState state = AgentState::IDLE; ///< State from the last PING.
-  AgentState desired = AgentState::ACTIVE; ///< [desired] What the operator last asked (desired_after).
-  bool desired_known = true;    ///< [desired = UNKNOWN] False after a refused command that no queued
-                                ///< command overrides, and for an entry adopted by an elected master:
-                                ///< no reconcile until the operator's next desired-setting command.
-  std::uint16_t via = 0;        ///< The relay this agent is reached through (0 = direct; RELAY_ROUTE).
-  /// [hi] Newest msgid heard from the agent, in serial-number order (msgid_newer, as the agent
-  /// orders the master's msgids): an agent's msgids may wrap from 4294967295 to 0. MasterLogic.tla
-  /// compares msgids with > within small bounds, where the two orders agree.
-  std::uint32_t last_msgid = 0;
-  std::uint32_t mid = 0;        ///< [mid] msgid of the pending datagram.
-  std::uint32_t resends = 0;    ///< [resends] Resends of the pending command (MASTER's are not counted).
-  Millis heard = 0;             ///< Last heard ([quiet] = now - heard).
-  Millis sent_at = 0;           ///< When it was last sent.
-  std::vector<Command> queue;   ///< [queue] Operator commands; the front one is pending once synced
-                                ///< (a few at most; empty, it takes no memory).
-  std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
-  std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
-
-  /// "MASTER" while not synced, the pending command's name, or "DONE" (for displays).
-  std::string_view job() const noexcept {
-    if (!synced) return "MASTER";
-    if (pending && !queue.empty()) return to_string(queue.front().type);
-    return "DONE";
-  }
-};
-
-/// The master's registry: the entries by assigned id in a std::map (in order of id, as the spec's
-/// records and the operator's table list them), and what finds an entry without walking them: a
-/// flat index id -> entry, and ordered sets (announced id, id) and (peer, id). An entry's id, ann
-/// and peer change only through this class.
-class Registry {
- public:
-  /// The entries by id.
-  using Map = std::map<std::uint16_t, RegistryEntry>;
-
-  Registry() = default;
-  /// A copy (the conformance driver's snapshots): the index points into the copy's own entries.
-  Registry(const Registry& o) : map_(o.map_), by_ann_(o.by_ann_), by_peer_(o.by_peer_) { reindex(); }
-  Registry& operator=(const Registry& o) {
-    if (this != &o) {
-      map_ = o.map_;
-      by_ann_ = o.by_ann_;
-      by_peer_ = o.by_peer_;
-      reindex();
-    }
-    return *this;
-  }
-  Registry(Registry&&) noexcept = default;  // a std::map's entries move with it: the index stays valid
-  Registry& operator=(Registry&&) noexcept = default;
-  ~Registry() = default;
-
-  /// The entries.
-  const Map& map() const noexcept { return map_; }
-  /// The entries, to change what they hold (not their id, ann or peer).
-  Map::iterator begin() noexcept { return map_.begin(); }
-  Map::iterator end() noexcept { return map_.end(); }
-
-  /// Entry @p id, or nullptr: O(1).
-  RegistryEntry* find(std::uint16_t id) noexcept { return id < index_.size() ? index_[id] : nullptr; }
-  const RegistryEntry* find(std::uint16_t id) const noexcept { return id < index_.size() ? index_[id] : nullptr; }
-  /// True when @p id is registered.
-  bool contains(std::uint16_t id) const noexcept { return find(id) != nullptr; }
-
-  /// Adds @p e (its id not registered); returns it.
-  RegistryEntry& insert(RegistryEntry e) {
-    const std::uint16_t id = e.id;
-    RegistryEntry& r = map_.emplace(id, std::move(e)).first->second;
-    if (id >= index_.size()) index_.resize(std::size_t{id} + 1, nullptr);
-    index_[id] = &r;
-    by_ann_.insert({r.ann, id});
-    by_peer_.insert({r.peer, id});
-    return r;
-  }
-  /// Removes entry @p id (if registered).
-  void erase(std::uint16_t id) {
-    RegistryEntry* e = find(id);
-    if (e == nullptr) return;
-    by_ann_.erase({e->ann, id});
-    by_peer_.erase({e->peer, id});
-    index_[id] = nullptr;
-    map_.erase(id);
-  }
-  /// Entry @p e now announces @p ann.
-  void set_ann(RegistryEntry& e, std::uint16_t ann) {
-    by_ann_.erase({e.ann, e.id});
-    e.ann = ann;
-    by_ann_.insert({ann, e.id});
-  }
-  /// Entry @p e is now at @p p.
-  void set_peer(RegistryEntry& e, Peer p) {
-    by_peer_.erase({e.peer, e.id});
-    e.peer = p;
-    by_peer_.insert({p, e.id});
-  }
-
-  /// Spec Known(reg, s): the ids of the entries whose announced or assigned id is s, in order.
-  std::vector<std::uint16_t> known(std::uint16_t s) const {
-    std::vector<std::uint16_t> k;
-    for (auto it = by_ann_.lower_bound({s, 0}); it != by_ann_.end() && it->first == s; ++it)
-      k.push_back(it->second);
-    if (contains(s) && !std::binary_search(k.begin(), k.end(), s))
-      k.insert(std::lower_bound(k.begin(), k.end(), s), s);
-    return k;
-  }
-  /// The lowest id of an entry at @p p (0: none).
-  std::uint16_t first_at(Peer p) const {
-    const auto it = by_peer_.lower_bound({p, 0});
-    return it != by_peer_.end() && it->first == p ? it->second : 0;
-  }
-
- private:
-  void reindex() {
-    index_.assign(map_.empty() ? 0 : std::size_t{map_.rbegin()->first} + 1, nullptr);
-    for (auto& kv : map_) index_[kv.first] = &kv.second;
-  }
-
-  Map map_;
-  std::vector<RegistryEntry*> index_;                         // by id; up to the largest id held
-  std::set<std::pair<std::uint16_t, std::uint16_t>> by_ann_;  // (ann, id)
-  std::set<std::pair<Peer, std::uint16_t>> by_peer_;          // (peer, id)
-};
-
 /// One trace record of the master: a spec action, its message, and the master's variables.
 struct MasterTraceRecord {
   Action action = Action::MasterTick; ///< MasterSync, MasterAnswer, MasterPing, MasterTick,
@@ -409,15 +214,14 @@ class Master {
   /// A master with an empty registry at time @p now.
   Master(const MasterConfig& config, Millis now, Trace* trace = nullptr)
       : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now),
-        drops_(config.timers[Timer::drop]), resends_(config.timers[Timer::resend]), copies_(config.drop_copies), epoch_(config.epoch == 0 ? 1 : config.epoch), self_(config.self_id),
-        members_(config.members.begin(), config.members.end()),
-        mepoch_(config.members_epoch != 0 ? config.members_epoch : epoch_) {
+        drops_(config.timers[Timer::drop]), resends_(config.timers[Timer::resend]), copies_(config.drop_copies),
+        el_(config.election, config.epoch, config.self_id, config.members, config.members_epoch, config.timers) {
     if (!cfg_.election) return;  // Fleet.tla's master: MASTER for good, no LEADER
     if (config.candidate) {
-      become_candidate();  // Restart(PC): stands at once
+      el_.become_candidate(now_);  // Restart(PC): stands at once
     } else {
-      become_master();
-      hb_at_ = now_;  // LEADER at once
+      el_.become_master();
+      el_.hb_at = now_;  // LEADER at once
     }
   }
 
@@ -432,11 +236,11 @@ class Master {
       if (t > now || t == kNever) break;
       Snapshot s = snap();  // before time moves: MasterTick's record shows quiet growing
       if (t > now_) now_ = t;
-      if (HeartbeatOk(now_)) {
-        Heartbeat();
+      if (el_.HeartbeatOk(now_)) {
+        el_.Heartbeat(*this);
         record(Action::Heartbeat, s, {});
-      } else if (StartElectionOk(now_)) {
-        StartElection();
+      } else if (el_.StartElectionOk(now_)) {
+        el_.StartElection(*this);
         record(Action::StartElection, s, {});
       } else if (MasterTickOk(now_)) {
         MasterTick();
@@ -506,8 +310,8 @@ class Master {
   /// earliest of the LEADER heartbeat, the candidate's next election and (as MASTER) the entries'
   /// deadlines, the fronts of two DeadlineLists (O(1) here, no walk of the registry).
   Millis next_deadline() const noexcept {
-    Millis t = hb_at_ < cand_at_ ? hb_at_ : cand_at_;
-    if (role_ != MasterRole::master) return t;
+    Millis t = el_.hb_at < el_.cand_at ? el_.hb_at : el_.cand_at;
+    if (el_.role != MasterRole::master) return t;
     const Millis e = entries_due();
     return e < t ? e : t;
   }
@@ -525,35 +329,39 @@ class Master {
   /// Datagrams that did not decode.
   std::uint32_t rejected() const noexcept { return rejected_; }
   /// Election role (MASTER, CANDIDATE, stepped down).
-  MasterRole role() const noexcept { return role_; }
+  MasterRole role() const noexcept { return el_.role; }
   /// The epoch (persist it with next_id / next_msgid).
-  std::uint32_t epoch() const noexcept { return epoch_; }
+  std::uint32_t epoch() const noexcept { return el_.epoch; }
   /// The master's id (1, or the elected agent's).
-  std::uint16_t self_id() const noexcept { return self_; }
+  std::uint16_t self_id() const noexcept { return el_.self; }
   /// The fleet the master wants (Election want, the PC's registry): the membership of its epoch,
   /// the members handed over, and every agent registered and synced since. The PC changes the
   /// membership it publishes towards it one agent per epoch (Reconfigure); an agent declared lost
   /// (DropMember) is no longer wanted until it syncs again.
   std::vector<std::uint16_t> members() const {
-    const std::set<std::uint16_t>& m = want();
+    const std::set<std::uint16_t>& m = el_.Want(reg_);
     return std::vector<std::uint16_t>(m.begin(), m.end());
   }
   /// The membership of the master's epoch (persist it with published_epoch()): LEADER carries it,
   /// votes count against it (Election members[PC]).
-  std::vector<std::uint16_t> published() const { return std::vector<std::uint16_t>(members_.begin(), members_.end()); }
+  std::vector<std::uint16_t> published() const {
+    return std::vector<std::uint16_t>(el_.members.begin(), el_.members.end());
+  }
   /// The epoch that published it (Election mepoch[PC]).
-  std::uint32_t published_epoch() const noexcept { return mepoch_; }
+  std::uint32_t published_epoch() const noexcept { return el_.mepoch; }
   /// Changes whenever members() or published() may have changed (a program persisting the
   /// membership compares this instead of building it after every datagram).
-  std::uint64_t members_rev() const noexcept { return members_rev_; }
+  std::uint64_t members_rev() const noexcept { return el_.members_rev; }
   /// True once this (elected agent's) master handed its registry over (HANDOVER sent).
-  bool handed_over() const noexcept { return handed_over_; }
+  bool handed_over() const noexcept { return el_.handed_over; }
   /// Relay and election on (MasterConfig::election).
   bool election() const noexcept { return cfg_.election; }
   /// The votes counted as a candidate in this epoch (Election votes[n]).
-  std::vector<std::uint16_t> votes() const { return std::vector<std::uint16_t>(votes_.begin(), votes_.end()); }
+  std::vector<std::uint16_t> votes() const { return std::vector<std::uint16_t>(el_.votes.begin(), el_.votes.end()); }
 
  private:
+  friend MasterElection;  // its transitions send through broadcast and send
+
   // ------------------------------------------------ receive: the spec's Handler(m)
 
   /// Takes @p m: dispatch, its trace record, then the role steps it enabled (settle_role).
@@ -570,14 +378,14 @@ class Master {
   /// vote completed a majority (or the fresh PC stands), else Reconfigure when an agent synced or
   /// was handed over. False when neither is enabled.
   bool settle_role() {
-    const bool become = BecomeMasterOk();
-    if (!become && !ReconfigureOk()) return false;
+    const bool become = el_.BecomeMasterOk();
+    if (!become && !el_.ReconfigureOk(reg_)) return false;
     Snapshot s = snap();
     if (become) {
-      BecomeMaster();
+      el_.BecomeMaster(*this, reg_);
       record(Action::BecomeMaster, s, {});
     } else {
-      Reconfigure();
+      el_.Reconfigure(now_);
       record(Action::Reconfigure, s, {});
     }
     return true;
@@ -589,29 +397,31 @@ class Master {
   /// Takes @p m from @p from (through relay @p via, 0 = direct): Election.tla's rules first (with
   /// election on), then MasterLogic's Handler(m).
   MasterReceipt Dispatch(const Message& m, Peer from, std::uint16_t via) {
-    if (m.receiver != self_ && m.receiver != kBroadcastId) return ignored(MasterIgnored::misaddressed);
+    if (m.receiver != el_.self && m.receiver != kBroadcastId) return ignored(MasterIgnored::misaddressed);
     if (via == 0 && !copies_.first_time(m.sender, m.msgid)) return ignored(MasterIgnored::duplicate);
     if (cfg_.election) {
-      if (m.sender == self_) return ignored(MasterIgnored::own_broadcast);
-      bool ruled = false;  // a rule takes this type (LEADER has two, whose guards exclude each other)
-      for (const ElectionRule& r : kElectionRules) {
-        if (r.type != m.type) continue;
-        ruled = true;
-        if (!(this->*r.ok)(m)) continue;
-        (this->*r.run)(m, from);
-        return taken(r.action);  // after HandleVote, BecomeMaster is a step of its own (take)
+      if (m.sender == el_.self) return ignored(MasterIgnored::own_broadcast);
+      if (MasterElection::Ruled(m.type)) {
+        const Action a = el_.Choose(m);
+        if (a == Action::Ignore) return ignored(MasterIgnored::not_enabled);
+        el_.Run(a, m, from, *this, reg_);
+        return taken(a);  // after HandleVote, BecomeMaster is a step of its own (take)
       }
-      if (ruled) return ignored(MasterIgnored::not_enabled);
+      if (m.type == MsgType::RELAY_ROUTE) {
+        if (!MasterRouteOk(m)) return ignored(MasterIgnored::not_enabled);
+        MasterRoute(m, from);
+        return taken(Action::MasterRoute);
+      }
       if (m.type == MsgType::RELAY) {
         // A relayed agent's datagram, forwarded unchanged inside RELAY(master, datagram).
         const auto target = m.param_u16(0);
-        if (via != 0 || role_ != MasterRole::master || !target || *target != self_ ||
+        if (via != 0 || el_.role != MasterRole::master || !target || *target != el_.self ||
             !decode(m.param(1), inner_).ok() || inner_.type == MsgType::RELAY)
           return ignored(MasterIgnored::not_enabled);
         const Message inner = inner_;
         return Dispatch(inner, from, m.sender);
       }
-      if (role_ != MasterRole::master) return ignored(MasterIgnored::not_master);
+      if (el_.role != MasterRole::master) return ignored(MasterIgnored::not_master);
       note_route(m, from, via);
     }
     switch (Handler(m)) {
@@ -784,7 +594,7 @@ class Master {
       push(OperatorEvent::Kind::state, e.id, MsgType::PING, std::string(to_string(*st)));
     }
     char num[10];
-    const std::string_view p[1] = {number(m.msgid, num)};
+    const std::string_view p[1] = {decimal(m.msgid, num)};
     if (e.synced) send(from, e.id, MsgType::PONG, p, 1);
     if (st && fresh && e.synced && !e.pending && e.queue.empty() && e.desired_known) {
       Restore(*st, e);
@@ -839,7 +649,7 @@ class Master {
 
   /// MasterTick is due at @p now: as MASTER, an entry's resend or drop time has come.
   bool MasterTickOk(Millis now) const noexcept {
-    return role_ == MasterRole::master && entries_due() <= now;
+    return el_.role == MasterRole::master && entries_due() <= now;
   }
   /// Spec MasterTick at now_: drop agents quiet for the drop timeout, resend due pending datagrams
   /// (an operator command fails after max_resends resends; MASTER is resent until ACK or drop and
@@ -858,7 +668,7 @@ class Master {
         fail_queue(e);
         push(OperatorEvent::Kind::dropped, e.id, MsgType::PING, {});
         erase(id);
-        DropMember(id);
+        el_.DropMember(id);
         continue;
       }
       if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
@@ -877,190 +687,14 @@ class Master {
     }
   }
 
-  // ------------------------------------------------ relay and election (Election.tla)
-
-  /// Heartbeat is due at @p now (MASTER).
-  bool HeartbeatOk(Millis now) const noexcept { return role_ == MasterRole::master && hb_at_ <= now; }
-  /// Spec Heartbeat: LEADER(epoch, id, members...) broadcast every leader_heartbeat: the membership
-  /// of the epoch, fixed for the whole epoch.
-  void Heartbeat() {
-    hb_at_ = now_ + cfg_.timers[Timer::leader_heartbeat];
-    broadcast(MsgType::LEADER, leader_params(epoch_, self_));
-  }
-  /// LEADER's parameters: epoch @p e, leader @p leader (0 in a copy: no master claimed), and the
-  /// membership of the master's epoch.
-  std::vector<std::string> leader_params(std::uint32_t e, std::uint16_t leader) const {
-    std::vector<std::string> p{std::to_string(e), std::to_string(leader)};
-    for (std::uint16_t id : members_) {
-      if (p.size() == kMaxParams) break;
-      p.push_back(std::to_string(id));
-    }
-    return p;
-  }
-
-  /// StartElection is due at @p now (CANDIDATE).
-  bool StartElectionOk(Millis now) const noexcept {
-    return role_ == MasterRole::candidate && cand_at_ <= now;
-  }
-  /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, epoch of its membership)
-  /// broadcast (a voter's floor rises to it); again after the candidate timeout without a majority.
-  /// With a membership, a copy of it goes first (Election Teach): LEADER(mepoch, 0, members...)
-  /// broadcast, so a voter that missed the LEADERs of that epoch learns the list (LearnMembers)
-  /// and can grant (a voter grants the PC only if it knows a list at least as new: Knows).
-  void StartElection() {
-    ++epoch_;
-    votes_.clear();
-    cand_at_ = now_ + cfg_.timers[Timer::candidate];
-    if (self_ == kMasterId && !members_.empty()) broadcast(MsgType::LEADER, leader_params(mepoch_, 0));
-    broadcast(MsgType::ELECT, {std::to_string(epoch_), "0", std::to_string(mepoch_)});
-  }
-
-  /// A candidate's VOTE for us in our epoch, from a member not counted yet.
-  bool HandleVoteOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    const auto c = m.param_u16(1);
-    return role_ == MasterRole::candidate && m.receiver == self_ && e && c && *e == epoch_ &&
-           *c == self_ && members_.count(m.sender) != 0 && votes_.count(m.sender) == 0;
-  }
-  /// Spec HandleVote: one more vote.
-  void HandleVote(const Message& m, Peer) { votes_.insert(m.sender); }
-
-  /// A candidate that has stood since it published its membership (epoch newer than the list's:
-  /// after Reconfigure the votes of its epoch still count until StartElection) holds the votes of a
-  /// strict majority of it (votes count only from members); with none (a fresh PC: nobody can know
-  /// a list) no vote is needed.
-  bool BecomeMasterOk() const {
-    return role_ == MasterRole::candidate && epoch_ > mepoch_ &&
-           (members_.empty() || 2 * votes_.size() > members_.size());
-  }
-  /// Spec BecomeMaster: master of the epoch; the PC's membership moves one step (OneStep) towards
-  /// members(), an elected agent's stays the one it counted against; LEADER at once.
-  void BecomeMaster() {
-    become_master();
-    if (self_ == kMasterId) members_ = OneStep(members_, want());
-    mepoch_ = epoch_;
-    ++members_rev_;
-    Heartbeat();
-  }
-  /// Election OneStep(L, w): L with one agent of w added (the lowest id) while L has fewer than
-  /// kMaxMembership (Election MaxMembers: all one LEADER carries), else one agent not in w removed,
-  /// never down to none; L when neither is possible. A full membership still sheds a lost agent.
-  static std::set<std::uint16_t> OneStep(std::set<std::uint16_t> l, const std::set<std::uint16_t>& w) {
-    if (l.size() < kMaxMembership)
-      for (std::uint16_t id : w)
-        if (l.count(id) == 0) {
-          l.insert(id);
-          return l;
-        }
-    for (std::uint16_t id : l)
-      if (w.count(id) == 0 && l.size() > 1) {
-        l.erase(id);
-        return l;
-      }
-    return l;
-  }
-  /// Election Reconfigure's guard: the PC as MASTER whose wanted fleet differs from the membership
-  /// of its epoch by a step OneStep can take. An elected agent's master never changes its
-  /// membership (node.hpp). The list stops growing at kMaxMembership, all that one LEADER carries
-  /// (and the state files keep): agents beyond it follow and obey but never vote, and a full list
-  /// still sheds an agent declared lost (docs/election.md section 6).
-  bool ReconfigureOk() const {
-    return cfg_.election && self_ == kMasterId && role_ == MasterRole::master && want_moves();
-  }
-  /// Spec Reconfigure: the PC stands in the next epoch to publish the next step.
-  void Reconfigure() { become_candidate(); }
-  /// Spec DropMember (part of MasterTick's drop: the PC declares agent @p id lost): it is no longer
-  /// wanted (want()), so Reconfigure removes it from the membership, one agent per epoch, until it
-  /// syncs again. Without it a lost agent stayed a member: the fleet needed a majority without it.
-  void DropMember(std::uint16_t id) {
-    lost_.insert(id);
-    ++members_rev_;
-  }
-
-  /// ELECT of a newer epoch, to an elected agent's master (the PC learns epochs from EPOCH_STALE).
-  bool HandleElectOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    return self_ != kMasterId && role_ != MasterRole::stepped_down && e && *e > epoch_;
-  }
-  /// Spec HandleElect, the master node's part: an elected agent's master steps down on a newer
-  /// epoch (its agent core votes).
-  void HandleElect(const Message& m, Peer) {
-    epoch_ = *m.param_u32(0);
-    become_stepped_down();
-  }
-
-  /// A master's LEADER (it names its sender as leader: a copy, leader 0, claims no master and is
-  /// the agent core's, LearnMembers) of an older epoch (while we have not stepped down: it is
-  /// told), a newer one, or our own epoch's other master while an elected agent that has not
-  /// handed over yet.
-  bool HandleHeartbeatOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    if (!e || m.param_u16(1) != m.sender) return false;
-    if (*e < epoch_) return role_ != MasterRole::stepped_down;
-    return *e > epoch_ || (role_ != MasterRole::master && self_ != kMasterId && !handed_over_);
-  }
-  /// Spec HandleHeartbeat, the master node's part: an older master's LEADER is answered
-  /// EPOCH_STALE; a newer one ends our term: an elected agent hands its registry over (HANDOVER)
-  /// and steps down, the PC stands again above it.
-  void HandleHeartbeat(const Message& m, Peer from) {
-    const std::uint32_t e = *m.param_u32(0);
-    if (e < epoch_) {
-      send(from, m.sender, MsgType::EPOCH_STALE, {std::to_string(epoch_)});
-      return;
-    }
-    epoch_ = e;
-    if (self_ == kMasterId) {
-      votes_.clear();  // HandleStaleNext's rule: the votes of the older epoch do not count in e
-      become_candidate();
-      return;
-    }
-    if (!handed_over_) {
-      std::vector<std::string> p{std::to_string(epoch_)};
-      for (std::uint16_t id : want()) {
-        if (p.size() == kMaxParams) break;
-        p.push_back(std::to_string(id));
-      }
-      send(from, m.sender, MsgType::HANDOVER, p);
-      handed_over_ = true;
-    }
-    become_stepped_down();
-  }
-
-  /// A copy of a LEADER (leader 0: no master claimed; the PC's broadcast as it stands, or a peer's
-  /// to us) of an epoch newer than ours, to an elected agent's master that has not stepped down.
-  bool LearnMembersOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    return self_ != kMasterId && role_ != MasterRole::stepped_down && membership_copy(m, self_) && e &&
-           *e > epoch_;
-  }
-  /// Spec LearnMembers, the master node's part: Election's LearnMembersNext of a newer epoch is
-  /// HandleStale's rule (the node steps down; the list is its agent core's). No HANDOVER: a copy
-  /// names no master to hand the registry to.
-  void LearnMembers(const Message& m, Peer from) { HandleStale(m, from); }
-
-  /// EPOCH_STALE to us naming a newer epoch.
-  bool HandleStaleOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    return m.receiver == self_ && e && *e > epoch_;
-  }
-  /// Spec HandleStale: a newer epoch exists: the PC stands again (CANDIDATE), an elected agent's
-  /// master steps down. Votes of the older epoch do not count in the newer one (counted, they
-  /// would let the PC win the newer epoch: a TLC counterexample).
-  void HandleStale(const Message& m, Peer) {
-    epoch_ = *m.param_u32(0);
-    votes_.clear();
-    if (self_ == kMasterId)
-      become_candidate();
-    else
-      become_stepped_down();
-  }
+  // ------------------------------------------------ relay routes
 
   /// RELAY_ROUTE of our epoch to us (MASTER) for an agent registered or a member.
   bool MasterRouteOk(const Message& m) const {
     const auto e = m.param_u32(0);
     const auto a = m.param_u16(1);
-    return role_ == MasterRole::master && m.receiver == self_ && e && *e == epoch_ && a &&
-           (reg_.contains(*a) || known(*a));
+    return el_.role == MasterRole::master && m.receiver == el_.self && e && *e == el_.epoch && a &&
+           (reg_.contains(*a) || el_.known(*a));
   }
   /// RELAY_ROUTE(epoch, agent) from relay p (Election abstracts it: the master reads the table):
   /// the agent is reached through p from now on (a member not registered yet is adopted).
@@ -1072,89 +706,16 @@ class Master {
     reg_.set_peer(*e, from);
   }
 
-  /// HANDOVER to us (MASTER) from the master of an epoch not newer than ours.
-  bool MasterHandoverOk(const Message& m) const {
-    const auto e = m.param_u32(0);
-    return role_ == MasterRole::master && m.receiver == self_ && e && *e <= epoch_;
-  }
-  /// HANDOVER(epoch, id...) from the elected agent we replace: its fleet joins the fleet we want
-  /// (members(); the membership follows one step per epoch, Reconfigure).
-  void MasterHandover(const Message& m, Peer) {
-    for (std::size_t i = 1; i < m.param_count(); ++i)
-      if (const auto id = m.param_u16(i)) {
-        if (is_assigned_id(*id) && *id != self_ && (handed_.insert(*id).second || lost_.erase(*id) != 0))
-          ++members_rev_;  // alive in the fleet handed over: no longer lost
-      }
-  }
-  /// A member of our membership, or handed over to us.
-  bool known(std::uint16_t id) const { return members_.count(id) != 0 || handed_.count(id) != 0; }
-  /// Election want: the membership and the members handed over but those declared lost
-  /// (DropMember), and the agents registered and synced. A walk of the registry, so built only
-  /// when members_rev_ moved since the last build (each change of members_, handed_, lost_ or an
-  /// entry's synced moves it), not per datagram.
-  const std::set<std::uint16_t>& want() const {
-    if (want_built_ && want_rev_ == members_rev_) return want_;
-    want_.clear();
-    for (std::uint16_t id : members_)
-      if (lost_.count(id) == 0) want_.insert(id);
-    for (std::uint16_t id : handed_)
-      if (lost_.count(id) == 0) want_.insert(id);
-    for (const auto& kv : reg_.map())
-      if (kv.second.synced) want_.insert(kv.first);
-    want_moves_ = OneStep(members_, want_) != members_;
-    want_rev_ = members_rev_;
-    want_built_ = true;
-    return want_;
-  }
-  /// OneStep(members_, want()) differs from members_ (with want()'s cache).
-  bool want_moves() const {
-    want();
-    return want_moves_;
-  }
-
-  /// Election.tla's rules for the datagrams they take, as a table: the type, the action, its guard
-  /// and its handler. A datagram whose rule's guard fails is ignored (not_enabled).
-  struct ElectionRule {
-    MsgType type;
-    Action action;
-    bool (Master::*ok)(const Message&) const;
-    void (Master::*run)(const Message&, Peer);
-  };
-  static constexpr ElectionRule kElectionRules[] = {
-      {MsgType::ELECT, Action::HandleElect, &Master::HandleElectOk, &Master::HandleElect},
-      {MsgType::VOTE, Action::HandleVote, &Master::HandleVoteOk, &Master::HandleVote},
-      {MsgType::LEADER, Action::HandleHeartbeat, &Master::HandleHeartbeatOk, &Master::HandleHeartbeat},
-      {MsgType::LEADER, Action::LearnMembers, &Master::LearnMembersOk, &Master::LearnMembers},
-      {MsgType::EPOCH_STALE, Action::HandleStale, &Master::HandleStaleOk, &Master::HandleStale},
-      {MsgType::RELAY_ROUTE, Action::MasterRoute, &Master::MasterRouteOk, &Master::MasterRoute},
-      {MsgType::HANDOVER, Action::MasterHandover, &Master::MasterHandoverOk, &Master::MasterHandover},
-  };
-
-  // Role changes, each in one place (raft's become*): the timers of the role left are cleared.
-  void become_master() {
-    role_ = MasterRole::master;
-    cand_at_ = kNever;
-  }
-  void become_candidate() {
-    role_ = MasterRole::candidate;
-    hb_at_ = kNever;
-    cand_at_ = now_;  // stands at once
-  }
-  void become_stepped_down() {
-    role_ = MasterRole::stepped_down;
-    hb_at_ = cand_at_ = kNever;
-  }
-
   /// Where a registered agent is (direct, or through relay @p via); a member we do not hold yet
   /// (it follows our LEADER) is registered as synced when it pings.
   void note_route(const Message& m, Peer from, std::uint16_t via) {
     RegistryEntry* found = reg_.find(m.sender);
     if (found == nullptr) {
-      if (m.type != MsgType::PING || !known(m.sender)) return;
+      if (m.type != MsgType::PING || !el_.known(m.sender)) return;
       found = &adopt(m.sender, from);
     }
     RegistryEntry& e = *found;
-    if (m.type == MsgType::PING && !e.synced && known(m.sender)) {
+    if (m.type == MsgType::PING && !e.synced && el_.known(m.sender)) {
       // A member we were syncing (its PANIC reached us) pings: it follows our LEADER already.
       set_synced(e, true);
       e.pending = false;
@@ -1180,7 +741,7 @@ class Master {
   void broadcast(MsgType t, const std::vector<std::string>& params) {
     std::vector<std::string_view> p(params.begin(), params.end());
     char buf[kMaxDatagram];
-    const EncodeResult r = encode_parts(self_, kBroadcastId, msgid_++, static_cast<std::uint8_t>(t),
+    const EncodeResult r = encode_parts(el_.self, kBroadcastId, msgid_++, static_cast<std::uint8_t>(t),
                                         p.data(), p.size(), buf, sizeof buf);
     if (r.ok()) tx_.push_back(MasterTransmit{0, Dest::broadcast, std::string(buf, r.size)});
   }
@@ -1211,8 +772,8 @@ class Master {
     RegistryEntry& r = reg_.insert(std::move(e));
     rearm(r);
     if (r.synced) {
-      lost_.erase(r.id);  // back: wanted again
-      ++members_rev_;
+      el_.Synced(r.id);  // back: wanted again
+      ++el_.members_rev;
     }
     return r;
   }
@@ -1220,14 +781,14 @@ class Master {
   void erase(std::uint16_t id) {
     const RegistryEntry* e = reg_.find(id);
     if (e == nullptr) return;
-    if (e->synced) ++members_rev_;
+    if (e->synced) ++el_.members_rev;
     drops_.remove(id);
     resends_.remove(id);
     reg_.erase(id);
   }
   void set_synced(RegistryEntry& e, bool synced) {
-    if (e.synced != synced) ++members_rev_;
-    if (synced) lost_.erase(e.id);  // back: wanted again
+    if (e.synced != synced) ++el_.members_rev;
+    if (synced) el_.Synced(e.id);  // back: wanted again
     e.synced = synced;
   }
 
@@ -1256,7 +817,7 @@ class Master {
     if (!e.pending) return;
     if (!e.synced) {
       char num[10];
-      const std::string_view p[1] = {number(e.ann, num)};
+      const std::string_view p[1] = {decimal(e.ann, num)};
       send_with(e.peer, e.id, e.mid, MsgType::MASTER, p, 1);
       return;
     }
@@ -1282,14 +843,14 @@ class Master {
   void send_with(Peer to, std::uint16_t id, std::uint32_t mid, MsgType t, const std::string_view* p,
                  std::size_t n) {
     char buf[kMaxDatagram];
-    const EncodeResult r = encode_parts(self_, id, mid, static_cast<std::uint8_t>(t), p, n, buf,
+    const EncodeResult r = encode_parts(el_.self, id, mid, static_cast<std::uint8_t>(t), p, n, buf,
                                         sizeof buf);
     if (!r.ok()) return;
     std::string bytes(buf, r.size);
     if (cfg_.election) {
       // Fencing: an elected master's (epoch > 1) MASTER and commands travel in EPOCH_CMD.
-      if (epoch_ > 1 && (t == MsgType::MASTER || is_command(t)))
-        bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(epoch_), bytes);
+      if (el_.epoch > 1 && (t == MsgType::MASTER || is_command(t)))
+        bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(el_.epoch), bytes);
       // Relay: an agent behind a relay gets RELAY(agent, datagram) through it.
       const RegistryEntry* e = reg_.find(id);
       if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, std::to_string(id), bytes);
@@ -1300,17 +861,12 @@ class Master {
                    const std::string& inner) {
     char buf[kMaxDatagram];
     const std::string_view p[2] = {first, inner};
-    const EncodeResult r = encode_parts(self_, to, mid, static_cast<std::uint8_t>(t), p, 2, buf, sizeof buf);
+    const EncodeResult r = encode_parts(el_.self, to, mid, static_cast<std::uint8_t>(t), p, 2, buf, sizeof buf);
     return r.ok() ? std::string(buf, r.size) : std::string();
   }
 
   void push(OperatorEvent::Kind k, std::uint16_t agent, MsgType t, std::string text) {
     ev_.push_back(OperatorEvent{k, agent, t, std::move(text)});
-  }
-
-  static std::string_view number(std::uint32_t v, char (&buf)[10]) noexcept {
-    char* e = detail::write_decimal(buf, v);
-    return std::string_view(buf, static_cast<std::size_t>(e - buf));
   }
 
   // ------------------------------------------------------------------ trace
@@ -1330,7 +886,7 @@ class Master {
     for (std::uint16_t id : ids) v += (v.size() > 1 ? "," : "") + std::to_string(id);
     return v + "]";
   }
-  std::string votes_json() const { return ids_json(votes_); }
+  std::string votes_json() const { return ids_json(el_.votes); }
 
   /// The registry as the spec's ms.reg (JSON array of MasterLogic entries, by id), for trace
   /// records: ann, id, ep, synced, pending, mid, resends, queue ([{type, name}], name "NONE" but
@@ -1373,7 +929,8 @@ class Master {
   Snapshot snap() const {
     if constexpr (Trace::enabled) {
       if (trace_ != nullptr)
-        return Snapshot{reg_json(), next_id_, msgid_, to_string(role_), epoch_, votes_json(), ids_json(members_), mepoch_};
+        return Snapshot{reg_json(),  next_id_, msgid_, to_string(el_.role), el_.epoch, votes_json(),
+                        ids_json(el_.members), el_.mepoch};
     }
     return Snapshot{};
   }
@@ -1392,15 +949,15 @@ class Master {
       r.msgid_before = before.msgid;
       r.msgid_after = msgid_;
       r.life_before = before.life;
-      r.life_after = to_string(role_);
+      r.life_after = to_string(el_.role);
       r.epoch_before = before.epoch;
-      r.epoch_after = epoch_;
+      r.epoch_after = el_.epoch;
       r.votes_before = std::move(before.votes);
       r.votes_after = votes_json();
       r.members_before = std::move(before.members);
-      r.members_after = ids_json(members_);
+      r.members_after = ids_json(el_.members);
       r.mepoch_before = before.mepoch;
-      r.mepoch_after = mepoch_;
+      r.mepoch_after = el_.mepoch;
       trace_->record(r);
     } else {
       (void)a, (void)before, (void)msg;
@@ -1422,22 +979,7 @@ class Master {
   std::deque<OperatorEvent> ev_;
   std::uint32_t rejected_ = 0;
   Message rx_;
-  // Election.tla
-  MasterRole role_ = MasterRole::master;
-  std::uint32_t epoch_;
-  std::uint16_t self_;
-  std::set<std::uint16_t> members_;  // members[PC]: the membership of epoch mepoch_
-  std::uint32_t mepoch_;
-  std::set<std::uint16_t> handed_;   // ids handed over (HANDOVER), wanted as members
-  std::set<std::uint16_t> lost_;     // ids declared lost (DropMember) since they last synced: not wanted
-  std::uint64_t members_rev_ = 0;
-  // want()'s cache: the set, whether OneStep moves members_ towards it, the members_rev_ it is of.
-  mutable std::set<std::uint16_t> want_;
-  mutable bool want_moves_ = false, want_built_ = false;
-  mutable std::uint64_t want_rev_ = 0;
-  std::set<std::uint16_t> votes_;
-  Millis hb_at_ = kNever, cand_at_ = kNever;
-  bool handed_over_ = false;
+  MasterElection el_;  // Election.tla's variables of the master node, its rules (election/master.hpp)
   Message inner_;
 };
 

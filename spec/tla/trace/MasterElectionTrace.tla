@@ -137,7 +137,7 @@ Want(s, ms) == ((s.mem \cup s.hand) \ s.lost) \cup SyncedIds(ms)
 \* The ids declared lost after record r took registry s0 to ms2: MasterTick's drops join them (DropMember),
 \* an agent synced again leaves them.
 LostAfter(r, s, s0, ms2) == (s.lost \cup (IF r.a = "MasterTick" THEN Ids(s0) \ Ids(ms2) ELSE {})) \ SyncedIds(ms2)
-\* The PC's choice among Election's OneStep(L, w) (master.hpp OneStep): the lowest id wanted added,
+\* The PC's choice among Election's OneStep(L, w) (election/master.hpp OneStep): the lowest id wanted added,
 \* else the lowest id not wanted removed, never down to none.  Election.tla's BecomeMaster may publish
 \* any list of OneStep (the safety properties hold for every choice); the trace pins the code's one
 \* (intersected with OneStep: a choice outside the spec is no step).

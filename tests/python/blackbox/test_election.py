@@ -231,7 +231,7 @@ def test_agents_that_never_heard_the_pc_learn_the_membership_from_peers(master_e
     majority of pre-votes (each hears only #1 and #2, which grant none to a weaker asker); #1 and #2
     have heard no LEADER at all: only a peer can tell them the list. With it, #1 (score 10) stands
     after its back-off and wins epoch 7: asserted within 10 s of the kill (4.7-5.4 s in 11 runs).
-    Guards the fix: built with AgentElection::ShareMembersOk (election.hpp) returning false at once
+    Guards the fix: built with AgentElection::ShareMembersOk (election/agent.hpp) returning false at once
     (no agent ever sends a copy of its LEADER, so LearnMembers never runs), every run failed here
     (no agent master within the deadline); with the deadline at 30 s the five agents were still in
     PANIC at the end and none had stood (#1 and #2 know no list, #3-#5 get no pre-vote from them).

@@ -1,190 +1,32 @@
-/// @file election.hpp
-/// @brief One agent's part in relay and election (spec/tla/Election.tla): its Election variables and
-///        the enabling condition of each Election rule, as Election.tla writes them per node.
+/// @file election/agent.hpp
+/// @brief One agent's part in relay and election (spec/tla/Election.tla): its Election variables,
+///        the enabling condition of each rule (XOk) and its transition (XNext), as Election.tla
+///        writes them per node.
 ///
 /// Election.tla defines every action X of a node n by an enabling condition on the node's own
 /// variables, XOk(n, s, m, ...), and the new local state XNext(s, m). AgentElection holds one
-/// agent's variables (life is the agent core's State refined by a Role) and its XOk guards: `const`,
-/// taking the datagram and what they need from the agent's lifecycle (Lifecycle) as parameters.
-/// Which rule takes an election datagram is Choose(); the agent core (agent.hpp) runs the handler of
-/// the same name, which composes the rule with the lifecycle and the network. No heap, no
-/// exceptions, no I/O.
+/// agent's variables (life is the agent core's State refined by a Role), its XOk guards (`const`,
+/// taking the datagram and what they need from the agent's lifecycle, Lifecycle, as parameters)
+/// and its transitions, each named as the spec's action. A transition sends its datagrams through
+/// the agent core and returns the lifecycle change it makes (LifecycleEffect), which the agent
+/// applies through its own state table. Which rule takes an election datagram is Choose(); the
+/// agent core's Step prelude (agent.hpp) runs it. No heap, no exceptions, no I/O.
 #pragma once
 
 #include <cstddef>
 #include <cstdint>
+#include <string_view>
 
-#include "core.hpp"
-#include "wire.hpp"
+#include "common.hpp"
 
 namespace ev3proto {
 
-/// "Compute the score from the capabilities" (ElectionConfig::score).
-inline constexpr std::uint32_t kAutoScore = ~std::uint32_t{0};
-
-/// Most fleet members a membership holds (LEADER carries at most 30 besides epoch and leader).
-inline constexpr std::size_t kMaxMembership = kMaxParams - 2;
-
-/// LEADER @p m is a copy of a membership (leader 0: no master claimed) node @p me may learn: a
-/// peer's or the PC's to it (ShareMembers), or the PC's broadcast as it stands (Election Teach:
-/// one copy per agent in the spec). A master's LEADER names its sender as leader.
-inline bool membership_copy(const Message& m, std::uint16_t me) noexcept {
-  if (m.type != MsgType::LEADER || m.param_u16(1) != std::uint16_t{0}) return false;
-  if (m.receiver == me) return is_assigned_id(m.sender) || m.sender == kMasterId;
-  return m.receiver == kBroadcastId && m.sender == kMasterId;
-}
-
-/// What the firmware must keep on stable storage (Election's epoch and votedFor, and the
-/// membership the agent knows: members, mepoch, floor): write it before sending the
-/// datagrams polled after the call that changed it.
-struct Durable {
-  std::uint32_t epoch = 1;     ///< Highest epoch seen.
-  std::uint16_t voted_for = 0; ///< Whom the agent voted for in that epoch (0 = nobody).
-  std::uint32_t mepoch = 0;    ///< Epoch of the master that published the membership (0: none known).
-  std::uint32_t floor = 0;     ///< No membership older than this epoch is current (Election floor).
-  std::uint8_t member_count = 0;                  ///< Members in use.
-  std::uint16_t members[kMaxMembership] = {};     ///< The membership quorums count against.
-  /// Same epoch, vote and membership.
-  friend constexpr bool operator==(const Durable& a, const Durable& b) noexcept {
-    if (a.epoch != b.epoch || a.voted_for != b.voted_for || a.mepoch != b.mepoch || a.floor != b.floor ||
-        a.member_count != b.member_count)
-      return false;
-    for (std::size_t i = 0; i < a.member_count; ++i)
-      if (a.members[i] != b.members[i]) return false;
-    return true;
-  }
-  /// Not the same.
-  friend constexpr bool operator!=(const Durable& a, const Durable& b) noexcept { return !(a == b); }
-};
-
-/// Relay and election (spec/tla/Election.tla). Off by default: the agent is then exactly the
-/// AgentLogic.tla agent (one master, epoch 1). `durable` holds Election's persistent variables
-/// (epoch, votedFor, the membership): pass back what durable() said last (SD card) after a restart.
-struct ElectionConfig {
-  bool enabled = false;             ///< Relay and election on.
-  Durable durable;                  ///< Restored from stable storage (a fresh agent: the defaults).
-  std::uint32_t score = kAutoScore; ///< Election Score (lower = weaker, stands first, wins).
-};
-
-/// Which handler takes a datagram and what the Step prelude must do first, decided before any state
-/// changes (Agent::Choose, AgentElection::Choose).
-struct Verdict {
-  Action action = Action::Ignore; ///< The handler (Ignore: none takes it; see why).
-  Ignored why = Ignored::no;      ///< Why none takes it.
-  Action inner = Action::Ignore;  ///< ApplyCommand: the AgentLogic handler of the inner datagram.
-  std::uint32_t epoch = 0;        ///< The epoch the action moves the agent to (0: its own).
-  bool stale = false;             ///< The sender is in an older epoch: answer EPOCH_STALE, nothing else.
-};
-
-/// A set of at most N agent ids in the order they were added (votes, pre-votes, the membership).
-/// rev() changes whenever the set may have changed (trace records compare it).
-template <std::size_t N>
-class IdSet {
- public:
-  /// Number of ids.
-  std::size_t size() const noexcept { return n_; }
-  /// The i-th id (0 when out of range).
-  std::uint16_t operator[](std::size_t i) const noexcept { return i < n_ ? ids_[i] : 0; }
-  /// True if @p id is in the set.
-  bool contains(std::uint16_t id) const noexcept {
-    for (std::size_t i = 0; i < n_; ++i)
-      if (ids_[i] == id) return true;
-    return false;
-  }
-  /// Adds @p id (nothing when full); the set counts as changed.
-  void add(std::uint16_t id) noexcept {
-    if (n_ < N) ids_[n_++] = id;
-    ++rev_;
-  }
-  /// Empties the set (changed only if it was not empty).
-  void clear() noexcept {
-    if (n_ != 0) ++rev_;
-    n_ = 0;
-  }
-  /// Empties the set; it counts as changed even if it was empty (a new count starts).
-  void restart() noexcept {
-    n_ = 0;
-    ++rev_;
-  }
-  /// Changes whenever the set may have changed.
-  std::uint32_t rev() const noexcept { return rev_; }
-
- private:
-  std::uint16_t ids_[N] = {};
-  std::size_t n_ = 0;
-  std::uint32_t rev_ = 0;
-};
-
-/// Agents with the peer handle to reach them (relays, offered), at most N; adding to a full table
-/// forgets the oldest entry.
-template <std::size_t N>
-class PeerTable {
- public:
-  /// One agent and its peer handle.
-  struct Entry {
-    std::uint16_t id = 0; ///< Agent id.
-    Peer peer = 0;        ///< Where it is.
-  };
-  /// Number of entries.
-  std::size_t size() const noexcept { return n_; }
-  /// True when no more entries fit.
-  bool full() const noexcept { return n_ == N; }
-  /// The i-th agent's id (0 when out of range).
-  std::uint16_t id(std::size_t i) const noexcept { return i < n_ ? e_[i].id : 0; }
-  /// The entry of @p id, or nullptr.
-  const Entry* find(std::uint16_t id) const noexcept {
-    for (std::size_t i = 0; i < n_; ++i)
-      if (e_[i].id == id) return &e_[i];
-    return nullptr;
-  }
-  /// Adds @p id at @p peer (an entry of @p id is updated); the table counts as changed.
-  void add(std::uint16_t id, Peer peer) noexcept {
-    ++rev_;
-    for (std::size_t i = 0; i < n_; ++i)
-      if (e_[i].id == id) {
-        e_[i].peer = peer;
-        return;
-      }
-    if (n_ == N) {
-      for (std::size_t i = 1; i < n_; ++i) e_[i - 1] = e_[i];
-      --n_;
-    }
-    e_[n_++] = Entry{id, peer};
-  }
-  /// Removes @p id (changed only if it was there).
-  void remove(std::uint16_t id) noexcept {
-    for (std::size_t i = 0; i < n_; ++i)
-      if (e_[i].id == id) {
-        for (std::size_t j = i + 1; j < n_; ++j) e_[j - 1] = e_[j];
-        --n_;
-        ++rev_;
-        return;
-      }
-  }
-  /// Empties the table (changed only if it was not empty).
-  void clear() noexcept {
-    if (n_ != 0) ++rev_;
-    n_ = 0;
-  }
-  /// The i-th entry.
-  const Entry& operator[](std::size_t i) const noexcept { return e_[i]; }
-  /// Changes whenever the table may have changed.
-  std::uint32_t rev() const noexcept { return rev_; }
-
- private:
-  Entry e_[N] = {};
-  std::size_t n_ = 0;
-  std::uint32_t rev_ = 0;
-};
-
-/// What Election's guards need from the agent's lifecycle: its state (Election's life, with the
-/// role), id, score, and whether it still hears the master it follows (Election HeartbeatOK, as far
-/// as the agent can see it: heard within the loss timeout).
-struct Lifecycle {
-  State state = State::IDLE;     ///< The agent's state.
-  std::uint16_t id = 0;          ///< Its id.
-  std::uint32_t score = 0;       ///< Its score (lower = weaker).
-  bool hears_master = false;     ///< Follows a master heard within the loss timeout.
+/// What an election transition does to the agent's lifecycle, for the agent to apply through its
+/// state table (by the action that took the step).
+struct LifecycleEffect {
+  bool pause = false;   ///< Election SteppedDown: a WORKING agent pauses (motors off, progress kept).
+  bool follow = false;  ///< A master is followed at the datagram's peer: heard now; PANIC -> ACTIVE.
+  bool panic = false;   ///< Lost: the lifecycle enters PANIC, then AgentElection::Panic.
 };
 
 /// One agent's Election.tla variables and the enabling conditions of Election's rules on them.
@@ -193,10 +35,15 @@ struct Lifecycle {
 template <std::size_t RelaySlots, std::size_t MaxMembers>
 class AgentElection {
  public:
-  /// From the configuration (epoch 0 counts as 1): the restored epoch, vote and membership.
-  explicit AgentElection(const ElectionConfig& c) noexcept
+  /// "No deadline".
+  static constexpr Millis kNever = ~Millis{0};
+
+  /// From the configuration (epoch 0 counts as 1): the restored epoch, vote and membership; the
+  /// election's timers from @p t (relay_retry, backoff, backoff_step, candidate).
+  AgentElection(const ElectionConfig& c, const Timers& t) noexcept
       : enabled(c.enabled), epoch(c.durable.epoch == 0 ? 1 : c.durable.epoch), voted_for(c.durable.voted_for),
-        mepoch(c.durable.mepoch), floor(c.durable.floor) {
+        mepoch(c.durable.mepoch), floor(c.durable.floor), retry_(t[Timer::relay_retry]),
+        backoff_(t[Timer::backoff]), backoff_step_(t[Timer::backoff_step]), candidate_(t[Timer::candidate]) {
     for (std::size_t i = 0; i < c.durable.member_count && i < kMaxMembership; ++i)
       if (is_assigned_id(c.durable.members[i]) && !members.contains(c.durable.members[i]))
         members.add(c.durable.members[i]);
@@ -218,6 +65,8 @@ class AgentElection {
   std::uint32_t mepoch = 0;        ///< mepoch: the epoch of the master that published it (0: none).
   std::uint32_t floor = 0;         ///< floor: no membership older than this epoch is current.
   std::uint32_t master_epoch = 0;  ///< The epoch this agent last became master of (0 = never).
+  Millis relay_at = kNever;        ///< The next RELAY_REQ (RequestRelay), while masterless.
+  Millis stand_at = kNever;        ///< The back-off's end (StartElection), while masterless.
 
   /// Changes whenever relays, offered, votes or prevotes may have changed (trace records).
   std::uint32_t sets_rev() const noexcept {
@@ -275,17 +124,8 @@ class AgentElection {
   bool Following(State s) const noexcept { return is_synced(s) && leader != 0; }
   /// Follows a master of its current epoch over a direct link (may offer and relay: one hop).
   bool DirectFollower(State s) const noexcept { return Following(s) && following == epoch && via == 0; }
-  /// Election QuorumOf(S, members): the ids of @p s that are members, and @p me if it is one, are a
-  /// strict majority of the membership (an empty one has none).
-  template <std::size_t K>
-  bool QuorumOf(const IdSet<K>& s, std::uint16_t me) const noexcept {
-    std::size_t n = members.contains(me) ? 1u : 0u;
-    for (std::size_t i = 0; i < s.size(); ++i)
-      if (s[i] != me && members.contains(s[i])) ++n;
-    return members.size() > 0 && 2 * n > members.size();
-  }
   /// Election QuorumOf(prevotes \cup {me}, members).
-  bool PreVoteQuorum(std::uint16_t me) const noexcept { return QuorumOf(prevotes, me); }
+  bool PreVoteQuorum(std::uint16_t me) const noexcept { return QuorumOf(prevotes, members, me); }
   /// Election Obeys: the command's sender is the master followed in epoch @p e, the highest seen.
   bool Obeys(std::uint16_t sender, std::uint32_t e) const noexcept {
     return leader == sender && following == e && e == epoch;
@@ -392,7 +232,9 @@ class AgentElection {
   /// Election BecomeMasterOk: a candidate of an epoch newer than its membership's (no membership
   /// of this epoch is published yet) with votes of a strict majority of the membership (QuorumOf:
   /// its own vote is among the votes when it is a member).
-  bool BecomeMasterOk() const noexcept { return role == Role::candidate && epoch > mepoch && QuorumOf(votes, 0); }
+  bool BecomeMasterOk() const noexcept {
+    return role == Role::candidate && epoch > mepoch && QuorumOf(votes, members, 0);
+  }
   /// Election HandleHeartbeatOk: a master's LEADER (not an IDLE agent's business); an older one is
   /// answered EPOCH_STALE; a master takes only a newer one.
   bool HandleHeartbeatOk(const Message& m, const Lifecycle& me) const noexcept {
@@ -473,6 +315,282 @@ class AgentElection {
     return Verdict{Action::Ignore, mine ? Ignored::ignored_in_state : Ignored::misaddressed};
   }
 
+  // ------------------------------------------------------------ the deadlines
+
+  /// The back-off's end once it may be acted on: the pre-votes make a quorum and the membership
+  /// known is not older than the floor (without them the next event is a relay request's retry, a
+  /// PREVOTE_OK arriving, or learning a newer membership, not the back-off's end).
+  Millis StandDeadline(std::uint16_t me) const noexcept {
+    return PreVoteQuorum(me) && MembershipCurrent() ? stand_at : kNever;
+  }
+  /// The earliest of the election's deadlines (relay request, standing) of agent @p me.
+  Millis Deadline(std::uint16_t me) const noexcept {
+    const Millis s = StandDeadline(me);
+    return relay_at < s ? relay_at : s;
+  }
+  /// Back-off before standing: backoff + score x backoff_step, spread by id (ties stand apart).
+  Millis Backoff(const Lifecycle& me) const noexcept {
+    const std::uint32_t sc = me.score < 1000u ? me.score : 1000u;
+    return backoff_ + sc * backoff_step_ + (me.id % 16u) * backoff_step_ / 16u;
+  }
+
+  // ------------------------------------------------------------ transitions (XNext)
+  //
+  // Each transition changes the election's variables and sends its datagrams through @p n (the
+  // agent core: emit, emit_to, emit_raw); one that moves the agent's lifecycle returns it as a
+  // LifecycleEffect, which the agent applies through its own state table.
+
+  /// Spec RequestRelay: RELAY_REQ(epoch, score, mepoch) broadcast, again after relay_retry. It is
+  /// also the pre-vote request (peers without a master answer PREVOTE_OK) and says which membership
+  /// we know (a peer that knows a newer one sends us a copy: ShareMembers).
+  template <class Net>
+  void RequestRelay(const Lifecycle& me, Net& n) noexcept {
+    relay_at = me.now + retry_;
+    char num[10], sc[10], mk[10];
+    const std::string_view p[3] = {decimal(epoch, num), decimal(me.score, sc), decimal(mepoch, mk)};
+    n.emit(Dest::broadcast, kBroadcastId, MsgType::RELAY_REQ, p, 3);
+  }
+
+  /// Spec ShareMembers: a copy of the LEADER that published our membership, LEADER(mepoch, 0,
+  /// members...) to the asker (leader 0: no master is claimed); nothing else changes.
+  template <class Net>
+  void ShareMembers(const Message& m, Peer from, Net& n) noexcept {
+    emit_leader(mepoch, 0, m.sender, from, n);
+  }
+
+  /// Spec LearnMembers (a newer epoch was adopted by the prelude, as from EPOCH_STALE): the copy's
+  /// membership is the one of its epoch; without a master we may now stand with it.
+  void LearnMembers(const Message& m, const Lifecycle& me) noexcept {
+    Learned(m, *m.param_u32(0));
+    if (me.state == State::PANIC && role == Role::none && stand_at == kNever && members.size() > 0)
+      stand_at = me.now + Backoff(me);
+  }
+
+  /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else changes.
+  template <class Net>
+  void GrantPreVote(const Message& m, Peer from, Net& n) noexcept {
+    const std::string_view p[1] = {m.param(0)};
+    n.emit_to(from, m.sender, MsgType::PREVOTE_OK, p, 1);
+  }
+
+  /// Spec HandlePreVote: one more pre-vote for standing in the next epoch.
+  void HandlePreVote(const Message& m) noexcept { prevotes.add(m.sender); }
+
+  /// Spec OfferRelay: RELAY_OFFER(epoch, master) to the requester, remembered in offered.
+  template <class Net>
+  void OfferRelay(const Message& m, Peer from, Net& n) noexcept {
+    offered.add(m.sender, from);
+    char num[10], who[10];
+    const std::string_view p[2] = {decimal(epoch, num), decimal(leader, who)};
+    n.emit_to(from, m.sender, MsgType::RELAY_OFFER, p, 2);
+  }
+
+  /// Spec AcceptRelay: follow the relay's master in its epoch through it, RELAY_ACCEPT; the agent
+  /// follows (PANIC -> ACTIVE).
+  template <class Net>
+  LifecycleEffect AcceptRelay(const Message& m, Peer from, Net& n) noexcept {
+    become_follower(*m.param_u16(1), *m.param_u32(0), m.sender);
+    const std::string_view p[2] = {m.param(0), m.param(1)};
+    n.emit_to(from, m.sender, MsgType::RELAY_ACCEPT, p, 2);
+    return LifecycleEffect{false, true, false};
+  }
+
+  /// Spec HandleAccept: the agent enters the relay table; RELAY_ROUTE(epoch, agent) to the master.
+  template <class Net>
+  void HandleAccept(const Message& m, Peer from, Net& n) noexcept {
+    offered.remove(m.sender);
+    relays.add(m.sender, from);
+    char num[10], who[10];
+    const std::string_view p[2] = {decimal(epoch, num), decimal(m.sender, who)};
+    n.emit(Dest::master, leader, MsgType::RELAY_ROUTE, p, 2);
+  }
+
+  /// Spec Forward: the inner datagram goes on unchanged (sender, msgid: dedupe end to end).
+  template <class Net>
+  void Forward(const Message& m, Net& n) noexcept {
+    if (m.sender == leader) {
+      n.emit_raw(Dest::peer, relays.find(*m.param_u16(0))->peer, m.param(1));
+    } else {
+      n.emit_raw(Dest::master, 0, m.param(1));
+    }
+  }
+
+  /// Spec RelayDropped: back to PANIC (the agent's lifecycle first, then Panic()).
+  LifecycleEffect RelayDropped(const Message&) noexcept { return LifecycleEffect{false, false, true}; }
+
+  /// Spec TimeoutNext's and RelayDroppedNext's PANIC, the election's part (after the agent's
+  /// lifecycle entered PANIC): nobody followed (the relay table dropped with RELAY_DROP), then
+  /// masterless (relay requests at once, standing after the back-off).
+  template <class Net>
+  void Panic(const Lifecycle& me, Net& n) noexcept {
+    unfollow(n);
+    become_masterless(me);
+  }
+
+  /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, mepoch) broadcast.
+  template <class Net>
+  void StartElection(const Lifecycle& me, Net& n) noexcept {
+    become_candidate(me);
+    char e[10], sc[10], mk[10];
+    const std::string_view p[3] = {decimal(epoch, e), decimal(me.score, sc), decimal(mepoch, mk)};
+    n.emit(Dest::broadcast, kBroadcastId, MsgType::ELECT, p, 3);
+  }
+
+  /// Spec HandleElect (a newer epoch was adopted by the prelude): grant the one vote of the epoch
+  /// to a candidate not stronger than us whose membership is not older than our floor (VOTE), and
+  /// give it time to win before standing ourselves. A vote for the PC raises the floor to the epoch
+  /// of its membership (Election Voted): it may be replacing it.
+  template <class Net>
+  void HandleElect(const Message& m, Peer from, const Lifecycle& me, Net& n) noexcept {
+    const std::uint32_t e = *m.param_u32(0);
+    const std::uint32_t k = m.param_u32(2).value_or(0);
+    if (!ElectGrant(m.sender, e, *m.param_u32(1), me.score, k)) return;
+    voted_for = m.sender;
+    if (m.sender == kMasterId) Raised(k);
+    if (me.state == State::PANIC && role == Role::none) stand_at = me.now + candidate_ + Backoff(me);
+    char num[10], who[10];
+    const std::string_view p[2] = {decimal(e, num), decimal(m.sender, who)};
+    n.emit_to(from, m.sender, MsgType::VOTE, p, 2);
+  }
+
+  /// Spec HandleVote: one more vote.
+  void HandleVote(const Message& m) noexcept { votes.add(m.sender); }
+
+  /// Spec BecomeMaster: master of its epoch with the membership it counted against (now of this
+  /// epoch: mepoch, floor); first LEADER(epoch, id, members) broadcast; a Master core runs for it
+  /// from now on (node.hpp).
+  template <class Net>
+  void BecomeMaster(const Lifecycle& me, Net& n) noexcept {
+    become_master();
+    mepoch = epoch;
+    Raised(epoch);
+    emit_leader(epoch, me.id, kBroadcastId, 0, n);
+  }
+
+  /// Spec HandleHeartbeat (a newer epoch was adopted by the prelude): follow this master directly
+  /// (PANIC / candidate / master -> ACTIVE; WORKING whose master changed -> PAUSED), learn the
+  /// membership, and drop the relay table when the master changed.
+  template <class Net>
+  LifecycleEffect HandleHeartbeat(const Message& m, Net& n) noexcept {
+    const std::uint32_t e = *m.param_u32(0);
+    const bool changed = leader != m.sender || following != e;
+    if (changed) drop_relays(n);
+    become_follower(m.sender, e, 0);
+    Learned(m, e);
+    return LifecycleEffect{changed, true, false};
+  }
+
+  /// Spec HandleStale: the newer epoch is all it brings; the prelude adopted it (stepping down).
+  void HandleStale(const Message&) noexcept {}
+
+  /// A newer epoch @p e than ours, seen in a datagram a handler takes: SteppedDown, then the epoch
+  /// is adopted with no vote and no pre-votes in it.
+  template <class Net>
+  void NewerEpoch(std::uint32_t e, const Lifecycle& me, Net& n) noexcept {
+    SteppedDown(me, n);
+    epoch = e;
+    voted_for = 0;
+    prevotes.clear();
+  }
+  /// Election SteppedDown(n, s), the election's part (the agent pauses a WORKING behaviour): a
+  /// candidate or master is masterless again, the old master is not followed.
+  template <class Net>
+  void SteppedDown(const Lifecycle& me, Net& n) noexcept {
+    if (role != Role::none) become_masterless(me);
+    unfollow(n);
+  }
+
+  /// EPOCH_STALE(epoch) to @p to at @p peer: the sender is behind.
+  template <class Net>
+  void AnswerStale(std::uint16_t to, Peer peer, Net& n) noexcept {
+    char num[10];
+    const std::string_view p[1] = {decimal(epoch, num)};
+    n.emit_to(peer, to, MsgType::EPOCH_STALE, p, 1);
+  }
+
+  // ------------------------------------------------------------ role changes (raft's become*)
+
+  /// Follow master @p l of epoch @p e, through relay @p v (0: directly): no role, no relay
+  /// requests, no standing, no pre-votes.
+  void become_follower(std::uint16_t l, std::uint32_t e, std::uint16_t v) noexcept {
+    set_role(Role::none);
+    leader = l;
+    following = e;
+    via = v;
+    relay_at = stand_at = kNever;
+    prevotes.clear();
+  }
+
+ private:
+  /// Without a master (PANIC, or a candidate / master stepping down): no role; with the election on
+  /// and an assigned id, relay requests at once and standing after the back-off.
+  void become_masterless(const Lifecycle& me) noexcept {
+    set_role(Role::none);
+    prevotes.clear();
+    if (!enabled) return;
+    const bool can = is_assigned_id(me.id);
+    relay_at = can ? me.now : kNever;
+    stand_at = can && members.size() > 0 ? me.now + Backoff(me) : kNever;
+  }
+  /// Stand in the next epoch: vote for itself, count its own vote, ask again (pre-votes for the
+  /// epoch after) if this candidacy stalls, then stand again after the back-off.
+  void become_candidate(const Lifecycle& me) noexcept {
+    ++epoch;
+    voted_for = me.id;
+    votes.restart();
+    if (members.contains(me.id)) votes.add(me.id);
+    set_role(Role::candidate);
+    prevotes.clear();
+    relay_at = me.now + candidate_;
+    stand_at = me.now + candidate_ + Backoff(me);
+  }
+  /// Master of its epoch: a Master core runs for it (node.hpp); no relay requests, no standing.
+  void become_master() noexcept {
+    set_role(Role::master);
+    relay_at = stand_at = kNever;
+  }
+  /// The role changes (only through the become_* functions): a candidate's votes are forgotten when
+  /// it is one no more; becoming master records the epoch won.
+  void set_role(Role r) noexcept {
+    if (r == role) return;
+    if (r == Role::master) master_epoch = epoch;
+    role = r;
+    if (r != Role::candidate) votes.clear();
+  }
+  /// leader, following, via cleared; relays dropped (RELAY_DROP), offers forgotten.
+  template <class Net>
+  void unfollow(Net& n) noexcept {
+    leader = 0;
+    following = 0;
+    via = 0;
+    drop_relays(n);
+  }
+  /// Every relayed agent gets RELAY_DROP(epoch); the relay table and the offers are forgotten.
+  template <class Net>
+  void drop_relays(Net& n) noexcept {
+    for (std::size_t i = 0; i < relays.size(); ++i) {
+      char num[10];
+      const std::string_view p[1] = {decimal(epoch, num)};
+      n.emit_to(relays[i].peer, relays[i].id, MsgType::RELAY_DROP, p, 1);
+    }
+    relays.clear();
+    offered.clear();
+  }
+  /// LEADER(@p e, @p l, members...): our membership, the one of epoch @p e; broadcast by a new
+  /// master (BecomeMaster), or a copy to peer @p to at @p peer (ShareMembers: leader 0).
+  template <class Net>
+  void emit_leader(std::uint32_t e, std::uint16_t l, std::uint16_t to, Peer peer, Net& n) noexcept {
+    char ep[10], who[10], ids[kMaxMembership][10];
+    std::string_view p[kMaxParams];
+    p[0] = decimal(e, ep);
+    p[1] = decimal(l, who);
+    for (std::size_t i = 0; i < members.size(); ++i) p[2 + i] = decimal(members[i], ids[i]);
+    if (to == kBroadcastId)
+      n.emit(Dest::broadcast, kBroadcastId, MsgType::LEADER, p, 2 + members.size());
+    else
+      n.emit_to(peer, to, MsgType::LEADER, p, 2 + members.size());
+  }
+
  private:
   static bool ToMe(const Message& m, const Lifecycle& me) noexcept {
     return m.receiver == me.id && is_assigned_id(me.id);
@@ -484,6 +602,8 @@ class AgentElection {
     if (e > epoch) v.epoch = e;
     return v;
   }
+
+  Millis retry_, backoff_, backoff_step_, candidate_;  // the election's timers (Timers)
 };
 
 }  // namespace ev3proto
