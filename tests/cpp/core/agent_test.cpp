@@ -253,11 +253,11 @@ TEST(NodeNoHeap, NoMasterCoreNoAllocation) {
   const long before = g_news.load();
   N* n = new (storage) N(c, 0);  // placement: no allocation (an empty std::function allocates nothing)
   auto drain_node = [n] {
+    NodeEvent e;  // events first: a durable change holds the datagrams until it is handed out
+    while (n->poll_event(e)) {
+    }
     NodeTransmit t;
     while (n->poll_transmit(t)) {
-    }
-    NodeEvent e;
-    while (n->poll_event(e)) {
     }
   };
   n->handle_datagram("1:7:1:2:50001", 1, 10);
