@@ -359,7 +359,6 @@ class Program {
     }
     const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
     if (ep != nullptr) {
-      if (t.dest == ev3proto::Dest::master) master_peer_ = t.peer;
       net_.send(*ep, t.bytes, now);
     } else if (t.dest == ev3proto::Dest::master) {
       broadcast(t.bytes, now);
@@ -424,18 +423,16 @@ class Program {
       rt_->control(ev3proto::ControlKind::stop, "", nullptr, 0, now);
       log_.log(kInfo, "behaviour stopped, motors stopped");
     }
-    if (!state_failed_ && ev3proto::is_synced(node_->agent().state())) {
-      // The protocol has no "leaving" message: an EVENT named LEAVING tells the master.
-      char buf[64];
-      const std::string_view p[1] = {"LEAVING"};
-      const auto r = ev3proto::encode_parts(node_->agent().id(), ev3proto::kMasterId, node_->agent().next_msgid(),
-                                            static_cast<std::uint8_t>(ev3proto::MsgType::EVENT), p, 1, buf,
-                                            sizeof buf);
-      const ev3io::Endpoint* ep = net_.endpoint_of(master_peer_);
-      if (r.ok() && ep != nullptr) {
-        net_.send(*ep, std::string_view(buf, r.size), now);
-        log_.log(kInfo, "told the master: EVENT LEAVING");
-      }
+    // The node's EVENT(LEAVING) tells the master (no leave message in the protocol); not after a
+    // failed state write: nothing is sent then.
+    if (!state_failed_ && node_->leaving(now)) {
+      bool sent = false;
+      node_->ready([this](const ev3proto::Durable& d) { return save_state(d); },
+                   [this, now, &sent](const ev3proto::NodeTransmit& t) {
+                     send(t, now);
+                     sent = true;
+                   });
+      if (sent) log_.log(kInfo, "told the master: EVENT LEAVING");
     }
     net_.flush_all();
     log_.log(kInfo, "drops: %s", counters_line(drops_).c_str());
@@ -529,7 +526,6 @@ class Program {
   std::optional<Link> link_;
   bool battery_exit_ = false;
   bool state_failed_ = false;  // a durable state write failed: nothing more is sent
-  ev3proto::Peer master_peer_ = 0;  // the master's handle, as the core last sent to it
   std::map<std::string, std::uint64_t> drops_;
   bool drops_changed_ = false;
   // election

@@ -192,6 +192,8 @@ class Node {
   }
   /// The battery is low (agent core battery_low).
   bool battery_low(Millis now) { return after(agent_.battery_low(now), now); }
+  /// The program is about to exit: EVENT(LEAVING) to the master when synced (agent core leaving).
+  bool leaving(Millis now) { return after(agent_.leaving(now), now); }
 
   /// An operator command for the fleet this node is master of (agent id, 0 = all; the Master
   /// core's MasterCommand). False (nothing done) unless a Master core runs as master.
