@@ -329,3 +329,10 @@ def test_bad_flag_exits_2_naming_it(agent_exe, args, named):
 def test_help(agent_exe):
     r = subprocess.run([str(agent_exe), "--help"], capture_output=True, text=True, timeout=5)
     assert r.returncode == 0 and "--sysfs-root" in r.stdout and "--broadcast" in r.stdout
+    # the prose names what the program has: model A's behaviours (as its driver reports them), the
+    # driver mode, the exit statuses
+    facts = subprocess.run([str(agent_exe), "--driver"], input='{"type":"facts"}\n', capture_output=True,
+                           text=True, timeout=5)
+    names = [b["name"] for b in json.loads(facts.stdout.splitlines()[0])["facts"]["behaviours"]]
+    assert names and all(n in r.stdout for n in names), (names, r.stdout)
+    assert "--driver" in r.stdout and "Exit status" in r.stdout
