@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from ev3net import HB, LOSS, PAUSED, SYNC, T, show, wait_until
+from ev3net import HB, LOSS, PAUSED, SYNC, T, Message, show, wait_until
 
 ID = 2
 
@@ -241,6 +241,25 @@ def test_sigterm_tells_the_master_and_exits_0(working, tm):
     assert e.params == (b"LEAVING",) and e.sender == ID
     log = (working.err_path.parent / "agent.log").read_text()
     assert "stopping (signal 15)" in log and "behaviour stopped" in log
+
+
+def test_a_failed_state_write_stops_the_agent_sending_nothing_more(start_agent, programs, tm, tmp_path):
+    # DIR/ev3-agent.state.tmp a directory: the write of the election state fails (temp file first)
+    (tmp_path / "s" / "ev3-agent.state.tmp").mkdir(parents=True)
+    p = start_agent("--election", "--state-dir", str(tmp_path / "s"))
+    tm.sync(ID)
+    tm.wait_state(ID, "ACTIVE")
+    mark = tm.mark()
+    # the PC's LEADER lists the agent: the membership it learns is durable, and cannot be written
+    tm.send(Message(1, 0, tm.next_msgid(), 29, (b"1", b"1", str(ID).encode())), tm.agent_port)  # LEADER
+    assert p.proc.wait(3) == 1
+    programs.remove(p)  # it exited by itself, with status 1
+    p.close()
+    assert "the election state is not on disk: sending nothing more, exiting" in p.stderr()
+    log = (tmp_path / "agent.log").read_text()
+    assert "stopping: the state file could not be written" in log
+    assert not [m for _, m, _ in tm.received(mark) if m.type == T["EVENT"]], "no EVENT LEAVING after the failure"
+    assert not (tmp_path / "s" / "ev3-agent.state").exists()
 
 
 def test_sigint_exits_0(start_agent):
