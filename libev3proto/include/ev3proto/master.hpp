@@ -6,7 +6,8 @@
 /// operator events and the next deadline out. The master runs on a PC (or a robot acting as one),
 /// so it may allocate. Ids 2..49999 are handed out in order and never reused within a run; pass the
 /// last run's next_id / next_msgid back in (stable storage) after a restart, as MasterLogic's
-/// CrashMaster keeps nextId and msgid.
+/// CrashMaster keeps nextId and msgid: ready(write, send) hands them over (MasterDurable, with a
+/// reserved msgid block) before the datagrams that depend on them.
 #pragma once
 
 #include <cstddef>

@@ -7,9 +7,10 @@
 /// the decoded Message). After every input the node compares what the agent core reports with
 /// what it reported last (the durable state by its revision, Agent::durable_rev()) and emits an
 /// event for each change, as etcd raft's Ready carries HardState
-/// and SoftState only when they changed: `durable` (epoch, votedFor and the membership known:
-/// write them to stable storage before sending what the same call queued), `role`, `leader` (leader, following, via), `relays`,
-/// and `master_started` / `master_stopped` for the Master core. docs/core.md "The node".
+/// and SoftState only when they changed: `durable` (epoch, votedFor and the membership known),
+/// `role`, `leader` (leader, following, via), `relays`, and `master_started` / `master_stopped` for
+/// the Master core. ready(write, send) hands the program the durable state to write, then the
+/// datagrams, in that order (raft's Ready). docs/core.md "The node".
 ///
 /// Memory: the agent core and the window are inline (no heap). The Master core allocates (its
 /// registry is a std::map): a node allocates only while it runs one, i.e. after winning an epoch.
