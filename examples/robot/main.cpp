@@ -203,9 +203,10 @@ class Robot {
     return c;
   }
 
-  // Everything the last call into the node or the runtime gave: node events and the runtime's
-  // writes, then the node's ready(): the durable state on disk first, then the datagrams that call
-  // queued. A failed write sends nothing, and the robot stops.
+  // Everything the last call into the node or the runtime gave: node events (a durable change
+  // written as it comes) and the runtime's writes, then the node's ready(): whatever durable state is
+  // still due on disk first, then the datagrams that call queued. A failed write sends nothing, and
+  // the robot stops.
   void pump(Millis now) {
     link_.settle(
         node_, rt_, now, [this](const ev3proto::NodeEvent& e) { on_event(e); }, [this] { write_devices(); },
@@ -241,6 +242,9 @@ class Robot {
     const auto& a = node_.agent();
     switch (e.kind) {
       case K::state: std::printf("state %s (id %u)\n", str(to_string(e.state)).c_str(), a.id()); break;
+      case K::durable:  // written now, so the lines read in order; ready() would write it before sending anyway
+        if (!node_.persist([this](const Durable& d) { return write_state(d); })) failed_ = true;
+        break;
       case K::role: std::printf("election: role %s in epoch %u\n", str(to_string(e.role)).c_str(), e.epoch); break;
       case K::leader:
         if (e.leader != 0)
@@ -249,7 +253,7 @@ class Robot {
         break;
       case K::master_started: std::printf("master of epoch %u: running a Master core\n", e.epoch); break;
       case K::master_stopped: std::printf("master of epoch %u: stepped down\n", e.epoch); break;
-      default: break;  // led and control are the runtime's (robot_link.hpp); durable is ready()'s; relays
+      default: break;  // led and control are the runtime's (robot_link.hpp); relays
     }
   }
 

@@ -216,12 +216,20 @@ class Node {
   /// datagram whose durable state (a VOTE's votedFor) is not on stable storage.
   template <typename Write, typename Send>
   bool ready(Write&& write, Send&& send) {
-    if (agent_.durable_rev() != written_rev_) {
-      if (!write(static_cast<const Durable&>(agent_.durable()))) return false;
-      written_rev_ = handed_rev_ = agent_.durable_rev();
-    }
+    if (!persist(write)) return false;
     NodeTransmit t;
     while (poll_transmit(t)) send(static_cast<const NodeTransmit&>(t));
+    return true;
+  }
+
+  /// ready()'s first half: @p write gets the durable state when it changed since the last write.
+  /// True when nothing was due or the write succeeded. For a program that writes as the `durable`
+  /// event comes, so that its log reads in event order; ready() still writes first whatever is due.
+  template <typename Write>
+  bool persist(Write&& write) {
+    if (agent_.durable_rev() == written_rev_) return true;
+    if (!write(static_cast<const Durable&>(agent_.durable()))) return false;
+    written_rev_ = handed_rev_ = agent_.durable_rev();
     return true;
   }
 

@@ -224,6 +224,12 @@ TEST(Node, ReadyWritesTheVoteBeforeSendingIt) {
   EXPECT_TRUE(n.ready(write, send));
   EXPECT_TRUE(done.empty()) << "nothing changed: nothing written, nothing sent";
   EXPECT_EQ(n.unrouted().to_master, 0u);
+  // persist(): the write alone, as the durable event comes; ready() then only sends.
+  n.handle_datagram("8:0:10:27:4:1:1", 8, 4001);  // ELECT(4): the vote for 8
+  EXPECT_TRUE(n.persist(write));
+  EXPECT_EQ(done, (std::vector<std::string>{"write 4/8"}));
+  EXPECT_TRUE(n.ready(write, send));
+  EXPECT_EQ(done, (std::vector<std::string>{"write 4/8", "7->8 VOTE #8 4 8"}));
 }
 
 }  // namespace
