@@ -18,7 +18,8 @@ std::vector<ev3io::OptionSpec> specs() {
       {"sync-timeout-ms", "N", "IDLE without MASTER this long -> PANIC (default 10000)", false},
       {"election", "", "relay and master election on (off by default: one master, the PC)", false},
       {"score", "N", "election score, lower = stands first and wins (default: from the capabilities)", false},
-      {"state-dir", "DIR", "keep the election state (epoch, vote) in DIR/ev3-agent.state (default: none, in memory only)", false},
+      {"state-dir", "DIR", "keep the election state (epoch, vote, membership, floor) in DIR/ev3-agent.state, written before "
+                           "what depends on it is sent; a failed write stops the agent with status 1 (default: none, in memory only)", false},
       {"master-script", "FILE", "console commands (as ev3-master --script) run when this agent is elected master", false},
   });
   return s;
@@ -33,13 +34,16 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
   if (a.help) {
     message = ev3io::usage(
         "usage: ev3-agent [--port N] [--model NAME] [--broadcast HOST:PORT ...] [options]\n"
-        "       ev3-agent port=12233 model=A loglevel=2      (the thesis' form)\n\n"
+        "       ev3-agent port=12233 model=A loglevel=2      (the thesis' form: key=value, '_' for '-')\n"
+        "       ev3-agent --driver [--trace FILE]            (the core driven by JSON lines on stdin)\n\n"
         "One EV3 robot of the fleet: syncs with a master over UDP, answers its commands and runs\n"
-        "model A's devices under --sysfs-root (a brick's /sys, or ev3-sim) with the built-in behaviours\n"
-        "'drive speed=N [stop=coast|brake|hold]' and 'wait seconds=N'; the LEDs show the lifecycle,\n"
-        "robot events go to the master. SIGINT/SIGTERM stop it cleanly; so does a low battery.\n"
+        "model A's devices under --sysfs-root (a brick's /sys, or ev3-sim) with model A's behaviours\n"
+        "wait, drive, explore, exploit and custom (a definition sent in BEHAVIOUR); without ev3dev's\n"
+        "devices there it announces none and runs only 'wait'. The LEDs show the lifecycle, robot\n"
+        "events go to the master. SIGINT/SIGTERM stop it cleanly; so does a low battery.\n"
         "With --election it relays for peers that lost the master and, when the master is gone,\n"
-        "takes part in electing a new one (possibly itself: it then runs a master for the fleet).",
+        "takes part in electing a new one (possibly itself: it then runs a master for the fleet).\n"
+        "Exit status: 0 stopped, 1 the socket or a state write failed, 2 a bad flag or a file it cannot use.",
         sp);
     return ParseOutcome::help;
   }

@@ -1,5 +1,5 @@
 // ev3-agent: one robot of the fleet. The I/O around the robot node (libev3proto node.hpp: the agent
-// core, and the Master core it runs while elected) and the robot runtime (robot/runtime.hpp: model
+// core, and the Master core it runs while elected) and the robot runtime (robot_runtime.hpp: model
 // A's devices, actions, events, LEDs), linked by robot_link.hpp: a UDP socket, ev3dev's sysfs
 // through the device layer (io/ev3io/devices.hpp, robot_io.hpp), one event loop (ppoll) that sleeps
 // until the next datagram or the earliest deadline (node, runtime tick, device scan, copy sends,
@@ -149,9 +149,9 @@ class Program {
                 robot::kModelADeviceNames, std::size(robot::kModelADeviceNames)};
     cfg.check = robot::behaviour_check(*rt_);
     cfg.timers = opt_.timers;
-    const std::uint64_t r = random_u64();
-    cfg.temp_id = static_cast<std::uint16_t>(ev3proto::kFirstTempId + r % 15536u);
-    cfg.first_msgid = static_cast<std::uint32_t>(1 + (r >> 20) % 1000000000u);
+    const ev3proto::StartIds ids = ev3proto::draw_start_ids(random_u64());
+    cfg.temp_id = ids.temp_id;
+    cfg.first_msgid = ids.first_msgid;
     cfg.election.enabled = opt_.election;
     if (opt_.election) cfg.election.score = opt_.score;
     if (!load_state(cfg.election)) return 2;
@@ -186,7 +186,7 @@ class Program {
     log_.flush();
     loop();
     shutdown();
-    return 0;
+    return state_failed_ ? 1 : 0;
   }
 
   /// What the device layer found at start (and the LEDs / battery), for the log.
@@ -251,7 +251,7 @@ class Program {
  private:
   void loop() {
     Millis next_summary = ev3io::monotonic_ms() + 5000;
-    while (signals_.stop_signal() == 0) {
+    while (signals_.stop_signal() == 0 && !state_failed_) {
       // At most Receiver::kBatch datagrams, then the device scan, the robot's tick, the node's
       // deadlines and the copies due.
       const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
@@ -321,32 +321,19 @@ class Program {
     pump(now);
   }
 
-  /// Drains the node's and the runtime's outputs after every call into either: node events first
-  /// (a durable change is on disk before anything the call queued is sent: a VOTE must not outlive
-  /// its votedFor), the LED pattern and behaviour controls to the runtime, its device writes made,
-  /// its results / events / reports to the node (robot_link.hpp settle), then the datagrams.
+  /// Drains the node's and the runtime's outputs after every call into either: node events (the
+  /// LED pattern and behaviour controls to the runtime, its device writes made, its results /
+  /// events / reports to the node: robot_link.hpp settle), then the node's ready(): the durable
+  /// state written, then the datagrams. A failed write stops the agent: nothing more is sent (a
+  /// VOTE must not go out without its votedFor on disk).
   void pump(Millis now) {
     link_->settle(
         *node_, *rt_, now, [this, now](const ev3proto::NodeEvent& e) { on_event(e, now); },
         [this, now] { rio_.flush(*rt_, now); }, [this](const robot::LinkNote& n) { on_note(n); });
-    ev3proto::NodeTransmit t;
-    while (node_->poll_transmit(t)) {
-      log_.log(kDebug, "%ssend %s to %s", t.from_master_core ? "master core: " : "", printable(t.bytes).c_str(),
-               std::string(to_string(t.dest)).c_str());
-      if (t.dest == ev3proto::Dest::broadcast) {
-        broadcast(t.bytes, now);
-        continue;
-      }
-      const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
-      if (ep != nullptr) {
-        if (t.dest == ev3proto::Dest::master) master_peer_ = t.peer;
-        net_.send(*ep, t.bytes, now);
-      } else if (t.dest == ev3proto::Dest::master) {
-        broadcast(t.bytes, now);  // no master address yet: as before, to everyone
-      } else {
-        drop("unknown_peer", t.bytes);
-      }
-    }
+    if (state_failed_) return;
+    state_failed_ = !node_->ready([this](const ev3proto::Durable& d) { return save_state(d); },
+                                  [this, now](const ev3proto::NodeTransmit& t) { send(t, now); });
+    if (state_failed_) return;
     ev3proto::OperatorEvent oe;
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (node_->poll_operator_event(oe)) {
@@ -361,6 +348,25 @@ class Program {
     if (!ruled.empty()) pump(now);
   }
 
+  /// One datagram of the node's: to its peer's address; one for the master whose address is not
+  /// known yet to everyone (the node counts those: unrouted()).
+  void send(const ev3proto::NodeTransmit& t, Millis now) {
+    log_.log(kDebug, "%ssend %s to %s", t.from_master_core ? "master core: " : "", printable(t.bytes).c_str(),
+             std::string(to_string(t.dest)).c_str());
+    if (t.dest == ev3proto::Dest::broadcast) {
+      broadcast(t.bytes, now);
+      return;
+    }
+    const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
+    if (ep != nullptr) {
+      net_.send(*ep, t.bytes, now);
+    } else if (t.dest == ev3proto::Dest::master) {
+      broadcast(t.bytes, now);
+    } else {
+      drop("unknown_peer", t.bytes);
+    }
+  }
+
   void on_event(const ev3proto::NodeEvent& e, Millis now) {
     const ev3agent::AgentCore& a = node_->agent();
     using K = ev3proto::NodeEvent::Kind;
@@ -370,8 +376,7 @@ class Program {
       case K::state: log_.log(kInfo, "state %s (id %u)", std::string(to_string(e.state)).c_str(), a.id()); break;
       case K::led:
       case K::control: break;  // the runtime's (robot_link.hpp)
-      case K::durable:
-        save_state(e.durable);
+      case K::durable:  // written by ready() (pump)
         if (e.durable.epoch != e.previous.epoch)
           log_.log(kInfo, "epoch %u (was %u)", e.durable.epoch, e.previous.epoch);
         break;
@@ -412,26 +417,28 @@ class Program {
 
   void shutdown() {
     const Millis now = ev3io::monotonic_ms();
-    if (!battery_exit_) log_.log(kInfo, "stopping (signal %d)", signals_.stop_signal());
+    if (state_failed_) log_.log(kError, "stopping: the state file could not be written");
+    else if (!battery_exit_) log_.log(kInfo, "stopping (signal %d)", signals_.stop_signal());
     if (rt_->busy()) {
       rt_->control(ev3proto::ControlKind::stop, "", nullptr, 0, now);
       log_.log(kInfo, "behaviour stopped, motors stopped");
     }
-    if (ev3proto::is_synced(node_->agent().state())) {
-      // The protocol has no "leaving" message: an EVENT named LEAVING tells the master.
-      char buf[64];
-      const std::string_view p[1] = {"LEAVING"};
-      const auto r = ev3proto::encode_parts(node_->agent().id(), ev3proto::kMasterId, node_->agent().next_msgid(),
-                                            static_cast<std::uint8_t>(ev3proto::MsgType::EVENT), p, 1, buf,
-                                            sizeof buf);
-      const ev3io::Endpoint* ep = net_.endpoint_of(master_peer_);
-      if (r.ok() && ep != nullptr) {
-        net_.send(*ep, std::string_view(buf, r.size), now);
-        log_.log(kInfo, "told the master: EVENT LEAVING");
-      }
+    // The node's EVENT(LEAVING) tells the master (no leave message in the protocol); not after a
+    // failed state write: nothing is sent then.
+    if (!state_failed_ && node_->leaving(now)) {
+      bool sent = false;
+      node_->ready([this](const ev3proto::Durable& d) { return save_state(d); },
+                   [this, now, &sent](const ev3proto::NodeTransmit& t) {
+                     send(t, now);
+                     sent = true;
+                   });
+      if (sent) log_.log(kInfo, "told the master: EVENT LEAVING");
     }
     net_.flush_all();
     log_.log(kInfo, "drops: %s", counters_line(drops_).c_str());
+    const auto& u = node_->unrouted();
+    log_.log(kInfo, "unrouted: %u for the master before its address was known (broadcast), %u for a peer with no "
+             "address (dropped)", u.to_master, u.to_peer);
     rt_->led(ev3proto::Led::DARK);
     rio_.flush(*rt_, now);
     const ev3io::RobotIo::Stats& st = rio_.stats();
@@ -467,14 +474,19 @@ class Program {
     return true;
   }
 
-  /// Writes the election state (epoch, voted_for, the membership) the node reported changed.
-  void save_state(const ev3proto::Durable& d) {
+  /// Writes the election state (epoch, voted_for, the membership) the node's ready() hands over;
+  /// false when it is not on disk (then the agent sends nothing more and exits with status 1).
+  bool save_state(const ev3proto::Durable& d) {
     const std::string members(ev3proto::IdListText().ids(d.members, d.member_count).view());
     log_.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
              members.c_str(), d.mepoch, d.floor);
-    if (state_path_.empty()) return;
+    if (state_path_.empty()) return true;
     std::string err;
-    if (!ev3io::write_state_file(state_path_, ev3proto::durable_text(d).view(), err)) log_.log(kError, "%s", err.c_str());
+    if (ev3io::write_state_file(state_path_, ev3proto::durable_text(d).view(), err)) return true;
+    log_.log(kError, "%s; the election state is not on disk: sending nothing more, exiting", err.c_str());
+    std::fprintf(stderr, "ev3-agent: %s; the election state is not on disk: sending nothing more, exiting\n",
+                 err.c_str());
+    return false;
   }
 
   /// --master-script: console commands for the Master core, from the moment this agent won.
@@ -513,9 +525,9 @@ class Program {
   std::optional<robot::Runtime> rt_;
   std::optional<Link> link_;
   bool battery_exit_ = false;
+  bool state_failed_ = false;  // a durable state write failed: nothing more is sent
   std::map<std::string, std::uint64_t> drops_;
   bool drops_changed_ = false;
-  ev3proto::Peer master_peer_ = 0;  // the master's handle, as the core last sent to it
   // election
   std::string state_path_;
   std::optional<ev3proto::NdjsonTrace> mtrace_;  // the Master core's records (--trace)

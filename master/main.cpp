@@ -39,9 +39,6 @@ using MasterCore = ev3proto::Master<ev3proto::NdjsonTrace>;
 constexpr Millis kStatusEveryMs = 500;
 constexpr Millis kRedrawEveryMs = 500;
 constexpr int kTableRows = 14;
-// --state-file: msgids are reserved in blocks (the file holds the end of the block in use), so a
-// restarted master continues above every msgid it may have sent without a write per datagram.
-constexpr std::uint32_t kMsgidBlock = 4096;
 
 /// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
 /// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
@@ -76,13 +73,14 @@ class Program {
     cfg.max_resends = opt_.max_resends;
     cfg.election = opt_.election;
     cfg.drop_copies = true;  // every datagram arrives 3 times (the transport's copies)
+    cfg.durable_first = true;  // no datagram but through ready(), after its state is written
     // Without a state file to continue from, msgids start from the wall clock, above what an earlier
     // run sent (agents ignore a command below one they remember: ev3proto/msgids.hpp).
     cfg.next_msgid = ev3proto::master_msgid_seed(ev3io::wall_ms());
     std::string restored;
     if (!load_state(cfg, restored)) return 2;
     master_.emplace(cfg, start_, trace_file_.is_open() ? &trace_ : nullptr);
-    save_state(true);
+    ready(start_);  // the state file written at once (nothing is queued yet)
     listening_ = net_.local().str();
     log_.log(kInfo, "listening on %s", listening_.c_str());
     log_.flush();
@@ -149,21 +147,30 @@ class Program {
     }
   }
 
+  /// The core's ready(): the state file written (ids, msgids, epoch, membership), then what the
+  /// calls queued sent.
+  void ready(Millis now) {
+    master_->ready([this](const ev3proto::MasterDurable& d) { return save_state(d); },
+                   [this, now](const ev3proto::MasterTransmit& t) {
+                     if (t.dest == ev3proto::Dest::broadcast) {  // ELECT, LEADER
+                       log_.log(kDebug, "send %s to everyone", t.bytes.c_str());
+                       for (const auto& b : opt_.common.broadcast) net_.send(b, t.bytes, now);
+                       return;
+                     }
+                     const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
+                     if (ep == nullptr) {
+                       drop("no_route");
+                       log_.log(kVerbose, "drop (no_route): no address for peer %u", static_cast<unsigned>(t.peer));
+                       return;
+                     }
+                     log_.log(kDebug, "send %s to %s", t.bytes.c_str(), ep->str().c_str());
+                     net_.send(*ep, t.bytes, now);
+                   });
+  }
+
   void pump(Millis now) {
-    save_state(false);  // before what this call queued goes out (ids, msgids, epoch)
     election_changes();
-    ev3proto::MasterTransmit t;
-    while (master_->poll_transmit(t)) {
-      if (t.dest == ev3proto::Dest::broadcast) {  // ELECT, LEADER
-        log_.log(kDebug, "send %s to everyone", t.bytes.c_str());
-        for (const auto& b : opt_.common.broadcast) net_.send(b, t.bytes, now);
-        continue;
-      }
-      const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
-      if (ep == nullptr) continue;
-      log_.log(kDebug, "send %s to %s", t.bytes.c_str(), ep->str().c_str());
-      net_.send(*ep, t.bytes, now);
-    }
+    ready(now);
     ev3proto::OperatorEvent e;
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (master_->poll_event(e)) {
@@ -343,34 +350,16 @@ class Program {
     return true;
   }
 
-  /// Writes the state file when next id, epoch or the membership of the epoch (published(), with its
-  /// epoch; not the fleet wanted, members()) changed or the msgid block is used up.
-  void save_state(bool force) {
-    if (opt_.state_file.empty()) return;
-    const bool same = master_->next_id() == saved_id_ && master_->epoch() == saved_epoch_ &&
-                      ev3proto::msgid_newer(msgid_limit_, master_->next_msgid() + kMsgidBlock / 2);
-    if (!force && same && master_->members_rev() == saved_rev_) return;  // no walk per datagram
-    saved_rev_ = master_->members_rev();
-    const std::vector<std::uint16_t>& published = master_->published();
-    ev3proto::MasterDurable d;
-    d.members_epoch = master_->published_epoch();
-    for (std::uint16_t id : published)
-      if (d.member_count < ev3proto::kMaxMembership) d.members[d.member_count++] = id;
-    const std::string members =
-        std::string(ev3proto::IdListText().ids(d.members, d.member_count).view()) + "@" + std::to_string(d.members_epoch);
-    if (!force && same && members == saved_members_) return;
-    msgid_limit_ = master_->next_msgid() + kMsgidBlock;
-    saved_id_ = master_->next_id();
-    saved_epoch_ = master_->epoch();
-    saved_members_ = members;
-    d.next_id = saved_id_;
-    d.next_msgid = msgid_limit_;
-    d.epoch = saved_epoch_;
+  /// Writes the state the core's ready() hands over (--state-file). A failed write is logged once
+  /// and the master goes on sending: its state file may then be behind (docs/programs.md).
+  bool save_state(const ev3proto::MasterDurable& d) {
+    if (opt_.state_file.empty()) return true;
     std::string err;
     if (!ev3io::write_state_file(opt_.state_file, ev3proto::durable_text(d).view(), err) && !state_warned_) {
       log_.log(kError, "%s", err.c_str());
       state_warned_ = true;
     }
+    return true;
   }
 
   /// Election observers (role, epoch, handover): one console line per change.
@@ -408,10 +397,6 @@ class Program {
   bool tty_ = false, stdin_open_ = true, quit_ = false, dirty_ = false, status_warned_ = false;
   int rows_ = 24;
   // --state-file, election
-  std::uint16_t saved_id_ = 0;
-  std::uint32_t saved_epoch_ = 0, msgid_limit_ = 0;
-  std::uint64_t saved_rev_ = 0;
-  std::string saved_members_;
   bool state_warned_ = false;
   std::uint32_t handovers_ = 0, seen_handovers_ = 0;  // HANDOVERs taken, and said
   ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;

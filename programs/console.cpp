@@ -271,7 +271,6 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
 std::string FleetView::set_rule(const ConsoleCommand& c) {
   if (c.colour.empty()) {
     explore_exploit_.switch_off();
-    switched_.clear();
     return "rule explore-exploit off";
   }
   const std::string err = explore_exploit_.switch_on(c.colour, c.rule_args);
@@ -286,11 +285,8 @@ std::optional<FleetView::RuleCommand> FleetView::follow_rules(
     const ev3proto::OperatorEvent& e, const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg) {
   const auto it = reg.find(e.agent);
   if (it == reg.end()) return std::nullopt;
-  if (it->second.behaviour != "explore") switched_.erase(e.agent);  // a robot told to explore again
-  if (switched_.count(e.agent) != 0) return std::nullopt;           // sent, not acknowledged yet
-  std::optional<ev3proto::Command> c = explore_exploit_.on_report(e, it->second);
+  std::optional<ev3proto::Command> c = explore_exploit_.on_report(e, it->second);  // once per explore run
   if (!c) return std::nullopt;
-  switched_.insert(e.agent);
   std::string args;
   for (const std::string& a : c->args) args += " " + a;
   return RuleCommand{e.agent, std::move(*c),

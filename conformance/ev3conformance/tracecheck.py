@@ -17,6 +17,11 @@ A trace that cannot show anything is an error, never a pass: an empty trace, one
 the node asked for (another node's trace), a line that is not JSON, a record without an action, a
 datagram that does not decode. A last line cut by a kill (SIGKILL: the programs write through stdio)
 is left out, and the result says so.
+
+A record of an action the spec abstracts as a step of no node (BEYOND_SPEC: an agent's EVENT LEAVING
+as its program exits, Agent::leaving) is checked here and left out of what TLC walks: it must be
+that node's last record and change nothing but its msgid. The datagram it sent is then one no
+record of the walk sent (merged counts it as such).
 """
 
 from __future__ import annotations
@@ -39,6 +44,8 @@ TRACE_SPEC = gr.SPEC / "trace"
 
 AGENT_VARS = ["state", "led", "id", "beh", "step", "wait", "motors", "devOk", "silence", "clk", "win"]
 REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTION_ERR"}
+# Actions of the cores no spec step stands for (docs/core.md "Trace"): left out of the walk.
+BEYOND_SPEC = {"Leave"}
 
 
 
@@ -77,6 +84,7 @@ class TraceFile:
     records: list[dict]
     cut: int = 0                      # bytes of a last line cut by a kill (left out), or 0
     nodes: Counter = field(default_factory=Counter)   # records per node
+    beyond: Counter = field(default_factory=Counter)  # BEYOND_SPEC records left out, per node
 
 
 def read_trace(path: Path) -> TraceFile:
@@ -107,8 +115,17 @@ def read_trace(path: Path) -> TraceFile:
         for k in ("args", "changed"):
             if not isinstance(r.get(k, {}), dict):
                 raise TraceError(f"line {i + 1}: \"{k}\" is not an object: {line[:120]!r}")
+        node = str(r.get("node", ""))
+        if out.beyond[node]:
+            raise TraceError(f"line {i + 1}: a record of node {node} after its {'/'.join(sorted(BEYOND_SPEC))} "
+                             f"record (that one is a node's last)")
+        if r["action"] in BEYOND_SPEC:
+            if set(r.get("changed", {})) - {"msgid"}:
+                raise TraceError(f"line {i + 1}: a {r['action']} record changes more than the msgid: {line[:120]!r}")
+            out.beyond[node] += 1
+            continue
         out.records.append(r)
-        out.nodes[str(r.get("node", ""))] += 1
+        out.nodes[node] += 1
     return out
 
 

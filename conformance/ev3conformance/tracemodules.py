@@ -20,7 +20,7 @@ def _sany(modules: list[str], cwd: Path) -> str | None:
     """SANY on @p modules in @p cwd: None, or its report of the first module with errors."""
     md = tempfile.mkdtemp(prefix="sany-", dir=cwd)
     try:
-        p = subprocess.run(gr.JAVA + [f"-Djava.io.tmpdir={md}", "-cp", str(gr.JAR), "tla2sany.SANY"] + modules,
+        p = subprocess.run(gr.JAVA + gr.C1_ONLY + [f"-Djava.io.tmpdir={md}", "-cp", str(gr.JAR), "tla2sany.SANY"] + modules,
                            cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     finally:
         shutil.rmtree(md, ignore_errors=True)

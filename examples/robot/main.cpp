@@ -190,50 +190,60 @@ class Robot {
                     std::size(robot::kModelADeviceNames)};
     c.agent.check = robot::behaviour_check(rt_);  // BEHAVIOUR is parsed and checked on receipt
     c.agent.timers = opt_.timers;
-    std::uint64_t r = 0;  // the temporary id and the first msgid: random
+    std::uint64_t r = 0;  // the temporary id and the first msgid: drawn by the library from random bits
     const int fd = open("/dev/urandom", O_RDONLY | O_CLOEXEC);
     if (fd < 0 || read(fd, &r, sizeof r) != static_cast<ssize_t>(sizeof r))
       r = now_ms() ^ static_cast<unsigned>(getpid());
     if (fd >= 0) close(fd);
-    c.agent.temp_id = static_cast<std::uint16_t>(ev3proto::kFirstTempId + r % 15536u);
-    c.agent.first_msgid = static_cast<std::uint32_t>(1 + (r >> 16) % 1000000000u);
+    const ev3proto::StartIds ids = ev3proto::draw_start_ids(r);
+    c.agent.temp_id = ids.temp_id;
+    c.agent.first_msgid = ids.first_msgid;
     c.agent.election.enabled = true;  // relay and election: a robot may become the fleet's master
     c.agent.election.durable = d;
     return c;
   }
 
-  // Everything the last call into the node or the runtime gave: node events first (the durable
-  // state on disk before anything that call queued is sent), the runtime's writes, then datagrams.
+  // Everything the last call into the node or the runtime gave: node events (a durable change
+  // written as it comes) and the runtime's writes, then the node's ready(): whatever durable state is
+  // still due on disk first, then the datagrams that call queued. A failed write sends nothing, and
+  // the robot stops.
   void pump(Millis now) {
     link_.settle(
         node_, rt_, now, [this](const ev3proto::NodeEvent& e) { on_event(e); }, [this] { write_devices(); },
         [this](const robot::LinkNote& n) { on_note(n); });
-    ev3proto::NodeTransmit t;
-    while (!failed_ && node_.poll_transmit(t)) {
-      const sockaddr_in* to = &opt_.broadcast;  // Dest::broadcast, or the master's address not known yet
-      if (t.dest != ev3proto::Dest::broadcast && t.peer >= 1 && t.peer <= peers_.size()) to = &peers_[t.peer - 1];
-      else if (t.dest == ev3proto::Dest::peer) continue;
-      for (int copy = 0; copy < 3; ++copy)  // 3 copies (docs/protocol.md "Duplicates and stale copies")
-        sendto(fd_, t.bytes.data(), t.bytes.size(), 0, reinterpret_cast<const sockaddr*>(to), sizeof *to);
-    }
+    if (failed_) return;
+    failed_ = !node_.ready([this](const Durable& d) { return write_state(d); },
+                           [this](const ev3proto::NodeTransmit& t) { send(t); });
     ev3proto::OperatorEvent o;  // the Master core's, while this robot is the elected master
     while (node_.poll_operator_event(o))
       std::printf("master: agent %u %s %s\n", o.agent, str(to_string(o.kind)).c_str(), o.text.c_str());
+  }
+
+  bool write_state(const Durable& d) {
+    if (!save_state(opt_.state, d)) {
+      std::printf("error: cannot write %s: %s; sending nothing more\n", opt_.state.c_str(), std::strerror(errno));
+      return false;
+    }
+    std::printf("durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u: written to %s\n", d.epoch,
+                d.voted_for, members_text(d).c_str(), d.mepoch, d.floor, opt_.state.c_str());
+    return true;
+  }
+
+  // A datagram to its peer; to everyone when broadcast, or for the master before its address is known.
+  void send(const ev3proto::NodeTransmit& t) {
+    const sockaddr_in* to = &opt_.broadcast;
+    if (t.dest != ev3proto::Dest::broadcast && t.peer >= 1 && t.peer <= peers_.size()) to = &peers_[t.peer - 1];
+    else if (t.dest == ev3proto::Dest::peer) return;  // no address: counted by the node (unrouted())
+    for (int copy = 0; copy < 3; ++copy)  // 3 copies (docs/protocol.md "Duplicates and stale copies")
+      sendto(fd_, t.bytes.data(), t.bytes.size(), 0, reinterpret_cast<const sockaddr*>(to), sizeof *to);
   }
 
   void on_event(const ev3proto::NodeEvent& e) {
     const auto& a = node_.agent();
     switch (e.kind) {
       case K::state: std::printf("state %s (id %u)\n", str(to_string(e.state)).c_str(), a.id()); break;
-      case K::durable:
-        if (!save_state(opt_.state, e.durable)) {
-          std::printf("error: cannot write %s: %s; sending nothing more\n", opt_.state.c_str(), std::strerror(errno));
-          failed_ = true;
-          break;
-        }
-        std::printf("durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u: written to %s\n",
-                    e.durable.epoch, e.durable.voted_for, members_text(e.durable).c_str(), e.durable.mepoch,
-                    e.durable.floor, opt_.state.c_str());
+      case K::durable:  // written now, so the lines read in order; ready() would write it before sending anyway
+        if (!node_.persist([this](const Durable& d) { return write_state(d); })) failed_ = true;
         break;
       case K::role: std::printf("election: role %s in epoch %u\n", str(to_string(e.role)).c_str(), e.epoch); break;
       case K::leader:

@@ -105,7 +105,6 @@ class FleetView {
   std::map<std::uint16_t, AgentInfo> info_;
   std::vector<LostAgent> lost_;
   ev3proto::ExploreExploit explore_exploit_;
-  std::set<std::uint16_t> switched_;  ///< agents the rule sent exploit to, until they explore no more
 };
 
 /// The state column of an entry: SYNCING until it ACKs MASTER, then the state of its last PING

@@ -234,6 +234,20 @@ class Agent {
     return true;
   }
 
+  /// The program is about to exit: EVENT(LEAVING) to the master, so it need not wait for the drop
+  /// timeout (the protocol has no leave message; the master shows it as a report). Nothing else
+  /// changes. Returns false (nothing sent) unless Synced and not OFF. Not a spec action: its trace
+  /// record (Action::Leave) shows the msgid it used; the trace checks pass over it.
+  bool leaving(Millis now) noexcept {
+    advance(now);
+    if (!is_synced(state_)) return false;
+    const AgentVars before = vars();
+    const std::string_view p[1] = {"LEAVING"};
+    emit(Dest::master, master_id(), MsgType::EVENT, p, 1);
+    record(Action::Leave, before, {}, "LEAVING", 0);
+    return true;
+  }
+
   // ---------------------------------------------------------------- outputs
 
   /// Takes the oldest datagram to send; false when there is none.
@@ -289,7 +303,7 @@ class Agent {
   const WindowType& window() const noexcept { return win_; }
   /// Datagrams that did not decode.
   std::uint32_t rejected() const noexcept { return rejected_; }
-  /// msgid the next datagram will carry (for a program's last message of its own at exit).
+  /// msgid the next datagram will carry.
   std::uint32_t next_msgid() const noexcept { return msgid_; }
   /// Datagrams or events dropped because the caller did not drain the queues.
   std::uint32_t overflowed() const noexcept { return overflowed_; }

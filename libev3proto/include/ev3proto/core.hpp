@@ -130,10 +130,12 @@ enum class Action : std::uint8_t {
   MasterRoute, MasterHandover,
   // Membership (Election.tla section Membership): agent side, then the PC's.
   ShareMembers, LearnMembers, Reconfigure,
+  // Agent-side extension the spec abstracts: the program's EVENT(LEAVING) as it exits (Agent::leaving).
+  Leave,
 };
 
 /// Number of actions.
-inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::Reconfigure) + 1;
+inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::Leave) + 1;
 
 /// The spec's name of an action ("RecvStart").
 constexpr std::string_view to_string(Action a) noexcept {
@@ -146,7 +148,7 @@ constexpr std::string_view to_string(Action a) noexcept {
       "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
       "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
       "Forward", "ApplyCommand", "GrantPreVote", "HandlePreVote", "MasterRoute", "MasterHandover",
-      "ShareMembers", "LearnMembers", "Reconfigure"};
+      "ShareMembers", "LearnMembers", "Reconfigure", "Leave"};
   const auto i = static_cast<std::size_t>(a);
   return i < kActionCount ? kNames[i] : std::string_view{};
 }

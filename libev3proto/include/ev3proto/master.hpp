@@ -6,7 +6,8 @@
 /// operator events and the next deadline out. The master runs on a PC (or a robot acting as one),
 /// so it may allocate. Ids 2..49999 are handed out in order and never reused within a run; pass the
 /// last run's next_id / next_msgid back in (stable storage) after a restart, as MasterLogic's
-/// CrashMaster keeps nextId and msgid.
+/// CrashMaster keeps nextId and msgid: ready(write, send) hands them over (MasterDurable, with a
+/// reserved msgid block) before the datagrams that depend on them.
 #pragma once
 
 #include <cstddef>
@@ -23,6 +24,7 @@
 #include "core.hpp"
 #include "deadline_list.hpp"
 #include "dedupe.hpp"
+#include "durable.hpp"
 #include "election/master.hpp"
 #include "master_registry.hpp"
 #include "messages.hpp"
@@ -50,6 +52,10 @@ struct MasterConfig {
   /// the last 4096. Off by default: MasterLogic has no window, every copy goes through its handler
   /// (the conformance driver). Programs turn it on: each datagram arrives 3 times.
   bool drop_copies = false;
+  /// Hold every datagram while the durable state (MasterDurable: next_id, epoch, the membership
+  /// published, the msgid block) changed and ready() has not had it written. Off by default (the
+  /// drivers and transcripts poll datagrams alone); programs with stable storage turn it on.
+  bool durable_first = false;
 
   /// The configuration for an agent that won epoch @p epoch with membership @p members (see
   /// Agent::master_epoch()): no new ids (AGENT from a temporary id is ignored), msgids from
@@ -290,9 +296,39 @@ class Master {
 
   // ---------------------------------------------------------------- outputs
 
-  /// Takes the oldest datagram to send; false when there is none.
+  /// What the calls since the last ready() left for the program, in the order it must be done (as
+  /// etcd raft's Ready): first @p write gets the durable state when it changed since the last write
+  /// (`bool write(const MasterDurable&)`: true once it is on stable storage), then @p send gets every
+  /// datagram (`void send(const MasterTransmit&)`). The durable state changes with next_id, the
+  /// epoch, the membership published (published(), published_epoch()), and when less than half of
+  /// the reserved msgid block is left: its next_msgid is the end of a block of kMsgidBlock msgids
+  /// reserved from next_msgid() on (MsgidReservation), so a master restarted from it continues
+  /// above every msgid it sent. The first ready() always writes. When @p write fails, nothing is
+  /// sent and false is returned: the datagrams stay queued and the next ready() writes again first.
+  template <typename Write, typename Send>
+  bool ready(Write&& write, Send&& send) {
+    if (durable_due()) {
+      MasterDurable d = durable();
+      d.next_msgid = MsgidReservation(reserved_).reserve(msgid_);
+      if (!write(static_cast<const MasterDurable&>(d))) return false;
+      reserved_.reserve(msgid_);
+      written_id_ = next_id_;
+      written_epoch_ = el_.epoch;
+      written_members_.assign(d.members, d.members + d.member_count);
+      written_mepoch_ = d.members_epoch;
+      written_rev_ = el_.members_rev;
+      written_ = true;
+    }
+    MasterTransmit t;
+    while (poll_transmit(t)) send(static_cast<const MasterTransmit&>(t));
+    return true;
+  }
+
+  /// Takes the oldest datagram to send; false when there is none, and with
+  /// MasterConfig::durable_first while ready() has a durable state to write first. Programs call
+  /// ready(); this is the step below it.
   bool poll_transmit(MasterTransmit& out) {
-    if (tx_.empty()) return false;
+    if (tx_.empty() || (cfg_.durable_first && durable_due())) return false;
     out = std::move(tx_.front());
     tx_.pop_front();
     return true;
@@ -349,6 +385,18 @@ class Master {
   }
   /// The epoch that published it (Election mepoch[PC]).
   std::uint32_t published_epoch() const noexcept { return el_.mepoch; }
+  /// What to keep on stable storage (durable.hpp: next_id, next_msgid, epoch, the membership
+  /// published and its epoch), next_msgid as it is now (ready() writes the end of a reserved block).
+  MasterDurable durable() const {
+    MasterDurable d;
+    d.next_id = next_id_;
+    d.next_msgid = msgid_;
+    d.epoch = el_.epoch;
+    d.members_epoch = el_.mepoch;
+    for (std::uint16_t id : el_.members)
+      if (d.member_count < kMaxMembership) d.members[d.member_count++] = id;
+    return d;
+  }
   /// Changes whenever members() or published() may have changed (a program persisting the
   /// membership compares this instead of building it after every datagram).
   std::uint64_t members_rev() const noexcept { return el_.members_rev; }
@@ -981,6 +1029,25 @@ class Master {
   Message rx_;
   MasterElection el_;  // Election.tla's variables of the master node, its rules (election/master.hpp)
   Message inner_;
+  // ready(): what was written last.
+  bool written_ = false;
+  std::uint16_t written_id_ = 0;
+  std::uint32_t written_epoch_ = 0, written_mepoch_ = 0;
+  std::vector<std::uint16_t> written_members_;
+  std::uint64_t written_rev_ = 0;  // el_.members_rev when the membership was last compared
+  MsgidReservation reserved_;
+
+  /// True when ready() must write before sending: the first time, or next_id, the epoch or the
+  /// membership published differ from what was written, or the msgid block runs low.
+  bool durable_due() {
+    if (!written_ || next_id_ != written_id_ || el_.epoch != written_epoch_ || reserved_.low(msgid_)) return true;
+    if (el_.members_rev == written_rev_) return false;  // no walk per datagram
+    const MasterDurable d = durable();
+    const bool same = d.members_epoch == written_mepoch_ &&
+                      std::equal(d.members, d.members + d.member_count, written_members_.begin(), written_members_.end());
+    if (same) written_rev_ = el_.members_rev;
+    return !same;
+  }
 };
 
 }  // namespace ev3proto

@@ -7,9 +7,10 @@
 /// the decoded Message). After every input the node compares what the agent core reports with
 /// what it reported last (the durable state by its revision, Agent::durable_rev()) and emits an
 /// event for each change, as etcd raft's Ready carries HardState
-/// and SoftState only when they changed: `durable` (epoch, votedFor and the membership known:
-/// write them to stable storage before sending what the same call queued), `role`, `leader` (leader, following, via), `relays`,
-/// and `master_started` / `master_stopped` for the Master core. docs/core.md "The node".
+/// and SoftState only when they changed: `durable` (epoch, votedFor and the membership known),
+/// `role`, `leader` (leader, following, via), `relays`, and `master_started` / `master_stopped` for
+/// the Master core. ready(write, send) hands the program the durable state to write, then the
+/// datagrams, in that order (raft's Ready). docs/core.md "The node".
 ///
 /// Memory: the agent core and the window are inline (no heap). The Master core allocates (its
 /// registry is a std::map): a node allocates only while it runs one, i.e. after winning an epoch.
@@ -76,6 +77,7 @@ struct NodeEvent {
   std::uint16_t via = 0;                   ///< leader
   std::uint32_t epoch = 0;                 ///< role (master), leader (following), master_started / _stopped
   bool handed_over = false;                ///< master_stopped: HANDOVER was sent to the new master
+  std::uint32_t rev = 0;                   ///< durable: the agent core's durable_rev() it is of
 };
 
 /// Spelling of a node event kind ("master_started").
@@ -115,13 +117,17 @@ class Node {
     /// The trace sink for the Master core this node runs as master of @p epoch with id @p id
     /// (nullptr or unset: none). Called when that core starts; the previous core is gone by then.
     std::function<MasterTrace*(std::uint16_t id, std::uint32_t epoch)> master_trace;
+    /// poll_transmit() gives no datagram while a durable change was handed out neither by ready()
+    /// nor as a `durable` event. Off only for a harness that drains datagrams from inside the
+    /// cores' trace hooks, before the node has seen the change (the multi-node transcripts).
+    bool durable_first = true;
   };
 
   /// A node in IDLE at @p now (the agent core's Init).
   Node(const Config& config, Millis now, AgentTrace* trace = nullptr)
       : cfg_(config), agent_(config.agent, now, trace) {
     seen_durable_ = agent_.durable();
-    seen_durable_rev_ = agent_.durable_rev();
+    seen_durable_rev_ = written_rev_ = handed_rev_ = agent_.durable_rev();
   }
 
   // ---------------------------------------------------------------- inputs
@@ -187,6 +193,8 @@ class Node {
   }
   /// The battery is low (agent core battery_low).
   bool battery_low(Millis now) { return after(agent_.battery_low(now), now); }
+  /// The program is about to exit: EVENT(LEAVING) to the master when synced (agent core leaving).
+  bool leaving(Millis now) { return after(agent_.leaving(now), now); }
 
   /// An operator command for the fleet this node is master of (agent id, 0 = all; the Master
   /// core's MasterCommand). False (nothing done) unless a Master core runs as master.
@@ -199,27 +207,42 @@ class Node {
 
   // ---------------------------------------------------------------- outputs
 
+  /// What the calls since the last ready() left for the program, in the order it must be done (as
+  /// etcd raft's Ready): first @p write gets the durable state when it changed since the last write
+  /// (`bool write(const Durable&)`: true once it is on stable storage), then @p send gets every
+  /// datagram (`void send(const NodeTransmit&)`). When @p write fails, nothing is sent and false is
+  /// returned: the datagrams stay queued (the oldest dropped when the queue is full) and the next
+  /// ready() writes again first. A program that calls ready() after every input never sends a
+  /// datagram whose durable state (a VOTE's votedFor) is not on stable storage.
+  template <typename Write, typename Send>
+  bool ready(Write&& write, Send&& send) {
+    if (!persist(write)) return false;
+    NodeTransmit t;
+    while (poll_transmit(t)) send(static_cast<const NodeTransmit&>(t));
+    return true;
+  }
+
+  /// ready()'s first half: @p write gets the durable state when it changed since the last write.
+  /// True when nothing was due or the write succeeded. For a program that writes as the `durable`
+  /// event comes, so that its log reads in event order; ready() still writes first whatever is due.
+  template <typename Write>
+  bool persist(Write&& write) {
+    if (agent_.durable_rev() == written_rev_) return true;
+    if (!write(static_cast<const Durable&>(agent_.durable()))) return false;
+    written_rev_ = handed_rev_ = agent_.durable_rev();
+    return true;
+  }
+
   /// Takes the next datagram to send: those a Master core dropped had not sent yet (its HANDOVER)
-  /// first, then the agent core's, then the running Master core's.
+  /// first, then the agent core's, then the running Master core's. None while the durable state
+  /// changed and was handed out neither as a `durable` event (poll_event) nor by ready(): the
+  /// program has not been told what to write before they go (Config::durable_first). Programs
+  /// call ready(); this is the step below it, for drivers that keep the order themselves.
   bool poll_transmit(NodeTransmit& out) {
-    if (!parting_.empty()) {
-      mtx_ = std::move(parting_.front().bytes);
-      out = NodeTransmit{parting_.front().dest, parting_.front().peer, mtx_, true};
-      parting_.erase(parting_.begin());  // a few at most
-      return true;
-    }
-    Transmit t;
-    if (agent_.poll_transmit(t)) {
-      out = NodeTransmit{t.dest, t.peer, t.bytes, false};
-      return true;
-    }
-    MasterTransmit mt;
-    if (master_ && master_->poll_transmit(mt)) {
-      mtx_ = std::move(mt.bytes);
-      out = NodeTransmit{mt.dest, mt.peer, mtx_, true};
-      return true;
-    }
-    return false;
+    if ((cfg_.durable_first && agent_.durable_rev() != handed_rev_) || !next_transmit(out)) return false;
+    if (out.peer == 0 && out.dest == Dest::master) ++unrouted_.to_master;
+    if (out.peer == 0 && out.dest == Dest::peer) ++unrouted_.to_peer;
+    return true;
   }
 
   /// Takes the next event: the agent core's (in order), then the node's of the same call. Drain
@@ -240,6 +263,7 @@ class Node {
     out = ev_[ev_head_];
     ev_head_ = (ev_head_ + 1) % kEventSlots;
     --ev_count_;
+    if (out.kind == NodeEvent::Kind::durable) handed_rev_ = out.rev;
     return true;
   }
 
@@ -264,11 +288,40 @@ class Node {
   const MasterCore* master() const noexcept { return master_ ? &*master_ : nullptr; }
   /// Datagrams that did not decode.
   std::uint32_t rejected() const noexcept { return rejected_; }
+  /// Datagrams handed out with no peer to send them to (NodeTransmit::peer 0).
+  struct Unrouted {
+    std::uint32_t to_master = 0; ///< For the master before its address is known: the program broadcasts them.
+    std::uint32_t to_peer = 0;   ///< For a peer whose handle is 0: the program drops them.
+  };
+  /// How many datagrams fell back for want of an address, by kind (Unrouted).
+  const Unrouted& unrouted() const noexcept { return unrouted_; }
   /// Events dropped because the caller did not drain them.
   std::uint32_t overflowed() const noexcept { return overflowed_ + agent_.overflowed(); }
 
  private:
   static constexpr std::size_t kEventSlots = 16;
+
+  /// poll_transmit() without the hold and the counts.
+  bool next_transmit(NodeTransmit& out) {
+    if (!parting_.empty()) {
+      mtx_ = std::move(parting_.front().bytes);
+      out = NodeTransmit{parting_.front().dest, parting_.front().peer, mtx_, true};
+      parting_.erase(parting_.begin());  // a few at most
+      return true;
+    }
+    Transmit t;
+    if (agent_.poll_transmit(t)) {
+      out = NodeTransmit{t.dest, t.peer, t.bytes, false};
+      return true;
+    }
+    MasterTransmit mt;
+    if (master_ && master_->poll_transmit(mt)) {
+      mtx_ = std::move(mt.bytes);
+      out = NodeTransmit{mt.dest, mt.peer, mtx_, true};
+      return true;
+    }
+    return false;
+  }
 
   bool after(bool taken, Millis now) {
     settle(now);
@@ -281,6 +334,7 @@ class Node {
       seen_durable_rev_ = agent_.durable_rev();
       NodeEvent e = make(NodeEvent::Kind::durable);
       e.previous = seen_durable_;
+      e.rev = seen_durable_rev_;
       push(e);
       seen_durable_ = e.durable;
     }
@@ -375,9 +429,12 @@ class Node {
   std::string mtx_;                  // the Master core's datagram last polled
   std::vector<MasterTransmit> parting_; // a dropped Master core's datagrams not polled yet (no heap until one)
   std::uint32_t rejected_ = 0, overflowed_ = 0;
+  Unrouted unrouted_;
   // What was reported last (raft's prevHardSt / prevSoftSt).
   Durable seen_durable_;
   std::uint32_t seen_durable_rev_ = 0;
+  std::uint32_t written_rev_ = 0; // the durable_rev() ready() last had written
+  std::uint32_t handed_rev_ = 0;  // the durable_rev() last handed out (ready() or a durable event)
   Role seen_role_ = Role::none;
   std::uint16_t seen_leader_ = 0, seen_via_ = 0;
   std::uint32_t seen_following_ = 0;

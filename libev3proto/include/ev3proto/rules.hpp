@@ -6,12 +6,15 @@
 /// colour sensor (facing the floor) reports the wanted colour in a SENSOR_VALUE, the master sends that
 /// robot BEHAVIOUR exploit with the colour, so it stays in the region from then on. A BEHAVIOUR in
 /// WORKING replaces the running behaviour and starts it (AgentLogic RecvBehaviour), so no START is
-/// needed. Each robot is switched once per explore run: a robot told to explore again is a candidate
-/// again.
+/// needed. Each robot is switched once per explore run, and on_report() keeps that itself: after
+/// it returned a robot's command it returns none for that robot until the robot's registry entry
+/// shows another behaviour than `explore` (the exploit taken, or the operator's); told to explore
+/// again, it is a candidate again. Switching the rule off forgets who was switched.
 #pragma once
 
 #include <cstdint>
 #include <optional>
+#include <set>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -39,20 +42,25 @@ class ExploreExploit {
       }
     return "unknown colour '" + std::string(colour) + "' (black, blue, green, yellow, red, white, brown)";
   }
-  void switch_off() { on_ = false; }
+  void switch_off() {
+    on_ = false;
+    switched_.clear();
+  }
   bool on() const { return on_; }
   const std::string& colour() const { return colour_; }
 
-  /// A report of an agent whose registry entry is @p e: the command that switches it, when the rule
-  /// is on, the agent runs `explore` and the report is a SENSOR_VALUE (port, mode, value) of the
-  /// colour mode showing the colour.
-  std::optional<Command> on_report(const OperatorEvent& r, const RegistryEntry& e) const {
+  /// An operator event of the agent whose registry entry is @p e: the command that switches it,
+  /// when the rule is on, the agent runs `explore`, was not switched in this explore run yet and the
+  /// event is a SENSOR_VALUE report (port, mode, value) of the colour mode showing the colour.
+  std::optional<Command> on_report(const OperatorEvent& r, const RegistryEntry& e) {
+    if (e.behaviour != "explore") switched_.erase(r.agent);  // explores no more: a candidate once told again
     if (!on_ || r.kind != OperatorEvent::Kind::report || r.command != MsgType::SENSOR_VALUE) return std::nullopt;
-    if (e.behaviour != "explore") return std::nullopt;
+    if (e.behaviour != "explore" || switched_.count(r.agent) != 0) return std::nullopt;
     const std::vector<std::string_view> p = split(r.text);
     if (p.size() != 3 || p[1] != kColourMode || p[2] != std::to_string(code_)) return std::nullopt;
     std::vector<std::string> args{"colour=" + colour_};
     args.insert(args.end(), args_.begin(), args_.end());
+    switched_.insert(r.agent);
     return Command::assign("exploit", std::move(args));
   }
 
@@ -71,6 +79,7 @@ class ExploreExploit {
   std::uint8_t code_ = 0;
   std::string colour_;
   std::vector<std::string> args_;
+  std::set<std::uint16_t> switched_;  ///< agents switched in this explore run
 };
 
 }  // namespace ev3proto

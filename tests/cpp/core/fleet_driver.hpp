@@ -176,6 +176,7 @@ class FleetDriver {
       r->asink = FleetAgentSink{this, i};
       r->msink = FleetMasterSink{this, i};
       Robot::Config rc{c, {}};
+      rc.durable_first = false;  // drained inside the trace hooks, before the node reports a durable change
       FleetMasterSink* ms = &r->msink;
       rc.master_trace = [ms](std::uint16_t, std::uint32_t) { return ms; };
       r->node = std::make_unique<Robot>(rc, now_, &r->asink);

@@ -221,6 +221,67 @@ TEST(MasterMsgids, AnAgentWhoseMsgidsWrapIsStillHeardFresh) {
   EXPECT_EQ(m.registry().at(2).state, AgentState::PAUSED);
 }
 
+TEST(MasterReady, WritesTheStateBeforeWhatDependsOnIt) {
+  MasterConfig c;
+  c.next_msgid = 100;
+  c.durable_first = true;
+  Master<> m(c, 0);
+  std::vector<std::string> done;
+  bool disk_ok = true;
+  auto write = [&](const MasterDurable& d) {
+    done.push_back("write " + std::string(durable_text(d).view()));
+    return disk_ok;
+  };
+  auto send = [&](const MasterTransmit& t) { done.push_back(t.bytes); };
+  EXPECT_TRUE(m.ready(write, send));
+  EXPECT_EQ(done, std::vector<std::string>{"write next_id=2\nnext_msgid=4196\nepoch=1\nmembers=\nmembers_epoch=1\n"})
+      << "the first ready() writes, the msgid block reserved from 100";
+  done.clear();
+  m.handle_datagram("50001:0:1:1:A", 11, 1);  // a new agent: id 2 given, next_id 3
+  MasterTransmit t;
+  EXPECT_FALSE(m.poll_transmit(t)) << "durable_first: MASTER waits for next_id on disk";
+  disk_ok = false;
+  EXPECT_FALSE(m.ready(write, send));
+  EXPECT_EQ(done.size(), 1u) << "the write failed: nothing sent";
+  disk_ok = true;
+  done.clear();
+  EXPECT_TRUE(m.ready(write, send));
+  EXPECT_EQ(done, (std::vector<std::string>{"write next_id=3\nnext_msgid=4197\nepoch=1\nmembers=\nmembers_epoch=1\n",
+                                            "1:2:100:2:50001"}));
+  // Msgids within the block need no write until half of it is used.
+  done.clear();
+  m.handle_datagram("2:1:2:3:100", 11, 2);  // ACK of MASTER
+  std::uint32_t mid = 3;
+  for (std::uint32_t i = 0; i < kMsgidBlock / 2 - 1; ++i)  // PINGs: a PONG each, msgids 101..2147
+    m.handle_datagram("2:1:" + std::to_string(mid++) + ":5:ACTIVE", 11, 3);
+  EXPECT_TRUE(m.ready(write, send));
+  EXPECT_EQ(done.size(), kMsgidBlock / 2 - 1) << "PONGs only: no write yet";
+  EXPECT_EQ(m.next_msgid(), 2148u);
+  done.clear();
+  m.handle_datagram("2:1:" + std::to_string(mid++) + ":5:ACTIVE", 11, 4);
+  EXPECT_TRUE(m.ready(write, send));
+  ASSERT_FALSE(done.empty());
+  EXPECT_EQ(done.front().substr(0, 6), "write ") << "half the block used: the next one reserved";
+}
+
+TEST(MsgidReservation, LowWhenHalfTheBlockIsUsed) {
+  MsgidReservation r;
+  EXPECT_TRUE(r.low(1)) << "nothing reserved yet";
+  EXPECT_EQ(r.reserve(4294967000u), 4294967000u + kMsgidBlock);  // wraps, in serial order
+  EXPECT_FALSE(r.low(4294967000u + kMsgidBlock / 2 - 1));
+  EXPECT_TRUE(r.low(4294967000u + kMsgidBlock / 2));
+}
+
+TEST(StartIds, DrawnFromTheRandomBits) {
+  const StartIds a = draw_start_ids(0), b = draw_start_ids(~std::uint64_t{0});
+  EXPECT_EQ(a.temp_id, kFirstTempId);
+  EXPECT_EQ(a.first_msgid, 1u);
+  EXPECT_GE(b.temp_id, kFirstTempId);
+  EXPECT_GE(b.first_msgid, 1u);
+  EXPECT_LE(b.first_msgid, 1000000000u);
+  EXPECT_LT(b.first_msgid, kElectedMsgidBase);
+}
+
 TEST(MasterReceipts, CopiesReachTheHandlerUnlessDropCopiesIsOn) {
   Master<> spec(MasterConfig{}, 0);  // MasterLogic: every copy goes through its handler
   for (int copy = 0; copy < 3; ++copy)

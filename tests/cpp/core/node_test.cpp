@@ -76,8 +76,8 @@ TEST(NodeHandled, StaleEpochIsAnsweredAndSaid) {
   n.handle_datagram("1:7:1:2:50001", 1, 1);
   EXPECT_EQ(events(n), (std::vector<std::string>{"state", "led", "leader 1@1"}));
   n.handle_datagram("2:0:1:29:3:2:2:7", 2, 2);  // LEADER of epoch 3 from agent 2: follow it
-  sent(n);
   EXPECT_EQ(events(n), (std::vector<std::string>{"durable 3/0 [2,7]@3 floor 3", "leader 2@3"}));
+  sent(n);
   const NodeHandled h = n.handle_datagram("1:7:2:8", 1, 3);  // the PC's bare START: epoch 1
   EXPECT_EQ(h.why(), Ignored::stale_epoch);
   EXPECT_EQ(sent(n), (std::vector<std::string>{"7->1 EPOCH_STALE #2 3"}));
@@ -193,6 +193,43 @@ TEST(Node, DurableComesBeforeTheVoteItGuards) {
   n.handle_datagram("9:0:9:27:3:1:1", 9, 4001);  // ELECT(3) of one that knows the list of epoch 1
   EXPECT_EQ(events(n), (std::vector<std::string>{"durable 3/9 [7,8,9]@1 floor 1"}));
   EXPECT_EQ(sent(n), (std::vector<std::string>{"7->9 VOTE #7 3 9"}));
+}
+
+TEST(Node, ReadyWritesTheVoteBeforeSendingIt) {
+  Node<> n(config(true), 0);
+  std::vector<std::string> done;
+  bool disk_ok = true;
+  auto write = [&](const Durable& d) {
+    done.push_back("write " + std::to_string(d.epoch) + "/" + std::to_string(d.voted_for));
+    return disk_ok;
+  };
+  auto send = [&](const NodeTransmit& t) { done.push_back(ev3test::symbolic(t.bytes)); };
+  n.handle_datagram("1:7:1:2:50001", 1, 1);
+  n.handle_datagram("1:0:2:29:1:1:7:8:9", 1, 2);
+  n.advance(4000);  // PANIC
+  ASSERT_TRUE(n.ready(write, send));
+  events(n);
+  done.clear();
+  n.handle_datagram("9:0:9:27:3:1:1", 9, 4001);  // ELECT(3): the vote for 9
+  disk_ok = false;
+  EXPECT_FALSE(n.ready(write, send));
+  EXPECT_EQ(done, (std::vector<std::string>{"write 3/9"})) << "the write failed: the VOTE is held";
+  NodeTransmit t;
+  EXPECT_FALSE(n.poll_transmit(t)) << "not handed out as an event either: held";
+  disk_ok = true;
+  done.clear();
+  EXPECT_TRUE(n.ready(write, send));
+  EXPECT_EQ(done, (std::vector<std::string>{"write 3/9", "7->9 VOTE #7 3 9"}));
+  done.clear();
+  EXPECT_TRUE(n.ready(write, send));
+  EXPECT_TRUE(done.empty()) << "nothing changed: nothing written, nothing sent";
+  EXPECT_EQ(n.unrouted().to_master, 0u);
+  // persist(): the write alone, as the durable event comes; ready() then only sends.
+  n.handle_datagram("8:0:10:27:4:1:1", 8, 4001);  // ELECT(4): the vote for 8
+  EXPECT_TRUE(n.persist(write));
+  EXPECT_EQ(done, (std::vector<std::string>{"write 4/8"}));
+  EXPECT_TRUE(n.ready(write, send));
+  EXPECT_EQ(done, (std::vector<std::string>{"write 4/8", "7->8 VOTE #8 4 8"}));
 }
 
 }  // namespace

@@ -318,6 +318,25 @@ TEST(Console, ExploreExploitRule) {
   EXPECT_FALSE(v.follow_rules({K::report, 3, MsgType::SENSOR_VALUE, "in3:COL-COLOR:5"}, reg));
 }
 
+TEST(ExploreExploit, TheLibrarySwitchesARobotOncePerExploreRun) {
+  ev3proto::ExploreExploit rule;
+  ASSERT_EQ(rule.switch_on("red"), "");
+  ev3proto::RegistryEntry e;
+  e.id = 2;
+  e.behaviour = "explore";
+  using K = ev3proto::OperatorEvent::Kind;
+  const ev3proto::OperatorEvent red{K::report, 2, ev3proto::MsgType::SENSOR_VALUE, "in3:COL-COLOR:5"};
+  EXPECT_TRUE(rule.on_report(red, e));
+  EXPECT_FALSE(rule.on_report(red, e)) << "switched in this explore run: not again";
+  e.behaviour = "exploit";
+  EXPECT_FALSE(rule.on_report({K::state, 2, ev3proto::MsgType::START, "WORKING"}, e));
+  e.behaviour = "explore";  // told to explore again: a candidate again
+  EXPECT_TRUE(rule.on_report(red, e));
+  rule.switch_off();
+  ASSERT_EQ(rule.switch_on("red"), "");
+  EXPECT_TRUE(rule.on_report(red, e)) << "switching the rule off forgets who was switched";
+}
+
 TEST(Console, ListShowsStepAndLastReport) {
   ev3prog::FleetView v;
   using K = ev3proto::OperatorEvent::Kind;

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from ev3net import HB, LOSS, PAUSED, SYNC, T, show, wait_until
+from ev3net import HB, LOSS, PAUSED, SYNC, T, Message, show, wait_until
 
 ID = 2
 
@@ -243,6 +243,25 @@ def test_sigterm_tells_the_master_and_exits_0(working, tm):
     assert "stopping (signal 15)" in log and "behaviour stopped" in log
 
 
+def test_a_failed_state_write_stops_the_agent_sending_nothing_more(start_agent, programs, tm, tmp_path):
+    # DIR/ev3-agent.state.tmp a directory: the write of the election state fails (temp file first)
+    (tmp_path / "s" / "ev3-agent.state.tmp").mkdir(parents=True)
+    p = start_agent("--election", "--state-dir", str(tmp_path / "s"))
+    tm.sync(ID)
+    tm.wait_state(ID, "ACTIVE")
+    mark = tm.mark()
+    # the PC's LEADER lists the agent: the membership it learns is durable, and cannot be written
+    tm.send(Message(1, 0, tm.next_msgid(), 29, (b"1", b"1", str(ID).encode())), tm.agent_port)  # LEADER
+    assert p.proc.wait(3) == 1
+    programs.remove(p)  # it exited by itself, with status 1
+    p.close()
+    assert "the election state is not on disk: sending nothing more, exiting" in p.stderr()
+    log = (tmp_path / "agent.log").read_text()
+    assert "stopping: the state file could not be written" in log
+    assert not [m for _, m, _ in tm.received(mark) if m.type == T["EVENT"]], "no EVENT LEAVING after the failure"
+    assert not (tmp_path / "s" / "ev3-agent.state").exists()
+
+
 def test_sigint_exits_0(start_agent):
     p = start_agent()
     time.sleep(0.2)
@@ -329,3 +348,10 @@ def test_bad_flag_exits_2_naming_it(agent_exe, args, named):
 def test_help(agent_exe):
     r = subprocess.run([str(agent_exe), "--help"], capture_output=True, text=True, timeout=5)
     assert r.returncode == 0 and "--sysfs-root" in r.stdout and "--broadcast" in r.stdout
+    # the prose names what the program has: model A's behaviours (as its driver reports them), the
+    # driver mode, the exit statuses
+    facts = subprocess.run([str(agent_exe), "--driver"], input='{"type":"facts"}\n', capture_output=True,
+                           text=True, timeout=5)
+    names = [b["name"] for b in json.loads(facts.stdout.splitlines()[0])["facts"]["behaviours"]]
+    assert names and all(n in r.stdout for n in names), (names, r.stdout)
+    assert "--driver" in r.stdout and "Exit status" in r.stdout

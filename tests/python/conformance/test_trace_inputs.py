@@ -162,3 +162,22 @@ def test_msgids_past_tlcs_integers_are_written_modulo_2_31():
     written = [int(tla.to_tla(seed + k)) for k in range(4)]
     assert written == sorted(written) and len(set(written)) == 4 and max(written) < 1 << 31
     assert tla.to_tla({"msgid": seed}) == tla.to_tla({"msgid": seed - (1 << 31)})
+
+
+def test_a_leave_record_is_checked_and_left_out_of_the_walk(tmp_path):
+    recs = sample("agent.ndjson")
+    msgid = max((r["changed"]["msgid"] for r in recs if "msgid" in r.get("changed", {})), default=1)
+    leave = {"node": "agent", "action": "Leave", "args": {"e": "LEAVING"}, "now": recs[-1]["now"],
+             "changed": {"msgid": msgid + 1}}
+    tf = tracecheck.read_trace(write(tmp_path / "leave.ndjson", recs + [leave]))
+    assert tf.records == recs and tf.beyond["agent"] == 1
+    # not the node's last record, or changing more than its msgid: an error naming the line
+    for bad, why in ((recs + [leave, recs[-1]], "after its Leave record"),
+                     (recs + [dict(leave, changed={"msgid": msgid + 1, "state": "OFF"})],
+                      "changes more than the msgid")):
+        try:
+            tracecheck.read_trace(write(tmp_path / "bad.ndjson", bad))
+        except tracecheck.TraceError as e:
+            assert why in str(e), e
+        else:
+            raise AssertionError(f"accepted: {why}")
