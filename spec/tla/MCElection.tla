@@ -3,7 +3,7 @@
 (* Model-checking bounds for Election.  The cfgs pick the agents, the     *)
 (* faults and BUG (figures: docs/election.md, spec/tla/manifest.json):     *)
 (*   MCElectionSmall.cfg  3 agents, master crash, relay, one election      *)
-(*                        round, loss and duplication, commands (make spec)*)
+(*                        round, duplication, commands (make spec)         *)
 (*   MCElectionVote.cfg   3 agents, a master or an agent crash, spurious  *)
 (*                        timeouts, no pre-vote: double votes (make spec)  *)
 (*   MCElectionMember.cfg 2 agents, one joining late, the PC changing the *)
