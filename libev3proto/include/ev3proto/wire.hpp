@@ -16,6 +16,7 @@
 #include <string_view>
 #include <type_traits>
 
+#include "decimal.hpp"
 #include "messages.hpp"
 
 namespace ev3proto {
@@ -225,25 +226,6 @@ inline Reason check_kind(ParamKind kind, std::string_view v) noexcept {
     case ParamKind::state: return parse_state(v, s) ? Reason::ok : Reason::out_of_range;
   }
   return Reason::ok;
-}
-
-/// Number of decimal digits of @p v.
-constexpr std::size_t decimal_digits(std::uint32_t v) noexcept {
-  std::size_t n = 1;
-  for (; v >= 10u; v /= 10u) ++n;
-  return n;
-}
-
-/// Writes @p v in canonical decimal at @p out (which has room for decimal_digits(v) bytes);
-/// returns the end.
-inline char* write_decimal(char* out, std::uint32_t v) noexcept {
-  char* const end = out + decimal_digits(v);
-  char* p = end;
-  do {
-    *--p = static_cast<char>('0' + v % 10u);
-    v /= 10u;
-  } while (v != 0);
-  return end;
 }
 
 /// Largest value of each header field, by field index (sender, receiver, msgid, type).
@@ -492,7 +474,7 @@ inline EncodeResult encode(const Message& m, char* buf, std::size_t cap) noexcep
 
 inline bool Message::add_param_u32(std::uint32_t value) noexcept {
   char digits[10];
-  return add_param(std::string_view(digits, static_cast<std::size_t>(detail::write_decimal(digits, value) - digits)));
+  return add_param(decimal(value, digits));
 }
 
 inline std::optional<std::uint32_t> Message::param_u32(std::size_t i) const noexcept {
