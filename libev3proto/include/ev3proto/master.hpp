@@ -24,6 +24,7 @@
 #include "deadline_list.hpp"
 #include "dedupe.hpp"
 #include "election/master.hpp"
+#include "json.hpp"
 #include "master_registry.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
@@ -892,15 +893,6 @@ class Master {
   /// records: ann, id, ep, synced, pending, mid, resends, queue ([{type, name}], name "NONE" but
   /// for BEHAVIOUR), desired, beh ("NONE"), quiet (now - heard, ms), hi.
   std::string reg_json() const {
-    auto str = [](std::string& s, std::string_view v) {
-      s += '"';
-      for (char ch : v) {
-        const auto c = static_cast<unsigned char>(ch);
-        if (c == '"' || c == '\\') s += '\\';
-        s += (c < 0x20 || c > 0x7E) ? '?' : ch;
-      }
-      s += '"';
-    };
     std::string s = "[";
     for (const auto& kv : reg_.map()) {
       const RegistryEntry& e = kv.second;
@@ -914,13 +906,13 @@ class Master {
         if (!first) s += ',';
         first = false;
         s += "{\"type\":\"" + std::string(to_string(c.type)) + "\",\"name\":";
-        str(s, c.type == MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
+        json_string(s, c.type == MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
         s += '}';
       }
       s += "],\"desired\":\"" +
            std::string(e.desired_known ? to_string(e.desired) : std::string_view("UNKNOWN")) +
            "\",\"beh\":";
-      str(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
+      json_string(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
       s += ",\"quiet\":" + std::to_string(now_ - e.heard) + ",\"hi\":" + std::to_string(e.last_msgid) + "}";
     }
     return s + "]";
