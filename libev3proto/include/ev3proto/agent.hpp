@@ -1192,10 +1192,8 @@ class Agent {
     if (dest == Dest::master && el_.via != 0) {
       char inner[TxBytes];
       std::memcpy(inner, s.bytes, r.size);
-      char num[10];
-      const std::string_view p[2] = {decimal(to, num), std::string_view(inner, r.size)};
-      r = encode_parts(from, el_.via, msgid_, static_cast<std::uint8_t>(MsgType::RELAY), p, 2, s.bytes,
-                       TxBytes);
+      r = encode_envelope(from, el_.via, msgid_, MsgType::RELAY, to, std::string_view(inner, r.size), s.bytes,
+                          TxBytes);
       if (!r.ok()) return false;
     }
     ++msgid_;

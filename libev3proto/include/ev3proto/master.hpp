@@ -851,18 +851,16 @@ class Master {
     if (cfg_.election) {
       // Fencing: an elected master's (epoch > 1) MASTER and commands travel in EPOCH_CMD.
       if (el_.epoch > 1 && (t == MsgType::MASTER || is_command(t)))
-        bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(el_.epoch), bytes);
+        bytes = wrap(id, mid, MsgType::EPOCH_CMD, el_.epoch, bytes);
       // Relay: an agent behind a relay gets RELAY(agent, datagram) through it.
       const RegistryEntry* e = reg_.find(id);
-      if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, std::to_string(id), bytes);
+      if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, id, bytes);
     }
     if (!bytes.empty()) tx_.push_back(MasterTransmit{to, Dest::peer, std::move(bytes)});
   }
-  std::string wrap(std::uint16_t to, std::uint32_t mid, MsgType t, const std::string& first,
-                   const std::string& inner) {
+  std::string wrap(std::uint16_t to, std::uint32_t mid, MsgType t, std::uint32_t first, const std::string& inner) {
     char buf[kMaxDatagram];
-    const std::string_view p[2] = {first, inner};
-    const EncodeResult r = encode_parts(el_.self, to, mid, static_cast<std::uint8_t>(t), p, 2, buf, sizeof buf);
+    const EncodeResult r = encode_envelope(el_.self, to, mid, t, first, inner, buf, sizeof buf);
     return r.ok() ? std::string(buf, r.size) : std::string();
   }
 

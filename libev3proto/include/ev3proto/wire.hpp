@@ -463,6 +463,18 @@ inline EncodeResult encode_parts(std::uint16_t sender, std::uint16_t receiver, s
                              [params](std::size_t i) noexcept { return params[i]; }, buf, cap);
 }
 
+/// Encodes the datagram @p inner (encoded already, not in [buf, buf + cap)) inside an envelope of
+/// type @p type (RELAY, EPOCH_CMD) from @p sender to @p receiver with the inner datagram's @p msgid:
+/// params (@p first in decimal: RELAY's agent, EPOCH_CMD's epoch; @p inner). The one envelope of the
+/// agent's and the master's outboxes; refused as encode_parts().
+inline EncodeResult encode_envelope(std::uint16_t sender, std::uint16_t receiver, std::uint32_t msgid,
+                                    MsgType type, std::uint32_t first, std::string_view inner, char* buf,
+                                    std::size_t cap) noexcept {
+  char num[10];
+  const std::string_view p[2] = {decimal(first, num), inner};
+  return encode_parts(sender, receiver, msgid, static_cast<std::uint8_t>(type), p, 2, buf, cap);
+}
+
 /// Encodes @p m in canonical form into [buf, buf + cap); see encode_parts() for what is refused.
 /// For every message encode() accepts, decode() of the result gives back @p m.
 inline EncodeResult encode(const Message& m, char* buf, std::size_t cap) noexcept {
