@@ -119,8 +119,8 @@ LIB = Path("libev3proto/include/ev3proto")
 # headers of its own layer and of the layers below it, never one above. Each entry names the headers
 # of a layer by their paths under libev3proto/include/ev3proto/ (a folder: every header in it).
 LIBRARY_LAYERS = [
-    ("vocabulary", ["timers.hpp", "messages.hpp", "msgids.hpp", "json.hpp", "dedupe.hpp", "deadline_list.hpp",
-                    "wire.hpp", "core.hpp"]),
+    ("vocabulary", ["timers.hpp", "messages.hpp", "msgids.hpp", "json.hpp", "decimal.hpp", "ring.hpp", "dedupe.hpp",
+                    "deadline_list.hpp", "wire.hpp", "core.hpp"]),
     ("robot", ["robot/"]),
     ("behaviour", ["behaviour/"]),
     ("cores", ["election/", "durable.hpp", "agent_types.hpp", "agent.hpp", "master_registry.hpp", "master.hpp",

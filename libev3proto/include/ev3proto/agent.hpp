@@ -24,6 +24,7 @@
 #include "election/agent.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
+#include "ring.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
 
@@ -252,23 +253,18 @@ class Agent {
 
   /// Takes the oldest datagram to send; false when there is none.
   bool poll_transmit(Transmit& out) noexcept {
-    if (tx_count_ == 0) return false;
-    TxSlot& s = tx_[tx_head_];
+    if (tx_.empty()) return false;
+    const TxSlot& s = tx_.front();
     out.dest = s.dest;
     out.peer = s.dest == Dest::master ? master_peer_ : s.dest == Dest::peer ? s.peer : 0;
     out.bytes = std::string_view(s.bytes, s.size);
-    tx_head_ = (tx_head_ + 1) % TxSlots;
-    --tx_count_;
+    tx_.pop_front();  // the slot keeps its bytes until the next datagram is queued
     return true;
   }
 
   /// Takes the oldest event (state, LED, behaviour control); false when there is none.
   bool poll_event(AgentEvent& out) noexcept {
-    if (ev_count_ == 0) return false;
-    out = ev_[ev_head_];
-    ev_head_ = (ev_head_ + 1) % EventSlots;
-    --ev_count_;
-    return true;
+    return ev_.pop(out);
   }
 
   /// When the caller must call advance() next at the latest (kNever in OFF): the earliest armed
@@ -1203,17 +1199,15 @@ class Agent {
   bool emit_from(std::uint16_t from, Dest dest, std::uint16_t to, MsgType type,
                  const std::string_view* params, std::size_t count, Peer peer = 0) noexcept {
     // When full, the slot written is the oldest one; encode_parts() writes nothing on refusal.
-    TxSlot& s = tx_[(tx_head_ + tx_count_) % TxSlots];
+    TxSlot& s = tx_.next();
     EncodeResult r = encode_parts(from, to, msgid_, static_cast<std::uint8_t>(type), params,
                                   count, s.bytes, TxBytes);
     if (!r.ok()) return false;
     if (dest == Dest::master && el_.via != 0) {
       char inner[TxBytes];
       std::memcpy(inner, s.bytes, r.size);
-      char num[10];
-      const std::string_view p[2] = {decimal(to, num), std::string_view(inner, r.size)};
-      r = encode_parts(from, el_.via, msgid_, static_cast<std::uint8_t>(MsgType::RELAY), p, 2, s.bytes,
-                       TxBytes);
+      r = encode_envelope(from, el_.via, msgid_, MsgType::RELAY, to, std::string_view(inner, r.size), s.bytes,
+                          TxBytes);
       if (!r.ok()) return false;
     }
     ++msgid_;
@@ -1222,32 +1216,20 @@ class Agent {
   }
   /// Queues @p bytes unchanged (a relay forwarding an inner datagram): no msgid of ours.
   void emit_raw(Dest dest, Peer peer, std::string_view bytes) noexcept {
-    TxSlot& s = tx_[(tx_head_ + tx_count_) % TxSlots];
+    TxSlot& s = tx_.next();
     if (bytes.size() > TxBytes) return;
     std::memcpy(s.bytes, bytes.data(), bytes.size());
     push_slot(s, dest, peer, bytes.size());
   }
+  /// Queues tx_.next() (@p s, its bytes written): the oldest datagram is dropped when full.
   void push_slot(TxSlot& s, Dest dest, Peer peer, std::size_t size) noexcept {
-    if (tx_count_ == TxSlots) {
-      tx_head_ = (tx_head_ + 1) % TxSlots;
-      --tx_count_;
-      ++overflowed_;
-    }
     s.dest = dest;
     s.peer = peer;
     s.size = size;
-    ++tx_count_;
+    if (tx_.commit_over()) ++overflowed_;
   }
 
-  void push_event(const AgentEvent& e) noexcept {
-    if (ev_count_ == EventSlots) {
-      ev_head_ = (ev_head_ + 1) % EventSlots;
-      --ev_count_;
-      ++overflowed_;
-    }
-    ev_[(ev_head_ + ev_count_) % EventSlots] = e;
-    ++ev_count_;
-  }
+  void push_event(const AgentEvent& e) noexcept { ev_.push_over(e, overflowed_); }
 
   void record(Action a, const AgentVars& before, std::string_view msg, std::string_view event,
               Millis ticks, Action cmd = Action::Ignore, std::string_view port = {}) noexcept {
@@ -1292,10 +1274,8 @@ class Agent {
   std::size_t arg_count_ = 0;
   WindowType win_;
   std::uint32_t win_rev_ = 0;
-  TxSlot tx_[TxSlots];
-  std::size_t tx_head_ = 0, tx_count_ = 0;
-  AgentEvent ev_[EventSlots];
-  std::size_t ev_head_ = 0, ev_count_ = 0;
+  Ring<TxSlot, TxSlots> tx_;
+  Ring<AgentEvent, EventSlots> ev_;
   std::uint32_t rejected_ = 0, overflowed_ = 0;
   ElectionType el_;               // Election.tla's variables (fixed capacity, no heap)
   Durable durable_;               // durable() when durable_rev_ last changed

@@ -28,6 +28,7 @@
 #include <string_view>
 
 #include "core.hpp"
+#include "decimal.hpp"
 #include "election/common.hpp"
 #include "wire.hpp"
 
@@ -48,7 +49,7 @@ class FixedText {
   /// Appends @p v in decimal.
   FixedText& num(std::uint32_t v) noexcept {
     char d[10];
-    return put(std::string_view(d, static_cast<std::size_t>(detail::write_decimal(d, v) - d)));
+    return put(decimal(v, d));
   }
   /// Appends "'s'", @p s cut to 40 characters and "..." when longer.
   FixedText& quoted(std::string_view s) noexcept {

@@ -26,6 +26,7 @@
 #include "dedupe.hpp"
 #include "durable.hpp"
 #include "election/master.hpp"
+#include "json.hpp"
 #include "master_registry.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
@@ -898,18 +899,16 @@ class Master {
     if (cfg_.election) {
       // Fencing: an elected master's (epoch > 1) MASTER and commands travel in EPOCH_CMD.
       if (el_.epoch > 1 && (t == MsgType::MASTER || is_command(t)))
-        bytes = wrap(id, mid, MsgType::EPOCH_CMD, std::to_string(el_.epoch), bytes);
+        bytes = wrap(id, mid, MsgType::EPOCH_CMD, el_.epoch, bytes);
       // Relay: an agent behind a relay gets RELAY(agent, datagram) through it.
       const RegistryEntry* e = reg_.find(id);
-      if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, std::to_string(id), bytes);
+      if (e != nullptr && e->via != 0) bytes = wrap(e->via, mid, MsgType::RELAY, id, bytes);
     }
     if (!bytes.empty()) tx_.push_back(MasterTransmit{to, Dest::peer, std::move(bytes)});
   }
-  std::string wrap(std::uint16_t to, std::uint32_t mid, MsgType t, const std::string& first,
-                   const std::string& inner) {
+  std::string wrap(std::uint16_t to, std::uint32_t mid, MsgType t, std::uint32_t first, const std::string& inner) {
     char buf[kMaxDatagram];
-    const std::string_view p[2] = {first, inner};
-    const EncodeResult r = encode_parts(el_.self, to, mid, static_cast<std::uint8_t>(t), p, 2, buf, sizeof buf);
+    const EncodeResult r = encode_envelope(el_.self, to, mid, t, first, inner, buf, sizeof buf);
     return r.ok() ? std::string(buf, r.size) : std::string();
   }
 
@@ -940,15 +939,6 @@ class Master {
   /// records: ann, id, ep, synced, pending, mid, resends, queue ([{type, name}], name "NONE" but
   /// for BEHAVIOUR), desired, beh ("NONE"), quiet (now - heard, ms), hi.
   std::string reg_json() const {
-    auto str = [](std::string& s, std::string_view v) {
-      s += '"';
-      for (char ch : v) {
-        const auto c = static_cast<unsigned char>(ch);
-        if (c == '"' || c == '\\') s += '\\';
-        s += (c < 0x20 || c > 0x7E) ? '?' : ch;
-      }
-      s += '"';
-    };
     std::string s = "[";
     for (const auto& kv : reg_.map()) {
       const RegistryEntry& e = kv.second;
@@ -962,13 +952,13 @@ class Master {
         if (!first) s += ',';
         first = false;
         s += "{\"type\":\"" + std::string(to_string(c.type)) + "\",\"name\":";
-        str(s, c.type == MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
+        json_string(s, c.type == MsgType::BEHAVIOUR ? std::string_view(c.name) : std::string_view("NONE"));
         s += '}';
       }
       s += "],\"desired\":\"" +
            std::string(e.desired_known ? to_string(e.desired) : std::string_view("UNKNOWN")) +
            "\",\"beh\":";
-      str(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
+      json_string(s, e.behaviour.empty() ? std::string_view("NONE") : std::string_view(e.behaviour));
       s += ",\"quiet\":" + std::to_string(now_ - e.heard) + ",\"hi\":" + std::to_string(e.last_msgid) + "}";
     }
     return s + "]";

@@ -27,6 +27,7 @@
 #include "agent.hpp"
 #include "dedupe.hpp"
 #include "master.hpp"
+#include "ring.hpp"
 
 namespace ev3proto {
 
@@ -259,10 +260,7 @@ class Node {
       out.control = e.control;
       return true;
     }
-    if (ev_count_ == 0) return false;
-    out = ev_[ev_head_];
-    ev_head_ = (ev_head_ + 1) % kEventSlots;
-    --ev_count_;
+    if (!ev_.pop(out)) return false;
     if (out.kind == NodeEvent::Kind::durable) handed_rev_ = out.rev;
     return true;
   }
@@ -410,13 +408,7 @@ class Node {
     return e;
   }
   void push(const NodeEvent& e) {
-    if (ev_count_ == kEventSlots) {
-      ev_head_ = (ev_head_ + 1) % kEventSlots;
-      --ev_count_;
-      ++overflowed_;
-    }
-    ev_[(ev_head_ + ev_count_) % kEventSlots] = e;
-    ++ev_count_;
+    ev_.push_over(e, overflowed_);
   }
 
   static constexpr std::size_t kMaxSeenRelays = 16;
@@ -440,8 +432,7 @@ class Node {
   std::uint32_t seen_following_ = 0;
   std::uint16_t seen_relays_[kMaxSeenRelays] = {};
   std::size_t seen_relay_count_ = 0;
-  NodeEvent ev_[kEventSlots];
-  std::size_t ev_head_ = 0, ev_count_ = 0;
+  Ring<NodeEvent, kEventSlots> ev_;
 };
 
 }  // namespace ev3proto

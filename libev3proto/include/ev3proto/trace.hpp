@@ -34,6 +34,61 @@ inline void json_key(std::string& out, std::string_view key, bool& first) {
   out += ':';
 }
 
+/// The start of a record's line, the same for agent and master: `{"node":..,"action":..,"args":{`
+/// and the datagram received as args.msg (when there is one); the args object is left open for
+/// more (@p afirst: whether none was written yet).
+inline std::string record_head(std::string_view node, Action action, std::string_view msg, bool& afirst) {
+  std::string s = "{";
+  bool first = true;
+  json_key(s, "node", first);
+  json_string(s, node);
+  json_key(s, "action", first);
+  json_string(s, to_string(action));
+  json_key(s, "args", first);
+  s += '{';
+  afirst = true;
+  if (!msg.empty()) {
+    json_key(s, "msg", afirst);
+    json_string(s, msg);
+  }
+  return s;
+}
+
+/// Closes the args and writes the record's time: `},"now":..`.
+inline void record_now(std::string& s, Millis now) {
+  s += "},\"now\":";
+  s += std::to_string(now);
+}
+
+/// The "changed" object of a record: the variables whose value differs before and after.
+class Changed {
+ public:
+  explicit Changed(std::string& s) : s_(s) {}
+  /// @p k as the text @p v.
+  void str(std::string_view k, std::string_view v) {
+    json_key(s_, k, first_);
+    json_string(s_, v);
+  }
+  /// @p k as the number @p v.
+  void num(std::string_view k, std::uint64_t v) {
+    json_key(s_, k, first_);
+    s_ += std::to_string(v);
+  }
+  /// @p k as the JSON @p v (written as it is).
+  void json(std::string_view k, std::string_view v) {
+    json_key(s_, k, first_);
+    s_ += v;
+  }
+  /// num(k, after) when @p after differs from @p before.
+  void num(std::string_view k, std::uint64_t before, std::uint64_t after) {
+    if (after != before) num(k, after);
+  }
+
+ private:
+  std::string& s_;
+  bool first_ = true;
+};
+
 }  // namespace trace_detail
 
 /// The window as the spec's win: [{"src":..,"msgid":..,"ans":{"type":"ACK","src":..,"ref":..}}].
@@ -61,19 +116,8 @@ std::string window_json(const W& win) {
 template <typename A>
 std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_view node = "agent") {
   using trace_detail::json_key;
-  std::string s = "{";
-  bool first = true;
-  json_key(s, "node", first);
-  json_string(s, node);
-  json_key(s, "action", first);
-  json_string(s, to_string(r.action));
-  json_key(s, "args", first);
-  s += '{';
   bool afirst = true;
-  if (!r.msg.empty()) {
-    json_key(s, "msg", afirst);
-    json_string(s, r.msg);
-  }
+  std::string s = trace_detail::record_head(node, r.action, r.msg, afirst);
   if (!r.event.empty()) {
     json_key(s, "e", afirst);
     json_string(s, r.event);
@@ -94,40 +138,23 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
     json_key(s, "cmd", afirst);
     json_string(s, to_string(r.cmd));
   }
-  s += '}';
-  json_key(s, "now", first);
-  s += std::to_string(r.now);
-  json_key(s, "changed", first);
-  s += '{';
-  bool c = true;
+  trace_detail::record_now(s, r.now);
+  s += ",\"changed\":{";
+  trace_detail::Changed c(s);
   const AgentVars& b = r.before;
   const AgentVars& a = r.after;
-  auto str = [&](std::string_view k, std::string_view v) {
-    json_key(s, k, c);
-    json_string(s, v);
-  };
-  auto num = [&](std::string_view k, std::uint64_t v) {
-    json_key(s, k, c);
-    s += std::to_string(v);
-  };
-  if (a.state != b.state) str("state", to_string(a.state));
-  if (a.led != b.led) str("led", to_string(a.led));
-  if (a.id != b.id) num("id", a.id);
-  if (a.beh_name() != b.beh_name()) str("beh", a.beh_len == 0 ? "NONE" : a.beh_name());
-  if (a.step != b.step) num("step", a.step);
-  if (a.wait != b.wait) str("wait", to_string(a.wait));
-  if (a.motors != b.motors) str("motors", a.motors ? "ON" : "OFF");
-  if (a.dev_ok != b.dev_ok) {
-    json_key(s, "devOk", c);
-    s += a.dev_ok ? "true" : "false";
-  }
-  if (a.silence != b.silence) num("silence", a.silence);
-  if (a.clk != b.clk) num("clk", a.clk);
-  if (a.win_rev != b.win_rev) {
-    json_key(s, "win", c);
-    s += window_json(agent.window());
-  }
-  if (a.msgid != b.msgid) num("msgid", a.msgid);  // the next msgid: this record sent [b.msgid, a.msgid)
+  if (a.state != b.state) c.str("state", to_string(a.state));
+  if (a.led != b.led) c.str("led", to_string(a.led));
+  c.num("id", b.id, a.id);
+  if (a.beh_name() != b.beh_name()) c.str("beh", a.beh_len == 0 ? "NONE" : a.beh_name());
+  c.num("step", b.step, a.step);
+  if (a.wait != b.wait) c.str("wait", to_string(a.wait));
+  if (a.motors != b.motors) c.str("motors", a.motors ? "ON" : "OFF");
+  if (a.dev_ok != b.dev_ok) c.json("devOk", a.dev_ok ? "true" : "false");
+  c.num("silence", b.silence, a.silence);
+  c.num("clk", b.clk, a.clk);
+  if (a.win_rev != b.win_rev) c.json("win", window_json(agent.window()));
+  c.num("msgid", b.msgid, a.msgid);  // the next msgid: this record sent [b.msgid, a.msgid)
   if (a.election) {  // Election.tla's variables of this agent
     auto life = [](const AgentVars& v) {
       return v.role == Role::master ? std::string_view("MASTER")
@@ -135,17 +162,16 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
                                          : to_string(v.state);
     };
     auto ids = [&](std::string_view k, std::size_t n, auto get) {
-      json_key(s, k, c);
-      s += '[';
-      for (std::size_t i = 0; i < n; ++i) s += (i ? "," : "") + std::to_string(get(i));
-      s += ']';
+      std::string v = "[";
+      for (std::size_t i = 0; i < n; ++i) v += (i ? "," : "") + std::to_string(get(i));
+      c.json(k, v + "]");
     };
-    if (life(a) != life(b)) str("life", life(a));
-    if (a.epoch != b.epoch) num("epoch", a.epoch);
-    if (a.voted_for != b.voted_for) num("votedFor", a.voted_for);
-    if (a.leader != b.leader) num("leader", a.leader);
-    if (a.following != b.following) num("following", a.following);
-    if (a.via != b.via) num("via", a.via);
+    if (life(a) != life(b)) c.str("life", life(a));
+    c.num("epoch", b.epoch, a.epoch);
+    c.num("votedFor", b.voted_for, a.voted_for);
+    c.num("leader", b.leader, a.leader);
+    c.num("following", b.following, a.following);
+    c.num("via", b.via, a.via);
     if (a.relay_rev != b.relay_rev) {
       ids("relays", agent.relay_count(), [&](std::size_t i) { return agent.relayed(i); });
       ids("offered", agent.offered_count(), [&](std::size_t i) { return agent.offered(i); });
@@ -154,8 +180,8 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
     }
     if (a.members_rev != b.members_rev)
       ids("members", agent.member_count(), [&](std::size_t i) { return agent.member(i); });
-    if (a.mepoch != b.mepoch) num("mepoch", a.mepoch);
-    if (a.floor != b.floor) num("floor", a.floor);
+    c.num("mepoch", b.mepoch, a.mepoch);
+    c.num("floor", b.floor, a.floor);
   }
   s += "}}";
   return s;
@@ -164,64 +190,24 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
 /// Formats a master trace record as one NDJSON line (no newline); "changed" holds the master's
 /// variables that changed: reg (master.reg), nextId, msgid.
 inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node = "master") {
-  using trace_detail::json_key;
-  std::string s = "{";
-  bool first = true;
-  json_key(s, "node", first);
-  json_string(s, node);
-  json_key(s, "action", first);
-  json_string(s, to_string(r.action));
-  json_key(s, "args", first);
-  s += '{';
-  if (!r.msg.empty()) {
-    bool a = true;
-    json_key(s, "msg", a);
-    json_string(s, r.msg);
-  }
-  s += '}';
-  json_key(s, "now", first);
-  s += std::to_string(r.now);
+  bool afirst = true;
+  std::string s = trace_detail::record_head(node, r.action, r.msg, afirst);
+  trace_detail::record_now(s, r.now);
   if (r.msgid_after != r.msgid_before) {
     // Where the msgids this record sent start (changed.msgid is where they end): a master's first
     // msgid comes from its state file or the wall clock (msgids.hpp), and a check needs it.
-    json_key(s, "msgid_from", first);
-    s += std::to_string(r.msgid_before);
+    s += ",\"msgid_from\":" + std::to_string(r.msgid_before);
   }
-  json_key(s, "changed", first);
-  s += '{';
-  bool c = true;
-  if (r.reg_after != r.reg_before) {
-    json_key(s, "reg", c);
-    s += r.reg_after;
-  }
-  if (r.next_id_after != r.next_id_before) {
-    json_key(s, "nextId", c);
-    s += std::to_string(r.next_id_after);
-  }
-  if (r.msgid_after != r.msgid_before) {
-    json_key(s, "msgid", c);
-    s += std::to_string(r.msgid_after);
-  }
-  if (r.life_after != r.life_before) {
-    json_key(s, "life", c);
-    json_string(s, r.life_after);
-  }
-  if (r.epoch_after != r.epoch_before) {
-    json_key(s, "epoch", c);
-    s += std::to_string(r.epoch_after);
-  }
-  if (r.votes_after != r.votes_before) {
-    json_key(s, "votes", c);
-    s += r.votes_after;
-  }
-  if (r.members_after != r.members_before) {
-    json_key(s, "members", c);
-    s += r.members_after;
-  }
-  if (r.mepoch_after != r.mepoch_before) {
-    json_key(s, "mepoch", c);
-    s += std::to_string(r.mepoch_after);
-  }
+  s += ",\"changed\":{";
+  trace_detail::Changed c(s);
+  if (r.reg_after != r.reg_before) c.json("reg", r.reg_after);
+  c.num("nextId", r.next_id_before, r.next_id_after);
+  c.num("msgid", r.msgid_before, r.msgid_after);
+  if (r.life_after != r.life_before) c.str("life", r.life_after);
+  c.num("epoch", r.epoch_before, r.epoch_after);
+  if (r.votes_after != r.votes_before) c.json("votes", r.votes_after);
+  if (r.members_after != r.members_before) c.json("members", r.members_after);
+  c.num("mepoch", r.mepoch_before, r.mepoch_after);
   s += "}}";
   return s;
 }

@@ -16,6 +16,7 @@
 #include <string_view>
 #include <type_traits>
 
+#include "decimal.hpp"
 #include "messages.hpp"
 
 namespace ev3proto {
@@ -225,25 +226,6 @@ inline Reason check_kind(ParamKind kind, std::string_view v) noexcept {
     case ParamKind::state: return parse_state(v, s) ? Reason::ok : Reason::out_of_range;
   }
   return Reason::ok;
-}
-
-/// Number of decimal digits of @p v.
-constexpr std::size_t decimal_digits(std::uint32_t v) noexcept {
-  std::size_t n = 1;
-  for (; v >= 10u; v /= 10u) ++n;
-  return n;
-}
-
-/// Writes @p v in canonical decimal at @p out (which has room for decimal_digits(v) bytes);
-/// returns the end.
-inline char* write_decimal(char* out, std::uint32_t v) noexcept {
-  char* const end = out + decimal_digits(v);
-  char* p = end;
-  do {
-    *--p = static_cast<char>('0' + v % 10u);
-    v /= 10u;
-  } while (v != 0);
-  return end;
 }
 
 /// Largest value of each header field, by field index (sender, receiver, msgid, type).
@@ -481,6 +463,18 @@ inline EncodeResult encode_parts(std::uint16_t sender, std::uint16_t receiver, s
                              [params](std::size_t i) noexcept { return params[i]; }, buf, cap);
 }
 
+/// Encodes the datagram @p inner (encoded already, not in [buf, buf + cap)) inside an envelope of
+/// type @p type (RELAY, EPOCH_CMD) from @p sender to @p receiver with the inner datagram's @p msgid:
+/// params (@p first in decimal: RELAY's agent, EPOCH_CMD's epoch; @p inner). The one envelope of the
+/// agent's and the master's outboxes; refused as encode_parts().
+inline EncodeResult encode_envelope(std::uint16_t sender, std::uint16_t receiver, std::uint32_t msgid,
+                                    MsgType type, std::uint32_t first, std::string_view inner, char* buf,
+                                    std::size_t cap) noexcept {
+  char num[10];
+  const std::string_view p[2] = {decimal(first, num), inner};
+  return encode_parts(sender, receiver, msgid, static_cast<std::uint8_t>(type), p, 2, buf, cap);
+}
+
 /// Encodes @p m in canonical form into [buf, buf + cap); see encode_parts() for what is refused.
 /// For every message encode() accepts, decode() of the result gives back @p m.
 inline EncodeResult encode(const Message& m, char* buf, std::size_t cap) noexcept {
@@ -492,7 +486,7 @@ inline EncodeResult encode(const Message& m, char* buf, std::size_t cap) noexcep
 
 inline bool Message::add_param_u32(std::uint32_t value) noexcept {
   char digits[10];
-  return add_param(std::string_view(digits, static_cast<std::size_t>(detail::write_decimal(digits, value) - digits)));
+  return add_param(decimal(value, digits));
 }
 
 inline std::optional<std::uint32_t> Message::param_u32(std::size_t i) const noexcept {

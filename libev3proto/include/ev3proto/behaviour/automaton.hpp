@@ -32,6 +32,7 @@
 #include <cstddef>
 #include <cstdint>
 
+#include "../ring.hpp"
 #include "../robot/actions.hpp"
 #include "definition.hpp"
 
@@ -113,7 +114,7 @@ class Automaton {
     def_ = def;
     for (std::size_t i = 0; i < kSensorCount; ++i) ports_[i] = sensor_ports[i];
     phase_ = Phase::idle;
-    head_ = count_ = 0;
+    outs_.clear();
   }
 
   // ------------------------------------------------------------------ inputs: the lifecycle
@@ -224,11 +225,7 @@ class Automaton {
 
   /// The next output, in order (false when none).
   bool poll(Output& out) noexcept {
-    if (count_ == 0) return false;
-    out = outs_[head_];
-    head_ = (head_ + 1) % kMaxOutputs;
-    --count_;
-    return true;
+    return outs_.pop(out);
   }
 
   /// The plan of the state entered last (the one an Output::start means).
@@ -271,12 +268,7 @@ class Automaton {
   }
   void push(Output::Kind k) noexcept { push(make(k)); }
   void push(const Output& o) noexcept {
-    if (count_ == kMaxOutputs) {  // cannot happen: every input gives a handful and they are drained
-      head_ = (head_ + 1) % kMaxOutputs;
-      --count_;
-    }
-    outs_[(head_ + count_) % kMaxOutputs] = o;
-    ++count_;
+    outs_.push_over(o);  // never full: every input gives a handful and they are drained
   }
 
   void fail() noexcept {
@@ -362,8 +354,7 @@ class Automaton {
   std::uint32_t id_ = 0;
   robot::Millis next_report_ = 0;
   robot::action::Plan plan_;
-  Output outs_[kMaxOutputs];
-  std::size_t head_ = 0, count_ = 0;
+  Ring<Output, kMaxOutputs> outs_;
 };
 
 }  // namespace ev3proto::behaviour

@@ -15,6 +15,7 @@
 #include <string_view>
 #include <type_traits>
 
+#include "../decimal.hpp"
 #include "model.hpp"
 
 namespace ev3proto::behaviour {
@@ -348,18 +349,9 @@ class Text {
   template <typename T, typename = std::enable_if_t<std::is_integral<T>::value && !std::is_same<T, char>::value &&
                                                     !std::is_same<T, bool>::value>>
   Text& operator<<(T value) noexcept {
-    const std::int64_t v = static_cast<std::int64_t>(value);
-    char tmp[24];
-    std::size_t n = 0;
-    const bool neg = v < 0;
-    std::uint64_t u = neg ? 0u - static_cast<std::uint64_t>(v) : static_cast<std::uint64_t>(v);
-    do {
-      tmp[n++] = static_cast<char>('0' + u % 10u);
-      u /= 10u;
-    } while (u != 0);
-    if (neg) put('-');
-    while (n > 0) put(tmp[--n]);
-    return *this;
+    char tmp[kMaxIntText];
+    const char* e = write_int(tmp, static_cast<std::int64_t>(value));
+    return *this << std::string_view(tmp, static_cast<std::size_t>(e - tmp));
   }
   std::size_t size() const noexcept { return len_; }
   bool overflow() const noexcept { return overflow_; }

@@ -23,22 +23,11 @@ inline void write(Text& out, const Number& n) {
     out << to_string(static_cast<StopAction>(n.value));
     return;
   }
-  const std::int64_t f = factor_of(n.unit);
-  std::int64_t v = n.value;
-  if (v < 0) {
-    out << '-';
-    v = -v;
-  }
-  out << v / f;
-  std::int64_t rest = v % f;
-  if (rest != 0) {
-    out << '.';
-    for (std::int64_t d = f / 10; d > 0 && rest != 0; d /= 10) {
-      out << static_cast<char>('0' + rest / d);
-      rest %= d;
-    }
-  }
-  out << to_string(n.unit);
+  unsigned decimals = 0;  // the unit's factor is 10^decimals
+  for (std::int32_t f = factor_of(n.unit); f > 1; f /= 10) ++decimals;
+  char d[2 * kMaxIntText + 2];
+  const char* e = write_fixed(d, n.value, decimals, true);
+  out << std::string_view(d, static_cast<std::size_t>(e - d)) << to_string(n.unit);
 }
 
 /// An argument as written: the constant, or `$name` / `-$name`.

@@ -10,6 +10,7 @@
 #include <string_view>
 
 #include "../core.hpp"
+#include "../decimal.hpp"
 #include "../wire.hpp"
 
 namespace ev3proto {
@@ -205,12 +206,6 @@ bool QuorumOf(const S& s, const L& l, std::uint16_t me) noexcept {
   for (const std::uint16_t id : s)
     if (id != me && Has(l, id)) ++n;
   return l.size() > 0 && 2 * n > l.size();
-}
-
-/// @p v in decimal into @p buf: a datagram parameter.
-inline std::string_view decimal(std::uint32_t v, char (&buf)[10]) noexcept {
-  char* e = detail::write_decimal(buf, v);
-  return std::string_view(buf, static_cast<std::size_t>(e - buf));
 }
 
 }  // namespace ev3proto

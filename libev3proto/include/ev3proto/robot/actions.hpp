@@ -30,7 +30,7 @@
 #include "device.hpp"
 #include "events.hpp"
 #include "model.hpp"
-#include "ring.hpp"
+#include "../ring.hpp"
 #include "text.hpp"
 
 namespace ev3proto::robot {

@@ -18,7 +18,7 @@
 
 #include "../timers.hpp"
 #include "device.hpp"
-#include "ring.hpp"
+#include "../ring.hpp"
 #include "text.hpp"
 
 namespace ev3proto::robot {

@@ -11,6 +11,8 @@
 #include <cstdint>
 #include <string_view>
 
+#include "../decimal.hpp"
+
 namespace ev3proto::robot {
 
 /// A text of at most N - 1 characters in place (longer appends are cut and flag overflow()).
@@ -49,35 +51,11 @@ class Text {
   /// Appends one character.
   constexpr Text& append(char c) noexcept { return append(std::string_view(&c, 1)); }
   /// Appends a decimal integer ("-42").
-  constexpr Text& append_int(std::int64_t v) noexcept {
-    char d[24] = {};
-    std::size_t n = 0;
-    const bool neg = v < 0;
-    std::uint64_t u = neg ? std::uint64_t{0} - static_cast<std::uint64_t>(v) : static_cast<std::uint64_t>(v);
-    do {
-      d[n++] = static_cast<char>('0' + static_cast<int>(u % 10u));
-      u /= 10u;
-    } while (u != 0u);
-    if (neg) append('-');
-    while (n > 0) append(d[--n]);
-    return *this;
-  }
+  constexpr Text& append_int(std::int64_t v) noexcept { return append_fixed(v, 0); }
   /// Appends @p raw / 10^decimals with exactly @p decimals digits after the point ("18.3", "-0.05").
   constexpr Text& append_fixed(std::int64_t raw, unsigned decimals) noexcept {
-    if (decimals == 0) return append_int(raw);
-    std::uint64_t scale = 1;
-    for (unsigned i = 0; i < decimals; ++i) scale *= 10u;
-    const bool neg = raw < 0;
-    const std::uint64_t u = neg ? std::uint64_t{0} - static_cast<std::uint64_t>(raw) : static_cast<std::uint64_t>(raw);
-    if (neg) append('-');
-    append_int(static_cast<std::int64_t>(u / scale));
-    append('.');
-    std::uint64_t frac = u % scale;
-    for (std::uint64_t s = scale / 10u; s > 0; s /= 10u) {
-      append(static_cast<char>('0' + static_cast<int>(frac / s)));
-      frac %= s;
-    }
-    return *this;
+    char d[2 * kMaxIntText + 2] = {};
+    return append(std::string_view(d, static_cast<std::size_t>(write_fixed(d, raw, decimals, false) - d)));
   }
 
  private:

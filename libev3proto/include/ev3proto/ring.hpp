@@ -1,11 +1,13 @@
 /// @file ring.hpp
-/// @brief The fixed ring every robot queue is made of (writes, events, results, reports): no heap,
-///        oldest first, with the two policies a full queue needs (refuse the new, or drop the oldest).
+/// @brief The fixed ring every queue of the library is made of: the agent core's datagrams and
+///        events, the node's events, the behaviour automaton's outputs, the robot's writes, events,
+///        results and reports. No heap, oldest first, with the two policies a full queue needs
+///        (refuse the new, or drop the oldest).
 #pragma once
 
 #include <cstddef>
 
-namespace ev3proto::robot {
+namespace ev3proto {
 
 template <typename T, std::size_t N>
 class Ring {
@@ -19,9 +21,20 @@ class Ring {
   }
   /// Appends @p v, dropping the oldest element when full; true when one was dropped.
   bool push_over(const T& v) noexcept {
+    next() = v;
+    return commit_over();
+  }
+  /// The slot the next push_over() writes (when full, the oldest element's): fill it in place,
+  /// then commit_over(). Filling it without committing leaves the ring's elements as they are,
+  /// but for the oldest one when full.
+  T& next() noexcept { return slots_[(head_ + count_) % N]; }
+  /// Makes next() the newest element, dropping the oldest when full; true when one was dropped.
+  bool commit_over() noexcept {
     const bool full = count_ == N;
-    if (full) erase(0);
-    push(v);
+    if (full)
+      head_ = (head_ + 1) % N;
+    else
+      ++count_;
     return full;
   }
   /// Takes the oldest element; false when empty.
@@ -31,6 +44,16 @@ class Ring {
     erase(0);
     return true;
   }
+  /// push_over(@p v), counting one more in @p dropped when the oldest was dropped (a queue that
+  /// drops the oldest when full and counts what it lost).
+  template <typename C>
+  void push_over(const T& v, C& dropped) noexcept {
+    if (push_over(v)) ++dropped;
+  }
+  /// The oldest element (!empty()).
+  T& front() noexcept { return at(0); }
+  /// Removes the oldest element (!empty()).
+  void pop_front() noexcept { erase(0); }
   /// Element @p i, 0 the oldest (i < size()).
   T& at(std::size_t i) noexcept { return slots_[(head_ + i) % N]; }
   const T& at(std::size_t i) const noexcept { return slots_[(head_ + i) % N]; }
@@ -51,6 +74,8 @@ class Ring {
       if (keep(at(i))) at(kept++) = at(i);
     count_ = kept;
   }
+  /// Forgets every element.
+  void clear() noexcept { head_ = count_ = 0; }
   std::size_t size() const noexcept { return count_; }
   bool empty() const noexcept { return count_ == 0; }
   bool full() const noexcept { return count_ == N; }
@@ -60,4 +85,4 @@ class Ring {
   std::size_t head_ = 0, count_ = 0;
 };
 
-}  // namespace ev3proto::robot
+}  // namespace ev3proto
