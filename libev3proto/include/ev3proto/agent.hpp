@@ -1198,17 +1198,21 @@ class Agent {
   /// relay; the outer datagram carries the inner one's msgid.
   bool emit_from(std::uint16_t from, Dest dest, std::uint16_t to, MsgType type,
                  const std::string_view* params, std::size_t count, Peer peer = 0) noexcept {
-    // When full, the slot written is the oldest one; encode_parts() writes nothing on refusal.
-    TxSlot& s = tx_.next();
+    // Encoded aside first: when the queue is full the slot written is the oldest datagram's, which
+    // a refused encoding (the inner datagram or its RELAY envelope too long) must leave as it is.
+    char buf[TxBytes];
     EncodeResult r = encode_parts(from, to, msgid_, static_cast<std::uint8_t>(type), params,
-                                  count, s.bytes, TxBytes);
+                                  count, buf, TxBytes);
     if (!r.ok()) return false;
+    TxSlot& s = tx_.next();
     if (dest == Dest::master && el_.via != 0) {
-      char inner[TxBytes];
-      std::memcpy(inner, s.bytes, r.size);
-      r = encode_envelope(from, el_.via, msgid_, MsgType::RELAY, to, std::string_view(inner, r.size), s.bytes,
+      char outer[TxBytes];
+      r = encode_envelope(from, el_.via, msgid_, MsgType::RELAY, to, std::string_view(buf, r.size), outer,
                           TxBytes);
       if (!r.ok()) return false;
+      std::memcpy(s.bytes, outer, r.size);
+    } else {
+      std::memcpy(s.bytes, buf, r.size);
     }
     ++msgid_;
     push_slot(s, dest, peer, r.size);
