@@ -291,7 +291,7 @@ def _cmd_merged(args: argparse.Namespace) -> int:
 def _cmd_mutate(args: argparse.Namespace) -> int:
     from ev3conformance import graph, mutate
     if args.list:
-        headers = {p.name: p.read_text() for p in (graph.ROOT / mutate.INC).glob("*.hpp")}
+        headers = mutate.library_headers(graph.ROOT / mutate.INC)
         for m in mutate.MUTANTS:
             at = mutate.locate(mutate.headers_for(m.kind, headers), m)
             where = at if isinstance(at, str) else at[3]

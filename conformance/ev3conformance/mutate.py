@@ -170,7 +170,7 @@ MUTANTS: tuple[Mutant, ...] = (
            "PING does not refresh the agent (dropped while pinging)"),
     Mutant("M09-not-answers-master", "MasterAnswer", "if (!e.synced && !ack) return;", "", "master",
            "dropped guard: a NOT answers MASTER"),
-    Mutant("M10-panic-resync-unordered", "MasterSync", "s == e.id && m.msgid > e.last_msgid", "s == e.id", "master",
+    Mutant("M10-panic-resync-unordered", "MasterSync", "s == e.id && msgid_newer(m.msgid, e.last_msgid)", "s == e.id", "master",
            "dropped guard: an old PANIC copy re-syncs a synced agent"),
 )
 
@@ -272,6 +272,12 @@ def locate(texts: dict[str, str], m: Mutant) -> tuple[str, int, int, str] | str:
     if len(hits) != 1:
         return f"{m.old!r} found {len(hits)} times in {m.site} ({', '.join(sorted({r[3] for r in ranges}))})"
     return hits[0]
+
+
+def library_headers(inc: Path) -> dict[str, str]:
+    """The headers mutants are sited in (the library's top level and election/), by their path under
+    @p inc (libev3proto/include/ev3proto)."""
+    return {p.relative_to(inc).as_posix(): p.read_text() for p in [*inc.glob("*.hpp"), *inc.glob("election/*.hpp")]}
 
 
 def headers_for(kind: str, headers: dict[str, str]) -> dict[str, str]:
@@ -453,8 +459,7 @@ class Workspace:
         # A mutant may leave a parameter unused: warnings stay on, but not as errors, in the copy.
         (self.src / "CMakeLists.txt").write_text(top.replace(" -Werror", ""))
         inc = self.src / INC
-        self.pristine = {p.relative_to(inc).as_posix(): p.read_text()
-                         for p in [*inc.glob("*.hpp"), *inc.glob("election/*.hpp")]}
+        self.pristine = library_headers(inc)
         cmd = ["cmake", "-S", str(self.src), "-B", str(self.bld), "-G", "Ninja", "-DEV3_TESTS=ON",
                "-DCMAKE_BUILD_TYPE=Debug", "-DCMAKE_CXX_FLAGS_DEBUG=-O0",
                f"-DCMAKE_RUNTIME_OUTPUT_DIRECTORY={self.bin}"]
