@@ -110,9 +110,6 @@ class Agent {
     }
   }
 
-  /// Same as advance(): the name quinn-style callers expect.
-  void handle_timeout(Millis now) noexcept { advance(now); }
-
   /// A datagram @p bytes arrived from @p from at @p now. Time advances first; the datagram is
   /// decoded (a failure is no spec step: counted in rejected(), the reason in the result), then
   /// handle_message(). Returns the action taken or why none was.

@@ -259,9 +259,6 @@ class Master {
     if (now > now_) now_ = now;
   }
 
-  /// Same as advance().
-  void handle_timeout(Millis now) { advance(now); }
-
   /// A datagram arrived from @p from at @p now (spec Receive). Returns the action taken, or why
   /// the datagram was ignored (MasterReceipt): a datagram that does not decode is no spec step
   /// (counted in rejected()).

@@ -137,10 +137,8 @@ class Node {
   void advance(Millis now) {
     if (master_) master_->advance(now);
     agent_.advance(now);
-    settle(now);
+    report_changes(now);
   }
-  /// Same as advance().
-  void handle_timeout(Millis now) { advance(now); }
 
   /// A datagram from @p from at @p now: decoded once, for both cores; the first copy of each (sender, msgid) goes
   /// to the Master core (when one runs), then the agent core takes it. Returns what each did.
@@ -152,7 +150,7 @@ class Node {
       agent_.advance(now);
       ++rejected_;
       h.agent.why = Ignored::undecodable;
-      settle(now);
+      report_changes(now);
       return h;
     }
     if (master_) {
@@ -165,7 +163,7 @@ class Node {
     const Action a = h.master;
     h.agent = agent_.handle_message(rx_, bytes, from, now);
     h.master = a;
-    settle(now);
+    report_changes(now);
     return h;
   }
 
@@ -202,7 +200,7 @@ class Node {
   bool command(std::uint16_t agent, const Command& c, Millis now) {
     if (!master_ || master_->role() != MasterRole::master) return false;
     master_->command(agent, c, now);
-    settle(now);
+    report_changes(now);
     return true;
   }
 
@@ -322,12 +320,12 @@ class Node {
   }
 
   bool after(bool taken, Millis now) {
-    settle(now);
+    report_changes(now);
     return taken;
   }
 
   /// After every input: start or drop the Master core, then report what changed since last time.
-  void settle(Millis now) {
+  void report_changes(Millis now) {
     if (agent_.durable_rev() != seen_durable_rev_) {  // the agent core counts its changes: no rebuild per input
       seen_durable_rev_ = agent_.durable_rev();
       NodeEvent e = make(NodeEvent::Kind::durable);
