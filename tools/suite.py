@@ -5,8 +5,9 @@
     tools/suite.py --together NAME TARGET [TARGET ...]
 
 Each TARGET runs as `make --no-print-directory TARGET` with its output passed through. At the end
-(or at the first target that fails) a table gives each target's wall time and the total, so a reader
-of a CI log sees where the time of `make test` or `make check` went. Exits 1 if a target failed,
+(or at the first target that fails) a table gives each target's wall time, the CPU time (user +
+system) of all its processes, and the totals, so a reader of a CI log sees where the time of
+`make test` or `make check` went, and which parts wait rather than compute. Exits 1 if a target failed,
 after printing the table; the targets after it are not run.
 
 --together runs the targets at the same time (for parts that each keep one core busy, on a machine
@@ -15,6 +16,7 @@ the table gives each one's wall time and the time of them all. Exits 1 if any fa
 Python 3 standard library only.
 """
 import os
+import resource
 import subprocess
 import sys
 import time
@@ -25,13 +27,20 @@ def fmt(seconds):
     return "%d min %02d s" % (m, s) if m else "%d s" % s
 
 
+def cpu_seconds():
+    """User + system time of every child process waited for so far."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def table(name, rows, failed):
-    width = max([len(t) for t, _, _ in rows] + [len("total")])
-    print("\n%s: time per part" % name)
-    for target, seconds, rc in rows:
+    width = max([len(t) for t, _, _, _ in rows] + [len("total")])
+    print("\n%s: time per part (wall, and CPU of all its processes)" % name)
+    for target, seconds, cpu, rc in rows:
         mark = "" if rc == 0 else "  FAILED (exit %d)" % rc
-        print("  %-*s  %10s%s" % (width, target, fmt(seconds), mark))
-    print("  %-*s  %10s" % (width, "total", fmt(sum(s for _, s, _ in rows))))
+        print("  %-*s  %10s  cpu %10s%s" % (width, target, fmt(seconds), fmt(cpu), mark))
+    print("  %-*s  %10s  cpu %10s" % (width, "total", fmt(sum(r[1] for r in rows)),
+                                      fmt(sum(r[2] for r in rows))))
     if failed:
         print("%s: FAILED in %s" % (name, failed))
     else:
@@ -73,9 +82,9 @@ def main(argv):
     make = os.environ.get("MAKE", "make")
     rows = []
     for target in targets:
-        t0 = time.monotonic()
+        t0, c0 = time.monotonic(), cpu_seconds()
         rc = subprocess.call([make, "--no-print-directory", target])
-        rows.append((target, time.monotonic() - t0, rc))
+        rows.append((target, time.monotonic() - t0, cpu_seconds() - c0, rc))
         if rc != 0:
             sys.stdout.flush()
             table(name, rows, target)
