@@ -81,6 +81,7 @@ class Program {
     if (!load_state(cfg, restored)) return 2;
     master_.emplace(cfg, start_, trace_file_.is_open() ? &trace_ : nullptr);
     ready(start_);  // the state file written at once (nothing is queued yet)
+    if (state_failed_) return 1;
     listening_ = net_.local().str();
     log_.log(kInfo, "listening on %s", listening_.c_str());
     log_.flush();
@@ -90,12 +91,12 @@ class Program {
     election_changes();
     loop();
     shutdown();
-    return 0;
+    return state_failed_ ? 1 : 0;
   }
 
  private:
   void loop() {
-    while (signals_.stop_signal() == 0 && !quit_) {
+    while (signals_.stop_signal() == 0 && !quit_ && !state_failed_) {
       // At most Receiver::kBatch datagrams, then what is owed (PONGs, resends, copies, status).
       const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
         on_datagram(d, from, now);
@@ -148,9 +149,11 @@ class Program {
   }
 
   /// The core's ready(): the state file written (ids, msgids, epoch, membership), then what the
-  /// calls queued sent.
+  /// calls queued sent. A failed write stops the master: nothing more is sent (a msgid or an id
+  /// handed out must not be handed out again after a restart, an epoch must not be stood in twice).
   void ready(Millis now) {
-    master_->ready([this](const ev3proto::MasterDurable& d) { return save_state(d); },
+    if (state_failed_) return;
+    state_failed_ = !master_->ready([this](const ev3proto::MasterDurable& d) { return save_state(d); },
                    [this, now](const ev3proto::MasterTransmit& t) {
                      if (t.dest == ev3proto::Dest::broadcast) {  // ELECT, LEADER
                        log_.log(kDebug, "send %s to everyone", t.bytes.c_str());
@@ -312,7 +315,10 @@ class Program {
     }
     std::string d;
     for (const auto& kv : drops_) d += " " + kv.first + "=" + std::to_string(kv.second);
-    log_.log(kInfo, "stopping (signal %d); drops:%s", signals_.stop_signal(), d.empty() ? " none" : d.c_str());
+    if (state_failed_)
+      log_.log(kError, "stopping: the state file could not be written; drops:%s", d.empty() ? " none" : d.c_str());
+    else
+      log_.log(kInfo, "stopping (signal %d); drops:%s", signals_.stop_signal(), d.empty() ? " none" : d.c_str());
     log_.flush();
     trace_file_.close();
   }
@@ -350,16 +356,16 @@ class Program {
     return true;
   }
 
-  /// Writes the state the core's ready() hands over (--state-file). A failed write is logged once
-  /// and the master goes on sending: its state file may then be behind (docs/programs.md).
+  /// Writes the state the core's ready() hands over (--state-file); false when it is not on disk
+  /// (then the master sends nothing more and exits with status 1, as ev3-agent does).
   bool save_state(const ev3proto::MasterDurable& d) {
     if (opt_.state_file.empty()) return true;
     std::string err;
-    if (!ev3io::write_state_file(opt_.state_file, ev3proto::durable_text(d).view(), err) && !state_warned_) {
-      log_.log(kError, "%s", err.c_str());
-      state_warned_ = true;
-    }
-    return true;
+    if (ev3io::write_state_file(opt_.state_file, ev3proto::durable_text(d).view(), err)) return true;
+    log_.log(kError, "%s; the master's state is not on disk: sending nothing more, exiting", err.c_str());
+    std::fprintf(stderr, "ev3-master: %s; the master's state is not on disk: sending nothing more, exiting\n",
+                 err.c_str());
+    return false;
   }
 
   /// Election observers (role, epoch, handover): one console line per change.
@@ -397,7 +403,7 @@ class Program {
   bool tty_ = false, stdin_open_ = true, quit_ = false, dirty_ = false, status_warned_ = false;
   int rows_ = 24;
   // --state-file, election
-  bool state_warned_ = false;
+  bool state_failed_ = false;  // a state file write failed: nothing more is sent
   std::uint32_t handovers_ = 0, seen_handovers_ = 0;  // HANDOVERs taken, and said
   ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;
   std::uint32_t seen_epoch_ = 0;

@@ -231,6 +231,28 @@ def test_sigint_exits_0_and_writes_status(start_master):
     assert read_status(m.status) is not None
 
 
+def test_a_failed_state_write_stops_the_master_sending_nothing_more(start_master, agents, programs, tmp_path):
+    state = tmp_path / "master.state"
+    m = start_master("--state-file", str(state))
+    agent(agents, m, 50001).register()  # its id handed out: next_id written first
+    written = state.read_text()
+    # DIR/master.state.tmp a directory: the next write fails (temp file first)
+    (tmp_path / "master.state.tmp").mkdir()
+    second = agent(agents, m, 50002)
+    for _ in range(20):
+        if m.proc.poll() is not None:
+            break
+        second.send_master("AGENT", "A", sender=50002)
+        time.sleep(0.05)
+    assert m.proc.wait(3) == 1
+    programs.remove(m)  # it exited by itself, with status 1
+    m.close()
+    assert second.id == 0, "an id handed out that is not on disk"
+    assert "the master's state is not on disk: sending nothing more, exiting" in m.stderr()
+    assert "stopping: the state file could not be written" in (tmp_path / "master.log").read_text()
+    assert state.read_text() == written
+
+
 @pytest.mark.parametrize("args,named", [
     (["--agent-timeout-ms", "x"], "--agent-timeout-ms"), (["--bind", "nowhere"], "--bind"),
     (["--script", "/nonexistent/x"], "--script"), (["--fault-dup", "-1"], "--fault-dup"),
