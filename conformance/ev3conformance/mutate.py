@@ -79,7 +79,7 @@ MUTANTS: tuple[Mutant, ...] = (
     Mutant("A08-pong-ignored", "RecvPong", "{ hear(); }", "{}", "agent", "PONG ignored (silence not reset)"),
     Mutant("A09-refusal-reason", "RecvStart", "Refuse(m, Refusal::no_behaviour)", "Refuse(m, Refusal::wrong_state)",
            "agent", "wrong refusal reason: START without behaviour says wrong state"),
-    Mutant("A10-unknown-behaviour-accepted", "RecvBehaviour", "b == nullptr || !fits(m)", "b == nullptr && !fits(m)",
+    Mutant("A10-unknown-behaviour-accepted", "RecvBehaviour", "b == nullptr || !BehaviourStore::fits(m)", "b == nullptr && !BehaviourStore::fits(m)",
            "agent", "dropped guard: unknown behaviour loaded when its args fit"),
     Mutant("A11-resume-motors-off", "RecvResume", "if (wait_ == Wait::NONE) motors_on(false);", "", "agent",
            "RESUME leaves the motors off"),

@@ -18,6 +18,7 @@
 #include <cstring>
 #include <string_view>
 
+#include "agent_outbox.hpp"
 #include "agent_types.hpp"
 #include "core.hpp"
 #include "dedupe.hpp"
@@ -59,11 +60,13 @@ class Agent {
   using WindowType = DedupeWindow<Window, StoredAnswer>;
   /// The election part (Election.tla's variables, guards and transitions).
   using ElectionType = AgentElection<RelaySlots, kMaxMembership>;  // fleet members kept: kMaxMembership
+  /// The loaded behaviour's storage.
+  using BehaviourStore = LoadedBehaviour<kMaxNameLen, ArgBytes, kMaxArgs>;
 
   /// A fresh agent in IDLE at time @p now (spec Init with id = temp id).
   Agent(const AgentConfig& config, Millis now, Trace* trace = nullptr) noexcept
-      : cfg_(config), trace_(trace), id_(config.temp_id), msgid_(config.first_msgid), now_(now),
-        heard_(now), plugged_(config.caps.devices), el_(config.election, config.timers), durable_(el_.durable()) {
+      : cfg_(config), trace_(trace), id_(config.temp_id), now_(now),
+        heard_(now), plugged_(config.caps.devices), tx_(config.first_msgid), el_(config.election, config.timers), durable_(el_.durable()) {
     win_.set_limit(config.window);
     timers_.set(AgentTimer::periodic, now + cfg_.timers[Timer::heartbeat]);
     arm_lifecycle();
@@ -249,15 +252,7 @@ class Agent {
   // ---------------------------------------------------------------- outputs
 
   /// Takes the oldest datagram to send; false when there is none.
-  bool poll_transmit(Transmit& out) noexcept {
-    if (tx_.empty()) return false;
-    const TxSlot& s = tx_.front();
-    out.dest = s.dest;
-    out.peer = s.dest == Dest::master ? master_peer_ : s.dest == Dest::peer ? s.peer : 0;
-    out.bytes = std::string_view(s.bytes, s.size);
-    tx_.pop_front();  // the slot keeps its bytes until the next datagram is queued
-    return true;
-  }
+  bool poll_transmit(Transmit& out) noexcept { return tx_.poll(out, master_peer_); }
 
   /// Takes the oldest event (state, LED, behaviour control); false when there is none.
   bool poll_event(AgentEvent& out) noexcept {
@@ -286,7 +281,7 @@ class Agent {
   bool dev_ok() const noexcept { return plugged_ == cfg_.caps.devices; }
   /// The loaded behaviour (name "" when none).
   BehaviourView behaviour() const noexcept {
-    return BehaviourView{std::string_view(beh_name_, beh_len_), args_, arg_ends_, arg_count_};
+    return beh_.view();
   }
   /// The agent's time (the latest now it was given).
   Millis now() const noexcept { return now_; }
@@ -297,9 +292,9 @@ class Agent {
   /// Datagrams that did not decode.
   std::uint32_t rejected() const noexcept { return rejected_; }
   /// msgid the next datagram will carry.
-  std::uint32_t next_msgid() const noexcept { return msgid_; }
+  std::uint32_t next_msgid() const noexcept { return tx_.next_msgid(); }
   /// Datagrams or events dropped because the caller did not drain the queues.
-  std::uint32_t overflowed() const noexcept { return overflowed_; }
+  std::uint32_t overflowed() const noexcept { return tx_.overflowed() + ev_overflowed_; }
   /// The armed deadline of timer @p t (kNever when stopped).
   Millis deadline(AgentTimer t) const noexcept {
     if (t == AgentTimer::relay) return el_.relay_at;
@@ -367,8 +362,9 @@ class Agent {
     v.state = state_;
     v.led = led_;
     v.id = id_;
-    std::memcpy(v.beh, beh_name_, beh_len_);
-    v.beh_len = static_cast<std::uint8_t>(beh_len_);
+    const std::string_view beh = beh_.name();
+    std::memcpy(v.beh, beh.data(), beh.size());
+    v.beh_len = static_cast<std::uint8_t>(beh.size());
     v.step = step_;
     v.wait = wait_;
     v.motors = motors_;
@@ -387,7 +383,7 @@ class Agent {
     v.mepoch = el_.mepoch;
     v.floor = el_.floor;
     v.members_rev = el_.members.rev();
-    v.msgid = msgid_;
+    v.msgid = tx_.next_msgid();
     return v;
   }
 
@@ -397,13 +393,6 @@ class Agent {
 
  private:
   friend ElectionType;  // its transitions send through emit, emit_to, emit_raw
-
-  struct TxSlot {
-    Dest dest = Dest::broadcast;
-    Peer peer = 0;
-    std::size_t size = 0;
-    char bytes[TxBytes];
-  };
 
   // ------------------------------------------------------------ the Step prelude
 
@@ -736,8 +725,7 @@ class Agent {
     motors_on(true, kind);
   }
   void unload() noexcept {
-    beh_len_ = 0;
-    arg_count_ = 0;
+    beh_.unload();
     step_ = 0;
   }
 
@@ -757,33 +745,10 @@ class Agent {
     send_answer(a);
   }
   void Refuse(const Message& m, Refusal r) noexcept { Answer(m, false, r); }
-  /// NOT "missing device" for behaviour @p b (spec devOk), naming the first device missing that it
-  /// needs, else the first of the model's: "missing device: the robot has no colour sensor (explore
-  /// needs it)", "... (no behaviour runs until it is back)"; just "missing device" when unnamed.
+  /// NOT "missing device" for behaviour @p b (spec devOk), naming the device (name_missing_device).
   void RefuseMissing(const Message& m, const BehaviourSpec& b) noexcept {
-    const std::uint32_t needed = b.devices & ~plugged_;
-    const std::uint32_t missing = needed != 0 ? needed : cfg_.caps.devices & ~plugged_;
-    std::size_t bit = 0;
-    while (bit < 32 && (missing & (1u << bit)) == 0) ++bit;
-    if (bit >= cfg_.caps.device_name_count) return Refuse(m, Refusal::missing_device);
-    char buf[CheckReason::kMax + 1];
-    std::size_t n = 0;
-    auto put = [&buf, &n](std::string_view t) {
-      for (const char c : t)
-        if (n < sizeof buf) buf[n++] = c;
-    };
-    put(to_string(Refusal::missing_device));
-    put(": the robot has no ");
-    put(cfg_.caps.device_names[bit]);
-    if (needed != 0) {
-      put(" (");
-      put(b.name);
-      put(" needs it)");
-    } else {
-      put(" (no behaviour runs until it is back)");
-    }
     CheckReason why;
-    why.set(std::string_view(buf, n));
+    if (!name_missing_device(cfg_.caps, plugged_, b, why)) return Refuse(m, Refusal::missing_device);
     Answer(m, false, Refusal::missing_device, &why);
   }
 
@@ -831,7 +796,7 @@ class Agent {
   /// with its reason and changes nothing else (spec Refused, CheckReason).
   void RecvBehaviour(const Message& m) noexcept {
     const BehaviourSpec* b = find_behaviour(m.param(0));
-    if (b == nullptr || !fits(m)) return Refuse(m, Refusal::unknown_behaviour);
+    if (b == nullptr || !BehaviourStore::fits(m)) return Refuse(m, Refusal::unknown_behaviour);
     if (!dev_ok() || (b->devices & ~plugged_) != 0) return RefuseMissing(m, *b);
     {
       std::string_view params[kMaxArgs];
@@ -846,7 +811,7 @@ class Agent {
       }
     }
     if (state_ == State::PAUSED) Stopped();  // the paused run is replaced (wait, motors as spec)
-    load(m);
+    beh_.load(m);
     step_ = 0;
     wait_ = Wait::NONE;
     if (state_ == State::WORKING) motors_on(true);
@@ -855,7 +820,7 @@ class Agent {
 
   /// Spec RecvStart: run the loaded behaviour from its start (ACTIVE, PAUSED, WORKING -> WORKING).
   void RecvStart(const Message& m, State to) noexcept {
-    if (beh_len_ == 0) return Refuse(m, Refusal::no_behaviour);
+    if (!beh_.loaded()) return Refuse(m, Refusal::no_behaviour);
     RunFrom0(to, ControlKind::start);
     Answer(m, true);
   }
@@ -1160,26 +1125,6 @@ class Agent {
       if (cfg_.caps.behaviours[i].name == name) return &cfg_.caps.behaviours[i];
     return nullptr;
   }
-  /// True when BEHAVIOUR's name and arguments fit the fixed storage.
-  bool fits(const Message& m) const noexcept {
-    if (m.param(0).size() > kMaxNameLen || m.param(0).empty()) return false;
-    std::size_t bytes = 0;
-    for (std::size_t i = 1; i < m.param_count(); ++i) bytes += m.param(i).size();
-    return bytes <= ArgBytes;
-  }
-  void load(const Message& m) noexcept {
-    const std::string_view n = m.param(0);
-    std::memcpy(beh_name_, n.data(), n.size());
-    beh_len_ = n.size();
-    std::size_t used = 0;
-    arg_count_ = 0;
-    for (std::size_t i = 1; i < m.param_count(); ++i) {
-      const std::string_view a = m.param(i);
-      if (!a.empty()) std::memcpy(args_ + used, a.data(), a.size());
-      used += a.size();
-      arg_ends_[arg_count_++] = static_cast<std::uint16_t>(used);
-    }
-  }
 
   bool emit(Dest dest, std::uint16_t to, MsgType type, const std::string_view* params,
             std::size_t count) noexcept {
@@ -1190,47 +1135,16 @@ class Agent {
                std::size_t count) noexcept {
     return emit_from(id_, Dest::peer, to, type, params, count, peer);
   }
-  /// Encodes a new datagram (next msgid) into the output queue; the oldest is dropped when full.
-  /// Relayed (via != 0), a datagram for the master travels inside RELAY(master, datagram) to the
-  /// relay; the outer datagram carries the inner one's msgid.
+  /// A new datagram from @p from (the agent, or the master core it runs) into the outbox; for the
+  /// master, inside RELAY when relayed.
   bool emit_from(std::uint16_t from, Dest dest, std::uint16_t to, MsgType type,
                  const std::string_view* params, std::size_t count, Peer peer = 0) noexcept {
-    // Encoded aside first: when the queue is full the slot written is the oldest datagram's, which
-    // a refused encoding (the inner datagram or its RELAY envelope too long) must leave as it is.
-    char buf[TxBytes];
-    EncodeResult r = encode_parts(from, to, msgid_, static_cast<std::uint8_t>(type), params,
-                                  count, buf, TxBytes);
-    if (!r.ok()) return false;
-    TxSlot& s = tx_.next();
-    if (dest == Dest::master && el_.via != 0) {
-      char outer[TxBytes];
-      r = encode_envelope(from, el_.via, msgid_, MsgType::RELAY, to, std::string_view(buf, r.size), outer,
-                          TxBytes);
-      if (!r.ok()) return false;
-      std::memcpy(s.bytes, outer, r.size);
-    } else {
-      std::memcpy(s.bytes, buf, r.size);
-    }
-    ++msgid_;
-    push_slot(s, dest, peer, r.size);
-    return true;
+    return tx_.emit(from, dest, to, type, params, count, peer, el_.via);
   }
   /// Queues @p bytes unchanged (a relay forwarding an inner datagram): no msgid of ours.
-  void emit_raw(Dest dest, Peer peer, std::string_view bytes) noexcept {
-    TxSlot& s = tx_.next();
-    if (bytes.size() > TxBytes) return;
-    std::memcpy(s.bytes, bytes.data(), bytes.size());
-    push_slot(s, dest, peer, bytes.size());
-  }
-  /// Queues tx_.next() (@p s, its bytes written): the oldest datagram is dropped when full.
-  void push_slot(TxSlot& s, Dest dest, Peer peer, std::size_t size) noexcept {
-    s.dest = dest;
-    s.peer = peer;
-    s.size = size;
-    if (tx_.commit_over()) ++overflowed_;
-  }
+  void emit_raw(Dest dest, Peer peer, std::string_view bytes) noexcept { tx_.emit_raw(dest, peer, bytes); }
 
-  void push_event(const AgentEvent& e) noexcept { ev_.push_over(e, overflowed_); }
+  void push_event(const AgentEvent& e) noexcept { ev_.push_over(e, ev_overflowed_); }
 
   void record(Action a, const AgentVars& before, std::string_view msg, std::string_view event,
               Millis ticks, Action cmd = Action::Ignore, std::string_view port = {}) noexcept {
@@ -1258,7 +1172,6 @@ class Agent {
   State state_ = State::IDLE;
   Led led_ = Led::YELLOW_BLINK;
   std::uint16_t id_;
-  std::uint32_t msgid_;
   Millis now_;
   Millis heard_;  // spec silence = now_ - heard_ (0 in PANIC)
   std::uint32_t plugged_;
@@ -1268,16 +1181,12 @@ class Agent {
   bool instance_ = false;  // the behaviour runner holds a run (started, maybe paused)
   Wait wait_ = Wait::NONE;
   std::uint32_t step_ = 0;
-  char beh_name_[kMaxNameLen] = {};
-  std::size_t beh_len_ = 0;
-  char args_[ArgBytes] = {};
-  std::uint16_t arg_ends_[kMaxArgs] = {};
-  std::size_t arg_count_ = 0;
+  BehaviourStore beh_;
   WindowType win_;
   std::uint32_t win_rev_ = 0;
-  Ring<TxSlot, TxSlots> tx_;
+  AgentOutbox<TxSlots, TxBytes> tx_;
   Ring<AgentEvent, EventSlots> ev_;
-  std::uint32_t rejected_ = 0, overflowed_ = 0;
+  std::uint32_t rejected_ = 0, ev_overflowed_ = 0;
   ElectionType el_;               // Election.tla's variables (fixed capacity, no heap)
   Durable durable_;               // durable() when durable_rev_ last changed
   std::uint32_t durable_rev_ = 0;

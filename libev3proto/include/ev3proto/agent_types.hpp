@@ -77,6 +77,38 @@ struct Capabilities {
   std::size_t device_name_count = 0;        ///< Entries of @c device_names.
 };
 
+/// NOT "missing device" naming what is missing for behaviour @p b on a robot of @p caps with
+/// devices @p plugged: the first device @p b needs that is missing, else the first of the model's:
+/// "missing device: the robot has no colour sensor (explore needs it)", "... (no behaviour runs
+/// until it is back)". False, @p out untouched, when that device has no name (then the reason is
+/// just "missing device").
+inline bool name_missing_device(const Capabilities& caps, std::uint32_t plugged, const BehaviourSpec& b,
+                                CheckReason& out) noexcept {
+  const std::uint32_t needed = b.devices & ~plugged;
+  const std::uint32_t missing = needed != 0 ? needed : caps.devices & ~plugged;
+  std::size_t bit = 0;
+  while (bit < 32 && (missing & (1u << bit)) == 0) ++bit;
+  if (bit >= caps.device_name_count) return false;
+  char buf[CheckReason::kMax + 1];
+  std::size_t n = 0;
+  auto put = [&buf, &n](std::string_view t) {
+    for (const char c : t)
+      if (n < sizeof buf) buf[n++] = c;
+  };
+  put(to_string(Refusal::missing_device));
+  put(": the robot has no ");
+  put(caps.device_names[bit]);
+  if (needed != 0) {
+    put(" (");
+    put(b.name);
+    put(" needs it)");
+  } else {
+    put(" (no behaviour runs until it is back)");
+  }
+  out.set(std::string_view(buf, n));
+  return true;
+}
+
 /// Construction parameters of an Agent.
 struct AgentConfig {
   Capabilities caps;             ///< Behaviours and devices (the table must outlive the agent).
@@ -135,6 +167,49 @@ struct BehaviourView {
     const std::size_t b = i == 0 ? 0u : ends[i - 1];
     return std::string_view(data + b, ends[i] - b);
   }
+};
+
+/// The behaviour BEHAVIOUR loaded (spec beh): its name and arguments in fixed storage.
+/// @tparam NameBytes longest name; @tparam ArgBytes all arguments' bytes; @tparam MaxArgs most arguments.
+template <std::size_t NameBytes, std::size_t ArgBytes, std::size_t MaxArgs>
+class LoadedBehaviour {
+ public:
+  /// True when BEHAVIOUR @p m's name and arguments fit.
+  static bool fits(const Message& m) noexcept {
+    if (m.param(0).size() > NameBytes || m.param(0).empty() || m.param_count() - 1 > MaxArgs) return false;
+    std::size_t bytes = 0;
+    for (std::size_t i = 1; i < m.param_count(); ++i) bytes += m.param(i).size();
+    return bytes <= ArgBytes;
+  }
+  /// Keeps BEHAVIOUR @p m's name and arguments (fits(m) holds).
+  void load(const Message& m) noexcept {
+    const std::string_view n = m.param(0);
+    std::memcpy(name_, n.data(), n.size());
+    len_ = n.size();
+    std::size_t used = 0;
+    count_ = 0;
+    for (std::size_t i = 1; i < m.param_count(); ++i) {
+      const std::string_view a = m.param(i);
+      if (!a.empty()) std::memcpy(args_ + used, a.data(), a.size());
+      used += a.size();
+      ends_[count_++] = static_cast<std::uint16_t>(used);
+    }
+  }
+  /// None loaded (spec NoBehaviour).
+  void unload() noexcept { len_ = count_ = 0; }
+  /// True when one is loaded.
+  bool loaded() const noexcept { return len_ != 0; }
+  /// Its name ("" when none).
+  std::string_view name() const noexcept { return std::string_view(name_, len_); }
+  /// Name and arguments.
+  BehaviourView view() const noexcept { return BehaviourView{name(), args_, ends_, count_}; }
+
+ private:
+  char name_[NameBytes] = {};
+  std::size_t len_ = 0;
+  char args_[ArgBytes] = {};
+  std::uint16_t ends_[MaxArgs] = {};
+  std::size_t count_ = 0;
 };
 
 /// The spec variables of one agent (AgentLogic `AgentType`) at one instant, for trace records.
