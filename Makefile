@@ -64,13 +64,16 @@ check:
 test-unit: build
 	@cd build/native && ctest --output-on-failure -j $(JOBS)
 
-# Two pytest processes (pytest-xdist), one per core: most of these tests wait on TLC or ev3-codec.
+# Three pytest processes (pytest-xdist, each taking the next test when done) on two cores: most of
+# these tests wait on TLC or on ev3-codec's answers, and two leave a core idle a quarter of the time
+# (docs/benchmarks.md, "make test").
+PYTEST_PAR := -n 3 --dist worksteal
 test-python: build
-	@EV3_BIN=$(BIN) $(PY) -m pytest -q -n 2 tests/python --ignore=tests/python/blackbox
+	@EV3_BIN=$(BIN) $(PY) -m pytest -q $(PYTEST_PAR) tests/python --ignore=tests/python/blackbox
 
 # The Python tests that do not run TLC (marker `tlc`, tests/python/pytest.ini).
 test-python-quick: build
-	@EV3_BIN=$(BIN) $(PY) -m pytest -q -n 2 tests/python --ignore=tests/python/blackbox -m "not tlc"
+	@EV3_BIN=$(BIN) $(PY) -m pytest -q $(PYTEST_PAR) tests/python --ignore=tests/python/blackbox -m "not tlc"
 
 # ev3-agent and ev3-master over real UDP on loopback (tests/python/blackbox), including the static
 # armel ev3-agent under qemu-arm against the native ev3-master (test_example.py is test-example's).
