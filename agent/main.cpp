@@ -480,13 +480,8 @@ class Program {
     const std::string members(ev3proto::IdListText().ids(d.members, d.member_count).view());
     log_.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
              members.c_str(), d.mepoch, d.floor);
-    if (state_path_.empty()) return true;
-    std::string err;
-    if (ev3io::write_state_file(state_path_, ev3proto::durable_text(d).view(), err)) return true;
-    log_.log(kError, "%s; the election state is not on disk: sending nothing more, exiting", err.c_str());
-    std::fprintf(stderr, "ev3-agent: %s; the election state is not on disk: sending nothing more, exiting\n",
-                 err.c_str());
-    return false;
+    return state_path_.empty() || ev3prog::save_state_file("ev3-agent", "the election state", state_path_,
+                                                            ev3proto::durable_text(d).view(), log_);
   }
 
   /// --master-script: console commands for the Master core, from the moment this agent won.

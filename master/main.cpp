@@ -359,13 +359,8 @@ class Program {
   /// Writes the state the core's ready() hands over (--state-file); false when it is not on disk
   /// (then the master sends nothing more and exits with status 1, as ev3-agent does).
   bool save_state(const ev3proto::MasterDurable& d) {
-    if (opt_.state_file.empty()) return true;
-    std::string err;
-    if (ev3io::write_state_file(opt_.state_file, ev3proto::durable_text(d).view(), err)) return true;
-    log_.log(kError, "%s; the master's state is not on disk: sending nothing more, exiting", err.c_str());
-    std::fprintf(stderr, "ev3-master: %s; the master's state is not on disk: sending nothing more, exiting\n",
-                 err.c_str());
-    return false;
+    return opt_.state_file.empty() || ev3prog::save_state_file("ev3-master", "the master's state", opt_.state_file,
+                                                               ev3proto::durable_text(d).view(), log_);
   }
 
   /// Election observers (role, epoch, handover): one console line per change.

@@ -2,7 +2,18 @@
 
 #include <cerrno>
 
+#include "ev3io/state_file.hpp"
+
 namespace ev3prog {
+
+bool save_state_file(const char* program, const char* what, const std::string& path, std::string_view text,
+                     ev3io::Logger& log) {
+  std::string err;
+  if (ev3io::write_state_file(path, text, err)) return true;
+  log.log(ev3io::kError, "%s; %s is not on disk: sending nothing more, exiting", err.c_str(), what);
+  std::fprintf(stderr, "%s: %s; %s is not on disk: sending nothing more, exiting\n", program, err.c_str(), what);
+  return false;
+}
 
 bool open_outputs(const char* program, const char* log_name, const ev3io::CommonOptions& o, ev3io::Logger& log,
                   TraceFile& trace) {

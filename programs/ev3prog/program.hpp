@@ -11,6 +11,7 @@
 #include <cstring>
 #include <map>
 #include <string>
+#include <string_view>
 
 #include <ev3proto/master.hpp>
 
@@ -86,6 +87,12 @@ class Receiver {
 /// what could not be opened ("@p program: bad value for --log-file: cannot open 'F': reason").
 bool open_outputs(const char* program, const char* log_name, const ev3io::CommonOptions& o, ev3io::Logger& log,
                   TraceFile& trace);
+
+/// Writes @p text to the state file @p path (atomically: ev3io::write_state_file). False after
+/// saying in the log and on stderr that @p what is not on disk and that the program sends nothing
+/// more ("@p program: reason; the election state is not on disk: sending nothing more, exiting").
+bool save_state_file(const char* program, const char* what, const std::string& path, std::string_view text,
+                     ev3io::Logger& log);
 
 /// Loads the console script @p path (given with @p flag, "--script") into @p script; nothing when
 /// @p path is empty. False after saying on stderr why it cannot be read.
