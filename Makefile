@@ -32,9 +32,12 @@ BENCH_RUNS ?= 9
 # The baseline of make bench-master: a commit whose master core finds its next deadline by walking
 # the whole registry after each datagram (docs/benchmarks.md, "Master at scale").
 MASTER_BASELINE ?= b1890d2
-# -g1: line tables for backtraces and profilers, a third less compile time than -g.
+# -g1: line tables for backtraces and profilers, a third less compile time than -g. Unity builds
+# (CMake compiles up to 8 sources of a target as one): the library is header-only, so a batch parses
+# its headers once (docs/benchmarks.md "The time of make test").
 CMAKE_NATIVE := cmake -S . -B build/native -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
-                "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN)
+                "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=-O2 -g1 -DNDEBUG" -DCMAKE_RUNTIME_OUTPUT_DIRECTORY=$(BIN) \
+                -DCMAKE_UNITY_BUILD=ON
 
 help:
 	@sed -n '2,/^SHELL/{/^#/p}' Makefile | sed 's/^# \{0,1\}//'
@@ -89,19 +92,13 @@ test-blackbox: build arm
 # examples/robot (minirobot), run against ev3-master (tests/python/blackbox/test_example.py: sync,
 # wait, the master killed, PAUSED, PANIC, elected; the armel build syncs and runs wait under qemu-arm).
 PREFIX_TEST := $(CURDIR)/build/install
-ARM_TOOLCHAIN_INSTALLED := $(PREFIX_TEST)/share/cmake/ev3proto/arm-linux-gnueabi.cmake
 test-example: build
 	@rm -rf $(PREFIX_TEST)
 	@cmake --install build/native --prefix $(PREFIX_TEST) >/dev/null
 	@diff <(cd libev3proto/include && find . -name '*.hpp' | sort) \
 	      <(cd $(PREFIX_TEST)/include && find . -name '*.hpp' ! -name builtins_text.hpp | sort)
 	@test -f $(PREFIX_TEST)/include/ev3proto/behaviour/builtins_text.hpp
-	@for t in tests/package:build/package examples/robot:build/example; do \
-	   cmake -S $${t%%:*} -B $${t#*:} -G Ninja -DCMAKE_PREFIX_PATH=$(PREFIX_TEST) >/dev/null; \
-	   cmake -S $${t%%:*} -B $${t#*:}-arm -G Ninja -DCMAKE_PREFIX_PATH=$(PREFIX_TEST) \
-	      -DCMAKE_TOOLCHAIN_FILE=$(ARM_TOOLCHAIN_INSTALLED) >/dev/null; \
-	   ninja -C $${t#*:} -j 2 >/dev/null; ninja -C $${t#*:}-arm -j 2 >/dev/null; \
-	 done
+	@tools/example_builds.sh $(PREFIX_TEST)
 	@build/package/package_check && qemu-arm build/package-arm/package_check
 	@g++ -std=c++17 $$(PKG_CONFIG_PATH=$(PREFIX_TEST)/share/pkgconfig pkg-config --cflags ev3proto) \
 	   tests/package/main.cpp -o build/package/pkgconfig_check && build/package/pkgconfig_check
@@ -183,7 +180,8 @@ bench-master: deps
 # better trade, and it keeps the static ev3-agent under its 1.5 MB limit (docs/benchmarks.md).
 arm: deps
 	@cmake -S . -B build/arm -G Ninja -DCMAKE_BUILD_TYPE=Release "-DCMAKE_CXX_FLAGS_RELEASE=-O2 -DNDEBUG" \
-	   "-DCMAKE_C_FLAGS_RELEASE=-O2 -DNDEBUG" -DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-linux-gnueabi.cmake >/dev/null
+	   "-DCMAKE_C_FLAGS_RELEASE=-O2 -DNDEBUG" -DCMAKE_TOOLCHAIN_FILE=$(CURDIR)/cmake/arm-linux-gnueabi.cmake \
+	   -DCMAKE_UNITY_BUILD=ON >/dev/null
 	@ninja -C build/arm
 
 # The armel unit tests, run under qemu-arm (CMAKE_CROSSCOMPILING_EMULATOR).

@@ -215,20 +215,6 @@ class Driver {
   std::ostringstream out_;
 };
 
-std::vector<std::string> transcripts() {
-  std::vector<std::string> out;
-  for (const auto& e : std::filesystem::directory_iterator(EV3_TESTDATA)) {
-    const std::string n = e.path().filename().string();
-    if (n.rfind("automaton_", 0) == 0 && e.path().extension() == ".txt") out.push_back(e.path().string());
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::string name_of(const ::testing::TestParamInfo<std::string>& p) {
-  return std::filesystem::path(p.param).stem().string();
-}
-
 class AutomatonTranscript : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(AutomatonTranscript, Matches) {
@@ -236,7 +222,7 @@ TEST_P(AutomatonTranscript, Matches) {
   bhvtest::check_file(GetParam(), [&](const datadriven::Case& c) { return d.run(c.input); });
 }
 
-INSTANTIATE_TEST_SUITE_P(Testdata, AutomatonTranscript, ::testing::ValuesIn(transcripts()), name_of);
+INSTANTIATE_TEST_SUITE_P(Testdata, AutomatonTranscript, ::testing::ValuesIn(bhvtest::transcripts("automaton_")), bhvtest::name_of);
 
 // The built-ins wait and drive in the language start the plan the hard-coded ones build.
 action::Plan language_plan(const char* name, std::vector<std::string_view> args) {

@@ -25,31 +25,17 @@ namespace {
 
 using namespace ev3proto::behaviour;
 
-std::vector<std::string> transcripts() {
-  std::vector<std::string> out;
-  for (const auto& e : std::filesystem::directory_iterator(EV3_TESTDATA)) {
-    const std::string n = e.path().filename().string();
-    if (n.rfind("behaviour_", 0) == 0 && n.rfind("behaviour_cli", 0) != 0 && e.path().extension() == ".txt")
-      out.push_back(e.path().string());
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::string name_of(const ::testing::TestParamInfo<std::string>& p) {
-  return std::filesystem::path(p.param).stem().string();
-}
-
 class BehaviourTranscript : public ::testing::TestWithParam<std::string> {};
 
 TEST_P(BehaviourTranscript, Matches) {
   bhvtest::check_file(GetParam(), [](const datadriven::Case& c) { return bhvtest::run_case(c.input); });
 }
 
-INSTANTIATE_TEST_SUITE_P(Testdata, BehaviourTranscript, ::testing::ValuesIn(transcripts()), name_of);
+INSTANTIATE_TEST_SUITE_P(Testdata, BehaviourTranscript,
+                         ::testing::ValuesIn(bhvtest::transcripts("behaviour_", "behaviour_cli")), bhvtest::name_of);
 
 TEST(BehaviourTranscripts, OneFilePerDefectClass) {
-  const std::vector<std::string> files = transcripts();
+  const std::vector<std::string> files = bhvtest::transcripts("behaviour_", "behaviour_cli");
   for (const char* want : {"behaviour_syntax", "behaviour_meaning", "behaviour_constructs", "behaviour_check_model",
                            "behaviour_check_devices", "behaviour_check_range", "behaviour_check_unreachable",
                            "behaviour_check_unguarded", "behaviour_check_no_return", "behaviour_check_no_stop"}) {

@@ -4,12 +4,32 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <filesystem>
 #include <string>
 #include <vector>
 
 #include "../datadriven/datadriven.hpp"
 
 namespace bhvtest {
+
+/// The transcript files of the test data directory whose names start with @p prefix (and not with
+/// @p except, when given), sorted.
+inline std::vector<std::string> transcripts(const std::string& prefix, const std::string& except = "") {
+  std::vector<std::string> out;
+  for (const auto& e : std::filesystem::directory_iterator(EV3_TESTDATA)) {
+    const std::string n = e.path().filename().string();
+    if (n.rfind(prefix, 0) == 0 && (except.empty() || n.rfind(except, 0) != 0) && e.path().extension() == ".txt")
+      out.push_back(e.path().string());
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+/// A parameterised test's name: its transcript file's stem.
+inline std::string name_of(const ::testing::TestParamInfo<std::string>& p) {
+  return std::filesystem::path(p.param).stem().string();
+}
 
 template <typename F>
 void check_file(const std::string& path, F&& run) {

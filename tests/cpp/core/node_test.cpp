@@ -12,11 +12,11 @@
 namespace {
 using namespace ev3proto;
 
-constexpr BehaviourSpec kBehs[] = {{"explore", 1u}};
+constexpr BehaviourSpec kNodeBehs[] = {{"explore", 1u}};
 
 Node<>::Config config(bool election) {
   Node<>::Config c;
-  c.agent.caps = Capabilities{"A", kBehs, 1, 1u};
+  c.agent.caps = Capabilities{"A", kNodeBehs, 1, 1u};
   c.agent.temp_id = 50001;
   c.agent.election.enabled = election;
   c.agent.election.score = 5;

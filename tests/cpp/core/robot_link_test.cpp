@@ -17,7 +17,7 @@ namespace {
 using namespace ev3proto;
 namespace robot = ev3proto::robot;
 
-constexpr BehaviourSpec kBehs[] = {{"wait", 0}, {"drive", robot::kMotors | robot::kTouch}};
+constexpr BehaviourSpec kLinkBehs[] = {{"wait", 0}, {"drive", robot::kMotors | robot::kTouch}};
 
 struct Rig {
   Node<>::Config cfg;
@@ -28,7 +28,7 @@ struct Rig {
 
   static Node<>::Config make_config(bool ev3dev_tree) {
     Node<>::Config c;
-    c.agent.caps = Capabilities{"A", kBehs, 2, robot::announced_devices(ev3dev_tree), robot::kModelADeviceNames,
+    c.agent.caps = Capabilities{"A", kLinkBehs, 2, robot::announced_devices(ev3dev_tree), robot::kModelADeviceNames,
                                 std::size(robot::kModelADeviceNames)};
     c.agent.temp_id = 50001;
     return c;

@@ -46,7 +46,7 @@ std::size_t count_masters(ElectionFleet& f, std::size_t& which) {
   return n;
 }
 
-constexpr std::size_t kAgents = 5;
+constexpr std::size_t kElectionAgents = 5;
 
 /// PC crash -> the agents elect exactly one master, it commands the others; the PC comes back and
 /// takes over (handover) with no two masters commanding anyone at once.
@@ -55,7 +55,7 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   NetConfig net;
   net.loss = loss;
   net.dup = 0.1;
-  ElectionFleet f(kAgents, seed, net);
+  ElectionFleet f(kElectionAgents, seed, net);
   auto chk = [](ElectionFleet& x) { check(x); };
 
   // 1. Sync with the PC (epoch 1), membership learned from its LEADER; a behaviour started.
@@ -63,7 +63,7 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   ASSERT_TRUE(f.failure.empty()) << f.failure;
   for (std::size_t i = 0; i < f.size(); ++i) {
     ASSERT_EQ(f.agent(i).state(), State::ACTIVE) << "agent " << i;
-    ASSERT_EQ(f.agent(i).member_count(), kAgents) << "agent " << i;
+    ASSERT_EQ(f.agent(i).member_count(), kElectionAgents) << "agent " << i;
   }
   f.pc_command(0, Command::assign("explore"));
   f.pc_command(0, Command::simple(MsgType::START));
@@ -88,7 +88,7 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   }
 
   // 3. The new master commands the others (EPOCH_CMD of its epoch).
-  for (int k = 0; k < 10 && f.agent_master(m)->registry().size() < kAgents - 1; ++k)
+  for (int k = 0; k < 10 && f.agent_master(m)->registry().size() < kElectionAgents - 1; ++k)
     f.run_until(f.now() + 1000, chk);  // the operator waits until the followers pinged
   f.ops.clear();
   f.agent_master_command(m, 0, Command::assign("explore"));
@@ -97,10 +97,10 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   ASSERT_TRUE(f.failure.empty()) << f.failure;
   std::size_t acked = 0;
   for (const auto& o : f.ops) acked += o.kind == OperatorEvent::Kind::acked && o.command == MsgType::START;
-  EXPECT_GE(acked, kAgents - 2);
+  EXPECT_GE(acked, kElectionAgents - 2);
   std::size_t working = 0;
   for (std::size_t i = 0; i < f.size(); ++i) working += f.agent(i).state() == State::WORKING;
-  EXPECT_GE(working, kAgents - 2);
+  EXPECT_GE(working, kElectionAgents - 2);
 
   // 4. The PC returns (candidate, epoch and membership from stable storage) and takes over: the
   //    agent-master steps down and hands over, everyone follows the PC in a newer epoch.
@@ -130,7 +130,7 @@ TEST(ElectionSim, SeedsSweptWithLossDupReorder) {
 TEST(ElectionSim, NoMasterInAMinority) {
   for (std::uint64_t seed = 1; seed <= 30; ++seed) {
     SCOPED_TRACE("seed " + std::to_string(seed));
-    ElectionFleet f(kAgents, seed, NetConfig{});
+    ElectionFleet f(kElectionAgents, seed, NetConfig{});
     f.run_until(30000, check);
     for (std::size_t a : {0u, 1u}) {
       f.cut(ElectionFleet::agent_peer(a), ElectionFleet::kPcPeer);
@@ -201,11 +201,11 @@ TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
     // and its former relay still has it in its table. That relay must offer again (Election.tla's
     // OfferRelay has no "not already relayed" condition; the core had one, and the agent stayed in
     // PANIC), and the PC adopts the member again on the relay's RELAY_ROUTE.
-    ElectionFleet f(kAgents, seed, net, Timers{});
+    ElectionFleet f(kElectionAgents, seed, net, Timers{});
     f.run_until(30000, check);
     const Peer lonely = ElectionFleet::agent_peer(0);
     f.cut(lonely, ElectionFleet::kPcPeer);
-    for (std::size_t b = 1; b < kAgents; ++b) f.cut(lonely, ElectionFleet::agent_peer(b));
+    for (std::size_t b = 1; b < kElectionAgents; ++b) f.cut(lonely, ElectionFleet::agent_peer(b));
     // The PC's own epochs move too: it declares the lonely agent lost and reconfigures without it
     // (DropMember), then with it once it is adopted again. An agent that stands goes above the PC.
     std::uint32_t stood = 0;
@@ -215,7 +215,7 @@ TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
         if (x.agent(a).epoch() > x.pc()->epoch()) stood = x.agent(a).epoch();
     };
     f.run_until(f.now() + 15000, watch);
-    for (std::size_t b = 1; b < kAgents; ++b) f.heal(lonely, ElectionFleet::agent_peer(b));
+    for (std::size_t b = 1; b < kElectionAgents; ++b) f.heal(lonely, ElectionFleet::agent_peer(b));
     f.run_until(f.now() + 30000, watch);
     ASSERT_TRUE(f.failure.empty()) << f.failure;
     EXPECT_EQ(stood, 0u) << "an agent stood although a majority hears the PC";
