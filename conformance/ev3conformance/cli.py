@@ -14,11 +14,12 @@
     ev3-conformance replay --model fleet [--seed S] [--num N] [--depth D] [--election-num N]
                                    [--election-depth D]
                                                   TLC -simulate traces of the fleet replayed against
-                                                  one master and one agent driver per agent, then
-                                                  those of the whole system (System.tla: the PC's
-                                                  epochs, relay, pre-vote, election, HANDOVER) against
-                                                  the PC's, the agents' and the elected agents'
-                                                  Master cores' drivers (--election-num 0: none)
+                                                  one master and one agent driver per agent
+                                                  (--num 0: none), then those of the whole system
+                                                  (System.tla: the PC's epochs, relay, pre-vote,
+                                                  election, HANDOVER) against the PC's, the agents'
+                                                  and the elected agents' Master cores' drivers
+                                                  (--election-num 0: none)
     ev3-conformance validate TRACE... [--heartbeat MS ...] [--score N --epoch E --voted-for V]
                                                   check NDJSON traces (--trace) against the spec with TLC;
                                                   an --election agent's against AgentLogic + Election
@@ -168,8 +169,15 @@ def _cmd_replay_fleet(args: argparse.Namespace) -> int:
     from ev3conformance import driver, fleet_replay, system_replay
     agent = shlex.split(args.agent_driver or args.driver or "") or [str(driver.default_bin() / "ev3-agent"), "--driver"]
     master = shlex.split(args.master_driver or "") or [str(driver.default_bin() / "ev3-master"), "--driver"]
-    # the fleet (MCFleetSim), then the whole system with the election (MCSystemSim: --election-num 0, none)
-    parts = [("fleet", fleet_replay.replay_simulation, args.num, args.depth, args.cfg)]
+    # the fleet (MCFleetSim: --num 0, none), then the whole system with the election (MCSystemSim:
+    # --election-num 0, none)
+    if args.num < 0 or args.election_num < 0 or args.num == args.election_num == 0:
+        print(f"ev3-conformance replay: --num {args.num} --election-num {args.election_num}: whole numbers, "
+              "not both 0 (nothing to replay)")
+        return 2
+    parts = []
+    if args.num > 0:
+        parts.append(("fleet", fleet_replay.replay_simulation, args.num, args.depth, args.cfg))
     if args.election_num > 0:
         parts.append(("election", system_replay.replay_simulation, args.election_num, args.election_depth,
                       args.election_cfg))
@@ -352,7 +360,7 @@ def _parser() -> argparse.ArgumentParser:
                     help="agent: replay one in N of the edges where the agent ignores a datagram or"
                          " answers a duplicate, and one of each class of them (default 1: all)")
     rp.add_argument("--seed", type=int, default=1, help="fleet: TLC -seed of the simulation (default 1)")
-    rp.add_argument("--num", type=int, default=30, help="fleet: traces to simulate and replay (default 30)")
+    rp.add_argument("--num", type=int, default=30, help="fleet: traces to simulate and replay (default 30; 0: none)")
     rp.add_argument("--depth", type=int, default=300, help="fleet: states per trace (TLC -depth, default 300)")
     rp.add_argument("--cfg", default="MCFleetSim.cfg", help="fleet: the simulation's cfg (spec/tla/ or a path)")
     rp.add_argument("--election-num", type=int, default=40,

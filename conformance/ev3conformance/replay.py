@@ -227,12 +227,15 @@ class AgentReplay:
         self.cache = cache if cache is not None else {}
         self.fig = Figures(states=len(g.states), edges=len(g.edges))
         self.sample = sample
+        self._replayable: list[bool] | None = None
         self.leave = sample_leaves(g, sample)
 
     def replayable(self, ei: int) -> bool:
-        u, v = self.g.edges[ei]
-        return not (timeout_due(self.g.states[u]["ag"], self.c)
-                    and self.g.states[v]["lastAction"]["name"] not in TIMEOUTS)
+        if self._replayable is None:  # each edge's verdict, computed once: the walks ask millions of times
+            self._replayable = [not (timeout_due(self.g.states[u]["ag"], self.c)
+                                     and self.g.states[v]["lastAction"]["name"] not in TIMEOUTS)
+                                for u, v in self.g.edges]
+        return self._replayable[ei]
 
     def ops(self, ps: gr.PathSet):
         """The replay as a sequence of ops: ('save', d), ('restore', d), ('edge', ei)."""

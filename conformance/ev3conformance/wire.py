@@ -381,10 +381,13 @@ def decode(data: bytes) -> Message:
 # --- encode ------------------------------------------------------------------------------------
 
 
+# A number of more than MAX_DATAGRAM digits makes any spelling too long; its digits need not be
+# written out (Python refuses str() of ints beyond a few thousand digits by default).
+_TOO_MANY_DIGITS = 10**MAX_DATAGRAM
+
+
 def _spell_number(n: int) -> bytes:
-    # A number of more than MAX_DATAGRAM digits makes any spelling too long; its digits need not
-    # be written out (Python refuses str() of ints beyond a few thousand digits by default).
-    if abs(n) >= 10**MAX_DATAGRAM:
+    if abs(n) >= _TOO_MANY_DIGITS:
         return b"9" * (MAX_DATAGRAM + 1)
     return str(n).encode("ascii")
 
