@@ -64,8 +64,9 @@ test:
 check:
 	@python3 tools/suite.py "make check" $(CHECK_PARTS)
 
+# Twice as many ctest jobs as cores: the ev3-sim suites mostly wait on simulated real time.
 test-unit: build
-	@cd build/native && ctest --output-on-failure -j $(JOBS)
+	@cd build/native && ctest --output-on-failure -j $$(( $(JOBS) * 2 ))
 
 # Three pytest processes (pytest-xdist, each taking the next test when done) on two cores: most of
 # these tests wait on TLC or on ev3-codec's answers, and two leave a core idle a quarter of the time
