@@ -186,21 +186,22 @@ class Driver {
       for (std::size_t i = 0; i < n; ++i) s += (i ? "," : "") + std::to_string(at(i));
       return s + "]";
     };
-    const ev3proto::Role r = c.role();
+    const auto& el = c.election();
+    const ev3proto::Role r = el.role;
     const std::string life = r == ev3proto::Role::master      ? "MASTER"
                              : r == ev3proto::Role::candidate ? "CANDIDATE"
                                                               : std::string(to_string(c.vars().state));
-    return "{\"life\":\"" + life + "\",\"epoch\":" + std::to_string(c.epoch()) +
+    return "{\"life\":\"" + life + "\",\"epoch\":" + std::to_string(el.epoch) +
            ",\"votedFor\":" + std::to_string(c.durable().voted_for) +
-           ",\"votes\":" + ids(c.vote_count(), [&](std::size_t i) { return c.vote(i); }) +
-           ",\"leader\":" + std::to_string(c.leader()) + ",\"following\":" + std::to_string(c.following()) +
-           ",\"via\":" + std::to_string(c.via()) +
-           ",\"relays\":" + ids(c.relay_count(), [&](std::size_t i) { return c.relayed(i); }) +
-           ",\"offered\":" + ids(c.offered_count(), [&](std::size_t i) { return c.offered(i); }) +
-           ",\"prevotes\":" + ids(c.prevote_count(), [&](std::size_t i) { return c.prevote(i); }) +
-           ",\"members\":" + ids(c.member_count(), [&](std::size_t i) { return c.member(i); }) +
-           ",\"mepoch\":" + std::to_string(c.members_epoch()) + ",\"floor\":" + std::to_string(c.members_floor()) +
-           ",\"master_epoch\":" + std::to_string(c.master_epoch()) + "}";
+           ",\"votes\":" + ids(el.votes.size(), [&](std::size_t i) { return el.votes[i]; }) +
+           ",\"leader\":" + std::to_string(el.leader) + ",\"following\":" + std::to_string(el.following) +
+           ",\"via\":" + std::to_string(el.via) +
+           ",\"relays\":" + ids(el.relays.size(), [&](std::size_t i) { return el.relays.id(i); }) +
+           ",\"offered\":" + ids(el.offered.size(), [&](std::size_t i) { return el.offered.id(i); }) +
+           ",\"prevotes\":" + ids(el.prevotes.size(), [&](std::size_t i) { return el.prevotes[i]; }) +
+           ",\"members\":" + ids(el.members.size(), [&](std::size_t i) { return el.members[i]; }) +
+           ",\"mepoch\":" + std::to_string(el.mepoch) + ",\"floor\":" + std::to_string(el.floor) +
+           ",\"master_epoch\":" + std::to_string(el.master_epoch) + "}";
   }
 
  private:

@@ -390,19 +390,20 @@ class Program {
         break;
       case K::leader:
         if (e.leader != 0 && e.via != 0)
-          log_.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", e.leader, a.epoch(), e.via);
+          log_.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", e.leader, a.election().epoch, e.via);
         else if (e.leader != 0)
-          log_.log(kInfo, "following master %u (epoch %u) directly", e.leader, a.epoch());
+          log_.log(kInfo, "following master %u (epoch %u) directly", e.leader, a.election().epoch);
         break;
       case K::relays: {
         std::string relays;
-        for (std::size_t i = 0; i < a.relay_count(); ++i) relays += " " + std::to_string(a.relayed(i));
+        const auto& el = a.election();
+        for (std::size_t i = 0; i < el.relays.size(); ++i) relays += " " + std::to_string(el.relays.id(i));
         log_.log(kInfo, "relaying for agents:%s", relays.empty() ? " none" : relays.c_str());
         break;
       }
       case K::master_started: {
         std::string m;
-        for (std::size_t i = 0; i < a.member_count(); ++i) m += " " + std::to_string(a.member(i));
+        for (std::size_t i = 0; i < a.election().members.size(); ++i) m += " " + std::to_string(a.election().members[i]);
         log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", e.epoch, a.id(),
                  m.c_str(), script_.empty() ? "" : "; running --master-script");
         script_.start(now);
@@ -410,7 +411,7 @@ class Program {
       }
       case K::master_stopped:
         log_.log(kInfo, "master of epoch %u stepped down (epoch %u is newer)%s; Master core dropped", e.epoch,
-                 a.epoch(), e.handed_over ? " (HANDOVER sent to the new master)" : "");
+                 a.election().epoch, e.handed_over ? " (HANDOVER sent to the new master)" : "");
         break;
     }
   }

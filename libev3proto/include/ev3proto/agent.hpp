@@ -304,48 +304,15 @@ class Agent {
 
   // ------------------------------------------------------ election observers
 
-  /// Election role (CANDIDATE / MASTER of Election.tla; the state is then PANIC).
-  Role role() const noexcept { return el_.role; }
-  /// Highest epoch seen (Election epoch).
-  std::uint32_t epoch() const noexcept { return el_.epoch; }
+  /// Election.tla's variables (read-only): role, epoch, leader, following, via, relays, offered,
+  /// votes, prevotes, members, mepoch, floor, master_epoch (election/agent.hpp). With role ==
+  /// master a Master core runs for master_epoch, seeded with the members (node.hpp).
+  const ElectionType& election() const noexcept { return el_; }
   /// What to keep on stable storage (epoch, votedFor, members, mepoch, floor): write it when durable_rev() changed, before
   /// sending what the call that changed it queued (a VOTE must not outlive a lost votedFor).
   Durable durable() const noexcept { return el_.durable(); }
   /// Changes whenever durable() changes.
   std::uint32_t durable_rev() const noexcept { return durable_rev_; }
-  /// The epoch this agent last became master of (0 = never): with role() == master, a Master core
-  /// runs for it seeded with it and the membership (node.hpp).
-  std::uint32_t master_epoch() const noexcept { return el_.master_epoch; }
-  /// The master followed (Election leader; 0 = none). Before any election: 1 (the PC) when synced.
-  std::uint16_t leader() const noexcept { return el_.leader; }
-  /// The epoch of that master (Election following; 0 = none).
-  std::uint32_t following() const noexcept { return el_.following; }
-  /// The relay's id when relayed (Election via; 0 = direct).
-  std::uint16_t via() const noexcept { return el_.via; }
-  /// Agents this agent relays for (Election relays).
-  std::size_t relay_count() const noexcept { return el_.relays.size(); }
-  /// The i-th relayed agent's id.
-  std::uint16_t relayed(std::size_t i) const noexcept { return el_.relays.id(i); }
-  /// Agents offered a relay since the master last changed (Election offered).
-  std::size_t offered_count() const noexcept { return el_.offered.size(); }
-  /// The i-th offered agent's id.
-  std::uint16_t offered(std::size_t i) const noexcept { return el_.offered.id(i); }
-  /// Votes counted as a candidate (Election votes).
-  std::size_t vote_count() const noexcept { return el_.votes.size(); }
-  /// The i-th vote.
-  std::uint16_t vote(std::size_t i) const noexcept { return el_.votes[i]; }
-  /// PREVOTE_OKs counted for standing in the next epoch (Election prevotes).
-  std::size_t prevote_count() const noexcept { return el_.prevotes.size(); }
-  /// The i-th pre-vote's sender.
-  std::uint16_t prevote(std::size_t i) const noexcept { return el_.prevotes[i]; }
-  /// The fleet membership last learned (LEADER, or a peer's copy), quorums count against it.
-  std::size_t member_count() const noexcept { return el_.members.size(); }
-  /// The epoch of the master that published it (Election mepoch; 0: none known).
-  std::uint32_t members_epoch() const noexcept { return el_.mepoch; }
-  /// No membership older than this epoch is current (Election floor).
-  std::uint32_t members_floor() const noexcept { return el_.floor; }
-  /// The i-th member id.
-  std::uint16_t member(std::size_t i) const noexcept { return el_.members[i]; }
   /// The score this agent announces when it stands (ElectionConfig::score, or computed: 16 x the
   /// behaviours it can run now + the devices plugged; lower = weaker).
   std::uint32_t score() const noexcept {

@@ -64,8 +64,8 @@ struct NodeEvent {
     durable,        ///< Epoch, vote or membership changed (@c durable, was @c previous): persist before sending.
     role,           ///< The election role changed (@c role; master: it won @c epoch).
     leader,         ///< The master followed changed (@c leader in epoch @c epoch, through @c via; 0 = none).
-    relays,         ///< The agents this node relays for changed (agent().relayed(i)).
-    master_started, ///< A Master core runs: this node is master of @c epoch (agent().member(i): its fleet).
+    relays,         ///< The agents this node relays for changed (agent().election().relays.id(i)).
+    master_started, ///< A Master core runs: this node is master of @c epoch (agent().election().members[i]: its fleet).
     master_stopped, ///< The Master core of @c epoch stepped down (a newer epoch) and was dropped.
   } kind = Kind::state;
   State state = State::IDLE;               ///< state
@@ -334,18 +334,18 @@ class Node {
       push(e);
       seen_durable_ = e.durable;
     }
-    if (agent_.role() != seen_role_) {
-      seen_role_ = agent_.role();
+    const auto& el = agent_.election();
+    if (el.role != seen_role_) {
+      seen_role_ = el.role;
       NodeEvent e = make(NodeEvent::Kind::role);
       e.role = seen_role_;
-      e.epoch = seen_role_ == Role::master ? agent_.master_epoch() : agent_.epoch();
+      e.epoch = seen_role_ == Role::master ? el.master_epoch : el.epoch;
       push(e);
     }
-    if (agent_.leader() != seen_leader_ || agent_.following() != seen_following_ ||
-        agent_.via() != seen_via_) {
-      seen_leader_ = agent_.leader();
-      seen_following_ = agent_.following();
-      seen_via_ = agent_.via();
+    if (el.leader != seen_leader_ || el.following != seen_following_ || el.via != seen_via_) {
+      seen_leader_ = el.leader;
+      seen_following_ = el.following;
+      seen_via_ = el.via;
       NodeEvent e = make(NodeEvent::Kind::leader);
       e.leader = seen_leader_;
       e.epoch = seen_following_;
@@ -362,25 +362,26 @@ class Node {
   /// remember from this id, so a restarted node must not start lower); it is dropped
   /// once it stepped down and the agent core is master no more.
   void run_master_core(Millis now) {
-    if (agent_.role() == Role::master && (!master_ || master_->epoch() != agent_.master_epoch())) {
+    const auto& el = agent_.election();
+    if (el.role == Role::master && (!master_ || master_->epoch() != el.master_epoch)) {
       master_.reset();
       std::vector<std::uint16_t> members;
-      for (std::size_t i = 0; i < agent_.member_count(); ++i) members.push_back(agent_.member(i));
-      MasterTrace* trace = cfg_.master_trace ? cfg_.master_trace(agent_.id(), agent_.master_epoch()) : nullptr;
-      master_.emplace(MasterConfig::for_elected_agent(cfg_.agent.timers, agent_.id(), agent_.master_epoch(),
+      for (std::size_t i = 0; i < el.members.size(); ++i) members.push_back(el.members[i]);
+      MasterTrace* trace = cfg_.master_trace ? cfg_.master_trace(agent_.id(), el.master_epoch) : nullptr;
+      master_.emplace(MasterConfig::for_elected_agent(cfg_.agent.timers, agent_.id(), el.master_epoch,
                                                       std::move(members)),
                       now, trace);
       NodeEvent e = make(NodeEvent::Kind::master_started);
-      e.epoch = agent_.master_epoch();
+      e.epoch = el.master_epoch;
       push(e);
       master_->advance(now);  // its first LEADER is due now
     }
-    if (master_ && master_->role() == MasterRole::stepped_down && agent_.role() != Role::master) {
+    if (master_ && master_->role() == MasterRole::stepped_down && el.role != Role::master) {
       // what it sent as it stepped down (HANDOVER to the new master) still goes out
       MasterTransmit mt;
       while (master_->poll_transmit(mt)) parting_.push_back(std::move(mt));
       NodeEvent e = make(NodeEvent::Kind::master_stopped);
-      e.epoch = agent_.master_epoch();
+      e.epoch = el.master_epoch;
       e.handed_over = master_->handed_over();
       master_.reset();
       push(e);
@@ -388,11 +389,12 @@ class Node {
   }
 
   bool relays_changed() {
-    bool changed = agent_.relay_count() != seen_relay_count_;
-    for (std::size_t i = 0; !changed && i < seen_relay_count_; ++i) changed = agent_.relayed(i) != seen_relays_[i];
+    const auto& relays = agent_.election().relays;
+    bool changed = relays.size() != seen_relay_count_;
+    for (std::size_t i = 0; !changed && i < seen_relay_count_; ++i) changed = relays.id(i) != seen_relays_[i];
     if (!changed) return false;
-    seen_relay_count_ = agent_.relay_count() < kMaxSeenRelays ? agent_.relay_count() : kMaxSeenRelays;
-    for (std::size_t i = 0; i < seen_relay_count_; ++i) seen_relays_[i] = agent_.relayed(i);
+    seen_relay_count_ = relays.size() < kMaxSeenRelays ? relays.size() : kMaxSeenRelays;
+    for (std::size_t i = 0; i < seen_relay_count_; ++i) seen_relays_[i] = relays.id(i);
     return true;
   }
 
@@ -402,7 +404,7 @@ class Node {
     e.state = agent_.state();
     e.led = agent_.led();
     e.durable = agent_.durable();
-    e.role = agent_.role();
+    e.role = agent_.election().role;
     return e;
   }
   void push(const NodeEvent& e) {

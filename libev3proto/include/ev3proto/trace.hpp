@@ -172,14 +172,15 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
     c.num("leader", b.leader, a.leader);
     c.num("following", b.following, a.following);
     c.num("via", b.via, a.via);
+    const auto& el = agent.election();
     if (a.relay_rev != b.relay_rev) {
-      ids("relays", agent.relay_count(), [&](std::size_t i) { return agent.relayed(i); });
-      ids("offered", agent.offered_count(), [&](std::size_t i) { return agent.offered(i); });
-      ids("votes", agent.vote_count(), [&](std::size_t i) { return agent.vote(i); });
-      ids("prevotes", agent.prevote_count(), [&](std::size_t i) { return agent.prevote(i); });
+      ids("relays", el.relays.size(), [&](std::size_t i) { return el.relays.id(i); });
+      ids("offered", el.offered.size(), [&](std::size_t i) { return el.offered.id(i); });
+      ids("votes", el.votes.size(), [&](std::size_t i) { return el.votes[i]; });
+      ids("prevotes", el.prevotes.size(), [&](std::size_t i) { return el.prevotes[i]; });
     }
     if (a.members_rev != b.members_rev)
-      ids("members", agent.member_count(), [&](std::size_t i) { return agent.member(i); });
+      ids("members", el.members.size(), [&](std::size_t i) { return el.members[i]; });
     c.num("mepoch", b.mepoch, a.mepoch);
     c.num("floor", b.floor, a.floor);
   }

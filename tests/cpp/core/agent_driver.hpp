@@ -254,17 +254,18 @@ class AgentDriver {
       for (std::size_t i = 0; i < n; ++i) l += (i ? "," : "") + std::to_string(get(i));
       return l + "]";
     };
-    return "show state=" + std::string(to_string(a.state())) + " role=" + std::string(to_string(a.role())) +
-           " epoch=" + std::to_string(a.epoch()) + " votedFor=" + std::to_string(a.durable().voted_for) +
-           " leader=" + std::to_string(a.leader()) + " following=" + std::to_string(a.following()) +
-           " via=" + std::to_string(a.via()) +
-           " relays=" + list(a.relay_count(), [&](std::size_t i) { return a.relayed(i); }) +
-           " offered=" + list(a.offered_count(), [&](std::size_t i) { return a.offered(i); }) +
-           " votes=" + list(a.vote_count(), [&](std::size_t i) { return a.vote(i); }) +
-           " prevotes=" + list(a.prevote_count(), [&](std::size_t i) { return a.prevote(i); }) +
-           " members=" + list(a.member_count(), [&](std::size_t i) { return a.member(i); }) +
-           " mepoch=" + std::to_string(a.members_epoch()) + " floor=" + std::to_string(a.members_floor()) +
-           " master_epoch=" + std::to_string(a.master_epoch());
+    const auto& el = a.election();
+    return "show state=" + std::string(to_string(a.state())) + " role=" + std::string(to_string(el.role)) +
+           " epoch=" + std::to_string(el.epoch) + " votedFor=" + std::to_string(a.durable().voted_for) +
+           " leader=" + std::to_string(el.leader) + " following=" + std::to_string(el.following) +
+           " via=" + std::to_string(el.via) +
+           " relays=" + list(el.relays.size(), [&](std::size_t i) { return el.relays.id(i); }) +
+           " offered=" + list(el.offered.size(), [&](std::size_t i) { return el.offered.id(i); }) +
+           " votes=" + list(el.votes.size(), [&](std::size_t i) { return el.votes[i]; }) +
+           " prevotes=" + list(el.prevotes.size(), [&](std::size_t i) { return el.prevotes[i]; }) +
+           " members=" + list(el.members.size(), [&](std::size_t i) { return el.members[i]; }) +
+           " mepoch=" + std::to_string(el.mepoch) + " floor=" + std::to_string(el.floor) +
+           " master_epoch=" + std::to_string(el.master_epoch);
   }
 
   /// What the agent queued since the last drain: datagrams, then state, LED and control events.

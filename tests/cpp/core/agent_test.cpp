@@ -231,7 +231,7 @@ TEST(AgentNoHeap, RelayAndElectionAllocateNothing) {
   a->advance(40000);
   drain(*a);
   EXPECT_EQ(g_news.load(), before) << "the agent core allocated";
-  EXPECT_GE(a->epoch(), 9u);  // then it stood alone (no majority) in later epochs
+  EXPECT_GE(a->election().epoch, 9u);  // then it stood alone (no majority) in later epochs
   a->~Agent<>();
 }
 
@@ -277,7 +277,7 @@ TEST(NodeNoHeap, NoMasterCoreNoAllocation) {
   drain_node();
   EXPECT_EQ(g_news.load(), before) << "the node allocated";
   EXPECT_EQ(n->master(), nullptr);
-  EXPECT_EQ(n->agent().epoch(), 2u);
+  EXPECT_EQ(n->agent().election().epoch, 2u);
   n->~N();
 }
 

@@ -410,10 +410,10 @@ class FleetDriver {
       const Robot& r = *robots_[i - 1]->node;
       const auto& a = r.agent();
       std::string l = name(i) + ": id=" + std::to_string(a.id()) + " " + std::string(to_string(a.state()));
-      if (a.role() != Role::none) l += "/" + std::string(to_string(a.role()));
-      l += " epoch=" + std::to_string(a.epoch()) + " voted=" + std::to_string(a.durable().voted_for) +
-           " leader=" + std::to_string(a.leader()) + " via=" + std::to_string(a.via()) + " relays=[";
-      for (std::size_t k = 0; k < a.relay_count(); ++k) l += (k ? "," : "") + std::to_string(a.relayed(k));
+      if (a.election().role != Role::none) l += "/" + std::string(to_string(a.election().role));
+      l += " epoch=" + std::to_string(a.election().epoch) + " voted=" + std::to_string(a.durable().voted_for) +
+           " leader=" + std::to_string(a.election().leader) + " via=" + std::to_string(a.election().via) + " relays=[";
+      for (std::size_t k = 0; k < a.election().relays.size(); ++k) l += (k ? "," : "") + std::to_string(a.election().relays.id(k));
       l += "]";
       if (const auto* m = r.master()) l += " master_core=" + std::string(to_string(m->role())) + "@" + std::to_string(m->epoch());
       lines_.push_back(l);
@@ -475,7 +475,7 @@ class FleetDriver {
         return "leader " + std::to_string(e.leader) + " epoch=" + std::to_string(e.epoch) + " via=" + std::to_string(e.via);
       case NodeEvent::Kind::relays: {
         std::string l = "relays [";
-        for (std::size_t k = 0; k < r.agent().relay_count(); ++k) l += (k ? "," : "") + std::to_string(r.agent().relayed(k));
+        for (std::size_t k = 0; k < r.agent().election().relays.size(); ++k) l += (k ? "," : "") + std::to_string(r.agent().election().relays.id(k));
         return l + "]";
       }
       case NodeEvent::Kind::master_started: return "master_started epoch=" + std::to_string(e.epoch);

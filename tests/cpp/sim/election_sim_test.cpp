@@ -20,18 +20,18 @@ void check(ElectionFleet& f) {
     if (a.led() != led_of(a.state())) f.failure = who + "LED does not match the state";
     if (a.motors() && a.state() != State::WORKING) f.failure = who + "motion outside WORKING";
     // Election LifecycleInv: WORKING follows a master of its current epoch; PANIC follows nobody.
-    if (a.state() == State::WORKING && (a.leader() == 0 || a.following() != a.epoch()))
+    if (a.state() == State::WORKING && (a.election().leader == 0 || a.election().following != a.election().epoch))
       f.failure = who + "WORKING unsupervised";
-    if (a.state() == State::PANIC && (a.leader() != 0 || a.via() != 0))
+    if (a.state() == State::PANIC && (a.election().leader != 0 || a.election().via != 0))
       f.failure = who + "PANIC but following";
     // RelayOneHopInv.
-    if (a.relay_count() != 0 && a.via() != 0) f.failure = who + "relays while relayed";
+    if (a.election().relays.size() != 0 && a.election().via != 0) f.failure = who + "relays while relayed";
     // FollowersAgreeInv: whoever it follows was elected in that epoch.
-    if (a.following() != 0) {
-      const auto it = f.elected().find(a.following());
-      if (a.following() != a.epoch() || it == f.elected().end() || it->second != a.leader())
-        f.failure = who + "follows " + std::to_string(a.leader()) + " in epoch " +
-                    std::to_string(a.following()) + " not elected there";
+    if (a.election().following != 0) {
+      const auto it = f.elected().find(a.election().following);
+      if (a.election().following != a.election().epoch || it == f.elected().end() || it->second != a.election().leader)
+        f.failure = who + "follows " + std::to_string(a.election().leader) + " in epoch " +
+                    std::to_string(a.election().following) + " not elected there";
     }
   }
 }
@@ -39,7 +39,7 @@ void check(ElectionFleet& f) {
 std::size_t count_masters(ElectionFleet& f, std::size_t& which) {
   std::size_t n = 0;
   for (std::size_t i = 0; i < f.size(); ++i)
-    if (f.agent(i).role() == Role::master) {
+    if (f.agent(i).election().role == Role::master) {
       ++n;
       which = i;
     }
@@ -63,7 +63,7 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   ASSERT_TRUE(f.failure.empty()) << f.failure;
   for (std::size_t i = 0; i < f.size(); ++i) {
     ASSERT_EQ(f.agent(i).state(), State::ACTIVE) << "agent " << i;
-    ASSERT_EQ(f.agent(i).member_count(), kElectionAgents) << "agent " << i;
+    ASSERT_EQ(f.agent(i).election().members.size(), kElectionAgents) << "agent " << i;
   }
   f.pc_command(0, Command::assign("explore"));
   f.pc_command(0, Command::simple(MsgType::START));
@@ -78,13 +78,13 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   std::size_t m = 0;
   ASSERT_EQ(count_masters(f, m), 1u);
   const std::uint16_t mid = f.agent(m).id();
-  const std::uint32_t e = f.agent(m).master_epoch();
+  const std::uint32_t e = f.agent(m).election().master_epoch;
   ASSERT_GE(e, 2u);
   ASSERT_NE(f.agent_master(m), nullptr);
   for (std::size_t i = 0; i < f.size(); ++i) {
     if (i == m) continue;
-    EXPECT_EQ(f.agent(i).leader(), mid) << "agent " << i;
-    EXPECT_EQ(f.agent(i).following(), e) << "agent " << i;
+    EXPECT_EQ(f.agent(i).election().leader, mid) << "agent " << i;
+    EXPECT_EQ(f.agent(i).election().following, e) << "agent " << i;
   }
 
   // 3. The new master commands the others (EPOCH_CMD of its epoch).
@@ -111,8 +111,8 @@ void crash_elect_return(std::uint64_t seed, double loss) {
   EXPECT_GT(f.pc()->epoch(), e);
   EXPECT_EQ(count_masters(f, m), 0u);
   for (std::size_t i = 0; i < f.size(); ++i) {
-    EXPECT_EQ(f.agent(i).leader(), kMasterId) << "agent " << i;
-    EXPECT_EQ(f.agent(i).following(), f.pc()->epoch()) << "agent " << i;
+    EXPECT_EQ(f.agent(i).election().leader, kMasterId) << "agent " << i;
+    EXPECT_EQ(f.agent(i).election().following, f.pc()->epoch()) << "agent " << i;
   }
 }
 
@@ -140,8 +140,8 @@ TEST(ElectionSim, NoMasterInAMinority) {
     ASSERT_TRUE(f.failure.empty()) << f.failure;
     std::size_t m = 0;
     EXPECT_EQ(count_masters(f, m), 0u);
-    for (std::size_t a : {2u, 3u, 4u}) EXPECT_EQ(f.agent(a).leader(), kMasterId);
-    EXPECT_NE(f.agent(0).leader(), kMasterId);
+    for (std::size_t a : {2u, 3u, 4u}) EXPECT_EQ(f.agent(a).election().leader, kMasterId);
+    EXPECT_NE(f.agent(0).election().leader, kMasterId);
   }
 }
 
@@ -158,8 +158,8 @@ TEST(ElectionSim, RelayedAgentLeavesPanic) {
     f.run_until(f.now() + 20000, check);
     ASSERT_TRUE(f.failure.empty()) << f.failure;
     ASSERT_TRUE(is_synced(f.agent(0).state())) << to_string(f.agent(0).state());
-    ASSERT_NE(f.agent(0).via(), 0);
-    EXPECT_EQ(f.agent(0).leader(), kMasterId);
+    ASSERT_NE(f.agent(0).election().via, 0);
+    EXPECT_EQ(f.agent(0).election().leader, kMasterId);
     const std::size_t before = f.applied;
     f.pc_command(f.agent(0).id(), Command::assign("explore"));
     f.pc_command(f.agent(0).id(), Command::simple(MsgType::START));
@@ -170,7 +170,7 @@ TEST(ElectionSim, RelayedAgentLeavesPanic) {
     // The relay loses its own link: the relayed agent is dropped (PANIC) at once. It may then be
     // relayed by the other agent, whose link is up, and the PC's reconcile (MasterLogic
     // MasterPing) starts its behaviour again: WORKING then only through that relay.
-    const std::size_t relay = f.agent(1).relay_count() ? 1u : 2u;
+    const std::size_t relay = f.agent(1).election().relays.size() ? 1u : 2u;
     const std::uint16_t relay_id = f.agent(relay).id();
     f.cut(ElectionFleet::agent_peer(relay), ElectionFleet::kPcPeer);
     bool dropped = false;
@@ -181,7 +181,7 @@ TEST(ElectionSim, RelayedAgentLeavesPanic) {
     ASSERT_TRUE(f.failure.empty()) << f.failure;
     EXPECT_TRUE(dropped);
     if (f.agent(0).state() == State::WORKING) {
-      EXPECT_NE(f.agent(0).via(), relay_id);
+      EXPECT_NE(f.agent(0).election().via, relay_id);
     }
   }
 }
@@ -212,7 +212,7 @@ TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
     auto watch = [&](ElectionFleet& x) {
       check(x);
       for (std::size_t a = 0; a < x.size(); ++a)
-        if (x.agent(a).epoch() > x.pc()->epoch()) stood = x.agent(a).epoch();
+        if (x.agent(a).election().epoch > x.pc()->epoch()) stood = x.agent(a).election().epoch;
     };
     f.run_until(f.now() + 15000, watch);
     for (std::size_t b = 1; b < kElectionAgents; ++b) f.heal(lonely, ElectionFleet::agent_peer(b));
@@ -221,8 +221,8 @@ TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
     EXPECT_EQ(stood, 0u) << "an agent stood although a majority hears the PC";
     EXPECT_EQ(f.pc()->role(), MasterRole::master);
     EXPECT_TRUE(is_synced(f.agent(0).state())) << to_string(f.agent(0).state());
-    EXPECT_NE(f.agent(0).via(), 0);
-    EXPECT_EQ(f.agent(0).leader(), kMasterId);
+    EXPECT_NE(f.agent(0).election().via, 0);
+    EXPECT_EQ(f.agent(0).election().leader, kMasterId);
     if (::testing::Test::HasFailure()) break;
   }
 }
