@@ -31,7 +31,6 @@
 #include "ev3io/devices.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
-#include "ev3io/state_file.hpp"
 #include "ev3io/robot_io.hpp"
 #include "ev3io/udp.hpp"
 #include "agent_options.hpp"
@@ -66,39 +65,6 @@ std::uint64_t random_u64() {
   return v;
 }
 
-/// Printable form of a datagram for the log (at most 100 bytes).
-std::string printable(std::string_view d) {
-  std::string s;
-  for (std::size_t i = 0; i < d.size() && i < 100; ++i) {
-    const auto c = static_cast<unsigned char>(d[i]);
-    if (c >= 0x20 && c < 0x7F) {
-      s += static_cast<char>(c);
-    } else {
-      char b[5];
-      std::snprintf(b, sizeof b, "\\x%02X", c);
-      s += b;
-    }
-  }
-  if (d.size() > 100) s += "...";
-  return s;
-}
-
-std::string reason_key(ev3proto::Reason r) {
-  std::string k = "decode:" + std::string(ev3proto::to_string(r));
-  for (char& c : k)
-    if (c == ' ') c = '_';
-  return k;
-}
-
-std::string counters_line(const std::map<std::string, std::uint64_t>& m) {
-  std::string s;
-  for (const auto& kv : m) {
-    if (!s.empty()) s += ' ';
-    s += kv.first + "=" + std::to_string(kv.second);
-  }
-  return s.empty() ? "none" : s;
-}
-
 using ev3agent::RobotNode;
 using Link = robot::RobotLink<RobotNode>;
 
@@ -123,18 +89,11 @@ std::string role_name(ev3proto::Role r) {
 class Program {
  public:
   explicit Program(const ev3agent::AgentOptions& o)
-      : opt_(o), net_(o.common.faults), devices_(o.sysfs_root), rio_(devices_) {}
+      : opt_(o), sh_("ev3-agent", o.common.faults), devices_(o.sysfs_root), rio_(devices_) {}
 
   int run() {
-    if (!ev3prog::open_outputs("ev3-agent", "agent", opt_.common, log_, trace_file_)) return 2;
-    if (trace_file_.is_open()) trace_.ndjson = trace_file_.output();
-    std::string err;
-    if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
-      log_.log(kError, "%s", err.c_str());
-      log_.flush();
-      std::fprintf(stderr, "ev3-agent: %s\n", err.c_str());
-      return 1;
-    }
+    if (const int rc = sh_.open("agent", opt_.common)) return rc;
+    if (sh_.trace_file.is_open()) trace_.ndjson = sh_.trace_file.output();
     // The robot: the runtime of model A and the device layer's first scan (what is found decides
     // what the agent announces: robot_link.hpp announced_devices).
     const Millis start = ev3io::monotonic_ms();
@@ -155,44 +114,44 @@ class Program {
     cfg.election.enabled = opt_.election;
     if (opt_.election) cfg.election.score = opt_.score;
     if (!load_state(cfg.election)) return 2;
-    if (!ev3prog::load_script("ev3-agent", "--master-script", opt_.master_script, script_)) return 2;
+    if (!sh_.load_script("--master-script", opt_.master_script)) return 2;
     if (opt_.model != "A")
-      log_.log(kInfo, "model %s: using model A's capability table and devices", opt_.model.c_str());
+      sh_.log.log(kInfo, "model %s: using model A's capability table and devices", opt_.model.c_str());
     const Millis now = ev3io::monotonic_ms();
     RobotNode::Config nc;
     nc.agent = cfg;
-    if (trace_file_.is_open()) {
+    if (sh_.trace_file.is_open()) {
       // The Master core's records go to the same file, node "master:ID:EPOCH" (one Master core per
       // epoch won; docs/spec.md "Election master traces").
       nc.master_trace = [this](std::uint16_t id, std::uint32_t epoch) {
         mtrace_.emplace("master:" + std::to_string(id) + ":" + std::to_string(epoch));
-        mtrace_->set_output(trace_file_.output());
+        mtrace_->set_output(sh_.trace_file.output());
         return &*mtrace_;
       };
     }
-    node_.emplace(nc, now, trace_file_.is_open() ? &trace_ : nullptr);
+    node_.emplace(nc, now, sh_.trace_file.is_open() ? &trace_ : nullptr);
     log_devices();
     rt_->led(node_->agent().led());
     pump(now);
     std::string bc;
     for (const auto& e : opt_.common.broadcast) bc += " " + e.str();
-    log_.log(kInfo, "listening on %s (model %s, temporary id %u, broadcast to%s)", net_.local().str().c_str(),
+    sh_.log.log(kInfo, "listening on %s (model %s, temporary id %u, broadcast to%s)", sh_.net.local().str().c_str(),
              opt_.model.c_str(), cfg.temp_id, bc.c_str());
     if (opt_.election)
-      log_.log(kInfo, "election on: score %u, epoch %u, voted for %u, state %s", node_->agent().score(),
+      sh_.log.log(kInfo, "election on: score %u, epoch %u, voted for %u, state %s", node_->agent().score(),
                cfg.election.durable.epoch, cfg.election.durable.voted_for,
                state_path_.empty() ? "in memory only (no --state-dir)" : state_path_.c_str());
-    log_.log(kInfo, "state IDLE");
-    log_.flush();
+    sh_.log.log(kInfo, "state IDLE");
+    sh_.log.flush();
     loop();
     shutdown();
-    return state_failed_ ? 1 : 0;
+    return sh_.state_failed ? 1 : 0;
   }
 
   /// What the device layer found at start (and the LEDs / battery), for the log.
   void log_devices() {
     if (!devices_.ev3dev_tree()) {
-      log_.log(kInfo, "no ev3dev devices under %s (no class/tacho-motor, class/lego-sensor): no robot body, "
+      sh_.log.log(kInfo, "no ev3dev devices under %s (no class/tacho-motor, class/lego-sensor): no robot body, "
                "announcing no devices (only 'wait' can run)", opt_.sysfs_root.c_str());
       return;
     }
@@ -203,7 +162,7 @@ class Program {
       found += " " + std::string(robot::to_string(r)) + "=" + std::string(robot::to_string(d)) +
                (devices_.present(d) ? "" : "(missing)");
     }
-    log_.log(kInfo, "devices under %s:%s; LEDs: %s; battery: %s; control tick %llu ms", opt_.sysfs_root.c_str(),
+    sh_.log.log(kInfo, "devices under %s:%s; LEDs: %s; battery: %s; control tick %llu ms", opt_.sysfs_root.c_str(),
              found.c_str(), *devices_.led_names() != '\0' ? devices_.led_names() : "none",
              devices_.has_battery() ? "yes" : "no", static_cast<unsigned long long>(opt_.tick_ms));
   }
@@ -216,12 +175,12 @@ class Program {
         const char* what = n.result.outcome == robot::Outcome::finished      ? "finished: ACTION_OK"
                            : n.result.outcome == robot::Outcome::interrupted ? "interrupted: ACTION_INTERR"
                                                                              : "failed: ACTION_ERR";
-        log_.log(n.result.outcome == robot::Outcome::failed ? kError : kInfo, "action %s%s%s%s%s", what,
+        sh_.log.log(n.result.outcome == robot::Outcome::failed ? kError : kInfo, "action %s%s%s%s%s", what,
                  n.result.outcome == robot::Outcome::interrupted ? " " : "",
                  n.result.outcome == robot::Outcome::interrupted
                      ? std::string(ev3proto::to_string(n.result.warning)).c_str() : "",
                  n.result.detail.empty() ? "" : " - ", std::string(n.result.detail.view()).c_str());
-        if (!n.taken) log_.log(kVerbose, "action result not taken by the core (not running)");
+        if (!n.taken) sh_.log.log(kVerbose, "action result not taken by the core (not running)");
         break;
       }
       case K::event: {
@@ -229,20 +188,20 @@ class Program {
         const std::size_t c = n.event.params(p);
         std::string text;
         for (std::size_t i = 0; i < c; ++i) text += (i ? " " : "") + std::string(p[i]);
-        log_.log(n.event.severity() == robot::Severity::critical ? kInfo : kVerbose, "event %s%s", text.c_str(),
+        sh_.log.log(n.event.severity() == robot::Severity::critical ? kInfo : kVerbose, "event %s%s", text.c_str(),
                  n.taken ? " (core: EVENT to the master)" : "");
         break;
       }
       case K::report:
-        log_.log(kVerbose, "sensor report %s %s%s", std::string(robot::to_string(n.report.port)).c_str(),
+        sh_.log.log(kVerbose, "sensor report %s %s%s", std::string(robot::to_string(n.report.port)).c_str(),
                  std::string(n.report.mode.view()).c_str(), n.taken ? "" : " (not taken: not running)");
         break;
       case K::missing:
-        log_.log(kInfo, "model A devices missing: %s (core: EVENT DEVICE_DISCONNECTED to the master; "
+        sh_.log.log(kInfo, "model A devices missing: %s (core: EVENT DEVICE_DISCONNECTED to the master; "
                  "BEHAVIOUR refused until all are plugged)", roles(n.bits).c_str());
         break;
       case K::control:
-        log_.log(kDebug, "runtime: %s %s", std::string(ev3proto::to_string(n.control)).c_str(),
+        sh_.log.log(kDebug, "runtime: %s %s", std::string(ev3proto::to_string(n.control)).c_str(),
                  std::string(n.name).c_str());
         break;
     }
@@ -251,10 +210,10 @@ class Program {
  private:
   void loop() {
     Millis next_summary = ev3io::monotonic_ms() + 5000;
-    while (signals_.stop_signal() == 0 && !state_failed_) {
-      // At most Receiver::kBatch datagrams, then the device scan, the robot's tick, the node's
+    while (sh_.running()) {
+      // At most Shell::kBatch datagrams, then the device scan, the robot's tick, the node's
       // deadlines and the copies due.
-      const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
+      const bool more = sh_.receive([this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
         on_datagram(d, from, now);
       });
       Millis now = ev3io::monotonic_ms();
@@ -270,52 +229,41 @@ class Program {
       node_->advance(now);
       pump(now);
       if (Link::shut_down(*node_, *rt_)) {
-        log_.log(kInfo, "battery low: EVENT BATTERY_LOW sent, motors stopped; exiting");
+        sh_.log.log(kInfo, "battery low: EVENT BATTERY_LOW sent, motors stopped; exiting");
         battery_exit_ = true;
         break;
       }
       run_script(now);
-      net_.flush(now);
+      sh_.net.flush(now);
       if (now >= next_summary) {
-        if (drops_changed_) log_.log(kVerbose, "drops: %s", counters_line(drops_).c_str());
+        if (drops_changed_) sh_.log.log(kVerbose, "drops: %s", sh_.drops_line().c_str());
         drops_changed_ = false;
         next_summary = now + 5000;
       }
-      Millis deadline = node_->next_deadline();
-      if (node_->master() != nullptr) deadline = std::min(deadline, script_.deadline());
-      deadline = std::min(deadline, rt_->next_deadline());
-      deadline = std::min(deadline, rio_.next_scan());
-      deadline = std::min(deadline, net_.next_send());
-      deadline = std::min(deadline, log_.tick(now));
-      deadline = std::min(deadline, next_summary);
-      deadline = std::min(deadline, trace_file_.tick(now));
-      if (more) deadline = now;
-      pollfd p{net_.fd(), POLLIN, 0};
-      signals_.wait(&p, 1, deadline);
+      Millis deadline = std::min({node_->next_deadline(), rt_->next_deadline(), rio_.next_scan(), next_summary});
+      if (node_->master() != nullptr) deadline = std::min(deadline, sh_.script.deadline());
+      sh_.wait(now, deadline, more);
     }
   }
 
   void drop(const std::string& why, std::string_view d) {
-    const std::uint64_t n = ++drops_[why];
+    sh_.drop(why, d);
     drops_changed_ = true;
-    if (log_.enabled(kVerbose))
-      log_.log(kVerbose, "drop (%s, %llu so far): %s", why.c_str(), static_cast<unsigned long long>(n),
-               printable(d).c_str());
   }
 
   /// The node takes the datagram; the program only logs and counts what it reports.
   void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
-    const ev3proto::NodeHandled h = node_->handle_datagram(d, net_.peer_of(from), now);
+    const ev3proto::NodeHandled h = node_->handle_datagram(d, sh_.net.peer_of(from), now);
     const ev3proto::Ignored why = h.why();
     if (why == ev3proto::Ignored::undecodable) {
-      drop(reason_key(h.agent.decode.reason), d);
+      drop(ev3prog::decode_drop_key(h.agent.decode.reason), d);
     } else {
-      log_.log(kDebug, "recv %s from %s", printable(d).c_str(), from.str().c_str());
+      sh_.log.log(kDebug, "recv %s from %s", ev3prog::printable(d).c_str(), from.str().c_str());
       if (why != ev3proto::Ignored::no) {
         drop(std::string(ev3proto::to_string(why)), d);
       } else if (h.agent.action == ev3proto::Action::RecvDuplicate) {
-        ++drops_["duplicate_answered_again"];
-        log_.log(kDebug, "duplicate %s answered again", printable(d).c_str());
+        sh_.count("duplicate_answered_again");
+        sh_.log.log(kDebug, "duplicate %s answered again", ev3prog::printable(d).c_str());
       }
     }
     pump(now);
@@ -330,19 +278,19 @@ class Program {
     link_->settle(
         *node_, *rt_, now, [this, now](const ev3proto::NodeEvent& e) { on_event(e, now); },
         [this, now] { rio_.flush(*rt_, now); }, [this](const robot::LinkNote& n) { on_note(n); });
-    if (state_failed_) return;
-    state_failed_ = !node_->ready([this](const ev3proto::Durable& d) { return save_state(d); },
+    if (sh_.state_failed) return;
+    sh_.state_failed = !node_->ready([this](const ev3proto::Durable& d) { return save_state(d); },
                                   [this, now](const ev3proto::NodeTransmit& t) { send(t, now); });
-    if (state_failed_) return;
+    if (sh_.state_failed) return;
     ev3proto::OperatorEvent oe;
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (node_->poll_operator_event(oe)) {
-      const std::string addr = ev3prog::agent_address(node_->master()->registry(), oe.agent, net_);
-      log_.log(kInfo, "master: %s", view_.on_event(oe, addr, now).c_str());
+      const std::string addr = ev3prog::agent_address(node_->master()->registry(), oe.agent, sh_.net);
+      sh_.log.log(kInfo, "master: %s", view_.on_event(oe, addr, now).c_str());
       if (auto r = view_.follow_rules(oe, node_->master()->registry())) ruled.push_back(std::move(*r));
     }
     for (const ev3prog::FleetView::RuleCommand& r : ruled) {
-      log_.log(kInfo, "master: %s", r.say.c_str());
+      sh_.log.log(kInfo, "master: %s", r.say.c_str());
       node_->command(r.agent, r.command, now);
     }
     if (!ruled.empty()) pump(now);
@@ -351,15 +299,15 @@ class Program {
   /// One datagram of the node's: to its peer's address; one for the master whose address is not
   /// known yet to everyone (the node counts those: unrouted()).
   void send(const ev3proto::NodeTransmit& t, Millis now) {
-    log_.log(kDebug, "%ssend %s to %s", t.from_master_core ? "master core: " : "", printable(t.bytes).c_str(),
+    sh_.log.log(kDebug, "%ssend %s to %s", t.from_master_core ? "master core: " : "", ev3prog::printable(t.bytes).c_str(),
              std::string(to_string(t.dest)).c_str());
     if (t.dest == ev3proto::Dest::broadcast) {
       broadcast(t.bytes, now);
       return;
     }
-    const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
+    const ev3io::Endpoint* ep = sh_.net.endpoint_of(t.peer);
     if (ep != nullptr) {
-      net_.send(*ep, t.bytes, now);
+      sh_.net.send(*ep, t.bytes, now);
     } else if (t.dest == ev3proto::Dest::master) {
       broadcast(t.bytes, now);
     } else {
@@ -373,44 +321,44 @@ class Program {
     // Without --election the master followed is always the PC: nothing to say about roles.
     if (!opt_.election && (e.kind == K::role || e.kind == K::leader || e.kind == K::relays)) return;
     switch (e.kind) {
-      case K::state: log_.log(kInfo, "state %s (id %u)", std::string(to_string(e.state)).c_str(), a.id()); break;
+      case K::state: sh_.log.log(kInfo, "state %s (id %u)", std::string(to_string(e.state)).c_str(), a.id()); break;
       case K::led:
       case K::control: break;  // the runtime's (robot_link.hpp)
       case K::durable:  // written by ready() (pump)
         if (e.durable.epoch != e.previous.epoch)
-          log_.log(kInfo, "epoch %u (was %u)", e.durable.epoch, e.previous.epoch);
+          sh_.log.log(kInfo, "epoch %u (was %u)", e.durable.epoch, e.previous.epoch);
         break;
       case K::role:
         if (e.role == ev3proto::Role::candidate)
-          log_.log(kInfo, "election: standing as CANDIDATE in epoch %u (score %u)", e.epoch, a.score());
+          sh_.log.log(kInfo, "election: standing as CANDIDATE in epoch %u (score %u)", e.epoch, a.score());
         else if (e.role == ev3proto::Role::master)
-          log_.log(kInfo, "election: won epoch %u (score %u): role MASTER", e.epoch, a.score());
+          sh_.log.log(kInfo, "election: won epoch %u (score %u): role MASTER", e.epoch, a.score());
         else
-          log_.log(kInfo, "election: role %s", role_name(e.role).c_str());
+          sh_.log.log(kInfo, "election: role %s", role_name(e.role).c_str());
         break;
       case K::leader:
         if (e.leader != 0 && e.via != 0)
-          log_.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", e.leader, a.election().epoch, e.via);
+          sh_.log.log(kInfo, "following master %u (epoch %u) through the relay of agent %u", e.leader, a.election().epoch, e.via);
         else if (e.leader != 0)
-          log_.log(kInfo, "following master %u (epoch %u) directly", e.leader, a.election().epoch);
+          sh_.log.log(kInfo, "following master %u (epoch %u) directly", e.leader, a.election().epoch);
         break;
       case K::relays: {
         std::string relays;
         const auto& el = a.election();
         for (std::size_t i = 0; i < el.relays.size(); ++i) relays += " " + std::to_string(el.relays.id(i));
-        log_.log(kInfo, "relaying for agents:%s", relays.empty() ? " none" : relays.c_str());
+        sh_.log.log(kInfo, "relaying for agents:%s", relays.empty() ? " none" : relays.c_str());
         break;
       }
       case K::master_started: {
         std::string m;
         for (std::size_t i = 0; i < a.election().members.size(); ++i) m += " " + std::to_string(a.election().members[i]);
-        log_.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", e.epoch, a.id(),
-                 m.c_str(), script_.empty() ? "" : "; running --master-script");
-        script_.start(now);
+        sh_.log.log(kInfo, "master of epoch %u as id %u: running a Master core (members%s)%s", e.epoch, a.id(),
+                 m.c_str(), sh_.script.empty() ? "" : "; running --master-script");
+        sh_.script.start(now);
         break;
       }
       case K::master_stopped:
-        log_.log(kInfo, "master of epoch %u stepped down (epoch %u is newer)%s; Master core dropped", e.epoch,
+        sh_.log.log(kInfo, "master of epoch %u stepped down (epoch %u is newer)%s; Master core dropped", e.epoch,
                  a.election().epoch, e.handed_over ? " (HANDOVER sent to the new master)" : "");
         break;
     }
@@ -418,39 +366,35 @@ class Program {
 
   void shutdown() {
     const Millis now = ev3io::monotonic_ms();
-    if (state_failed_) log_.log(kError, "stopping: the state file could not be written");
-    else if (!battery_exit_) log_.log(kInfo, "stopping (signal %d)", signals_.stop_signal());
     if (rt_->busy()) {
       rt_->control(ev3proto::ControlKind::stop, "", nullptr, 0, now);
-      log_.log(kInfo, "behaviour stopped, motors stopped");
+      sh_.log.log(kInfo, "behaviour stopped, motors stopped");
     }
     // The node's EVENT(LEAVING) tells the master (no leave message in the protocol); not after a
     // failed state write: nothing is sent then.
-    if (!state_failed_ && node_->leaving(now)) {
+    if (!sh_.state_failed && node_->leaving(now)) {
       bool sent = false;
       node_->ready([this](const ev3proto::Durable& d) { return save_state(d); },
                    [this, now, &sent](const ev3proto::NodeTransmit& t) {
                      send(t, now);
                      sent = true;
                    });
-      if (sent) log_.log(kInfo, "told the master: EVENT LEAVING");
+      if (sent) sh_.log.log(kInfo, "told the master: EVENT LEAVING");
     }
-    net_.flush_all();
-    log_.log(kInfo, "drops: %s", counters_line(drops_).c_str());
+    sh_.log_stop(battery_exit_ ? "battery low" : nullptr);
     const auto& u = node_->unrouted();
-    log_.log(kInfo, "unrouted: %u for the master before its address was known (broadcast), %u for a peer with no "
+    sh_.log.log(kInfo, "unrouted: %u for the master before its address was known (broadcast), %u for a peer with no "
              "address (dropped)", u.to_master, u.to_peer);
     rt_->led(ev3proto::Led::DARK);
     rio_.flush(*rt_, now);
     const ev3io::RobotIo::Stats& st = rio_.stats();
-    log_.log(kInfo, "devices: %zu reads, %zu writes, %zu failed reads, %zu failed writes, %zu unplugs seen",
+    sh_.log.log(kInfo, "devices: %zu reads, %zu writes, %zu failed reads, %zu failed writes, %zu unplugs seen",
              st.reads, st.writes, st.failed_reads, st.failed_writes, st.unplugged);
-    log_.flush();
-    trace_file_.close();
+    sh_.close();
   }
 
   void broadcast(std::string_view bytes, Millis now) {
-    for (const auto& b : opt_.common.broadcast) net_.send(b, bytes, now);
+    for (const auto& b : opt_.common.broadcast) sh_.net.send(b, bytes, now);
   }
 
   // ------------------------------------------------------------------ relay and election
@@ -460,18 +404,10 @@ class Program {
   bool load_state(ev3proto::ElectionConfig& e) {
     if (opt_.state_dir.empty()) return true;
     state_path_ = opt_.state_dir + "/ev3-agent.state";
-    std::string text, err;
-    if (!ev3io::read_state_file(state_path_, text, err)) {
-      if (err.empty()) return true;  // first start
-      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s\n", err.c_str());
-      return false;
-    }
+    std::optional<std::string> text;
+    if (!sh_.read_state("--state-dir", state_path_, text)) return false;
     ev3proto::DurableError why;
-    if (!ev3proto::parse_durable(text, e.durable, why)) {
-      std::fprintf(stderr, "ev3-agent: bad value for --state-dir: %s is damaged: %s\n", state_path_.c_str(),
-                   std::string(why.view()).c_str());
-      return false;
-    }
+    if (text && !ev3proto::parse_durable(*text, e.durable, why)) return sh_.damaged("--state-dir", state_path_, why.view());
     return true;
   }
 
@@ -479,56 +415,48 @@ class Program {
   /// false when it is not on disk (then the agent sends nothing more and exits with status 1).
   bool save_state(const ev3proto::Durable& d) {
     const std::string members(ev3proto::IdListText().ids(d.members, d.member_count).view());
-    log_.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
+    sh_.log.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
              members.c_str(), d.mepoch, d.floor);
-    return state_path_.empty() || ev3prog::save_state_file("ev3-agent", "the election state", state_path_,
-                                                            ev3proto::durable_text(d).view(), log_);
+    return state_path_.empty() || sh_.save_state("the election state", state_path_, ev3proto::durable_text(d).view());
   }
 
   /// --master-script: console commands for the Master core, from the moment this agent won.
   void run_script(Millis now) {
     std::string line;
     while (node_->master() != nullptr && node_->master()->role() == ev3proto::MasterRole::master &&
-           script_.next(now, line)) {
+           sh_.script.next(now, line)) {
       ev3prog::ConsoleCommand c;
       const std::string err = ev3prog::console_command(line, c);
       using K = ev3prog::ConsoleCommand::Kind;
       if (!err.empty()) {
-        log_.log(kError, "master script: %s", err.c_str());
+        sh_.log.log(kError, "master script: %s", err.c_str());
       } else if (c.kind == K::send) {
-        log_.log(kInfo, "master script> %s", line.c_str());
+        sh_.log.log(kInfo, "master script> %s", line.c_str());
         node_->command(c.agent, c.command, now);
         pump(now);
       } else if (c.kind == K::rule) {
-        log_.log(kInfo, "master script: %s", view_.set_rule(c).c_str());
+        sh_.log.log(kInfo, "master script: %s", view_.set_rule(c).c_str());
       } else if (c.kind == K::list) {
-        for (const std::string& l : view_.table(node_->master()->registry(), drops_, now))
-          log_.log(kInfo, "master: %s", l.c_str());
+        for (const std::string& l : view_.table(node_->master()->registry(), sh_.drops, now))
+          sh_.log.log(kInfo, "master: %s", l.c_str());
       }
     }
   }
 
   ev3agent::AgentOptions opt_;
-  ev3io::Logger log_;
-  ev3io::Signals signals_;
-  ev3io::UdpTransport net_;
-  ev3prog::Receiver rx_;
+  ev3prog::Shell sh_;  // log, signals, socket, trace file, script, drop counters, state-file writes
   ev3agent::AgentSink trace_;  // the agent core's records (--trace)
-  ev3prog::TraceFile trace_file_;
   std::optional<RobotNode> node_;
   ev3io::Ev3Devices devices_;
   ev3io::RobotIo rio_;
   std::optional<robot::Runtime> rt_;
   std::optional<Link> link_;
   bool battery_exit_ = false;
-  bool state_failed_ = false;  // a durable state write failed: nothing more is sent
-  std::map<std::string, std::uint64_t> drops_;
   bool drops_changed_ = false;
   // election
   std::string state_path_;
   std::optional<ev3proto::NdjsonTrace> mtrace_;  // the Master core's records (--trace)
   ev3prog::FleetView view_;
-  ev3prog::Script script_;
 };
 
 }  // namespace

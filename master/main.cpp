@@ -25,7 +25,6 @@
 #include "driver.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
-#include "ev3io/state_file.hpp"
 #include "ev3io/udp.hpp"
 #include "master_options.hpp"
 
@@ -43,31 +42,23 @@ constexpr int kTableRows = 14;
 /// The drop counter of a datagram the core ignored (or took without effect): "decode:<reason>"
 /// for one that does not decode, else the core's spelling ("misaddressed", "unknown_sender", ...).
 std::string drop_key(const ev3proto::MasterReceipt& r) {
-  if (r.why != ev3proto::MasterIgnored::malformed) return std::string(ev3proto::to_string(r.why));
-  std::string k = "decode:" + std::string(ev3proto::to_string(r.reason));
-  for (char& c : k)
-    if (c == ' ') c = '_';
-  return k;
+  return r.why == ev3proto::MasterIgnored::malformed ? ev3prog::decode_drop_key(r.reason)
+                                                     : std::string(ev3proto::to_string(r.why));
 }
 
 class Program {
  public:
-  explicit Program(const ev3master::MasterOptions& o) : opt_(o), net_(o.common.faults) {}
+  explicit Program(const ev3master::MasterOptions& o) : opt_(o), sh_("ev3-master", o.common.faults) {}
 
   int run() {
     tty_ = isatty(0) && isatty(1);
-    if (!ev3prog::open_outputs("ev3-master", "master", opt_.common, log_, trace_file_)) return 2;
+    if (const int rc = sh_.open("master", opt_.common)) return rc;
     if (tty_ && opt_.common.log_file.empty() && opt_.common.log_level > kError)
-      log_.set_level(kError);  // the terminal shows the table; only errors go to stderr there
-    if (trace_file_.is_open()) trace_.set_output(trace_file_.output());
-    if (!ev3prog::load_script("ev3-master", "--script", opt_.script, script_)) return 2;
-    std::string err;
-    if (!net_.open(opt_.common.bind_addr, opt_.common.port, err)) {
-      std::fprintf(stderr, "ev3-master: %s\n", err.c_str());
-      return 1;
-    }
+      sh_.log.set_level(kError);  // the terminal shows the table; only errors go to stderr there
+    if (sh_.trace_file.is_open()) trace_.set_output(sh_.trace_file.output());
+    if (!sh_.load_script("--script", opt_.script)) return 2;
     start_ = ev3io::monotonic_ms();
-    script_.start(start_);
+    sh_.script.start(start_);
     ev3proto::MasterConfig cfg;
     cfg.timers = opt_.timers;
     cfg.max_resends = opt_.max_resends;
@@ -79,33 +70,33 @@ class Program {
     cfg.next_msgid = ev3proto::master_msgid_seed(ev3io::wall_ms());
     std::string restored;
     if (!load_state(cfg, restored)) return 2;
-    master_.emplace(cfg, start_, trace_file_.is_open() ? &trace_ : nullptr);
+    master_.emplace(cfg, start_, sh_.trace_file.is_open() ? &trace_ : nullptr);
     ready(start_);  // the state file written at once (nothing is queued yet)
-    if (state_failed_) return 1;
-    listening_ = net_.local().str();
-    log_.log(kInfo, "listening on %s", listening_.c_str());
-    log_.flush();
+    if (sh_.state_failed) return 1;
+    listening_ = sh_.net.local().str();
+    sh_.log.log(kInfo, "listening on %s", listening_.c_str());
+    sh_.log.flush();
     if (tty_) setup_screen();
     else say("listening on " + listening_);
     if (!restored.empty()) say(restored);
     election_changes();
     loop();
     shutdown();
-    return state_failed_ ? 1 : 0;
+    return sh_.state_failed ? 1 : 0;
   }
 
  private:
   void loop() {
-    while (signals_.stop_signal() == 0 && !quit_ && !state_failed_) {
-      // At most Receiver::kBatch datagrams, then what is owed (PONGs, resends, copies, status).
-      const bool more = rx_.read(net_, [this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
+    while (sh_.running() && !quit_) {
+      // At most Shell::kBatch datagrams, then what is owed (PONGs, resends, copies, status).
+      const bool more = sh_.receive([this](const std::string& d, const ev3io::Endpoint& from, Millis now) {
         on_datagram(d, from, now);
       });
       const Millis now = ev3io::monotonic_ms();
       master_->advance(now);
       pump(now);
       run_script(now);
-      net_.flush(now);
+      sh_.net.flush(now);
       if (!opt_.status_json.empty() && now >= next_status_) {
         write_status(now);
         next_status_ = now + kStatusEveryMs;
@@ -115,33 +106,26 @@ class Program {
         next_redraw_ = now + kRedrawEveryMs;
       }
       if (quit_) break;
-      Millis deadline = std::min(master_->next_deadline(), net_.next_send());
-      deadline = std::min(deadline, log_.tick(now));
-      deadline = std::min(deadline, script_.deadline());
+      Millis deadline = std::min(master_->next_deadline(), sh_.script.deadline());
       if (!opt_.status_json.empty()) deadline = std::min(deadline, next_status_);
       if (tty_) deadline = std::min(deadline, next_redraw_);
-      deadline = std::min(deadline, trace_file_.tick(now));
-      if (more) deadline = now;
-      pollfd p[2] = {{net_.fd(), POLLIN, 0}, {0, POLLIN, 0}};
-      const std::size_t n = stdin_open_ ? 2 : 1;
-      if (signals_.wait(p, n, deadline) > 0 && n == 2 && (p[1].revents & (POLLIN | POLLHUP | POLLERR)) != 0)
+      pollfd in{0, POLLIN, 0};
+      if (sh_.wait(now, deadline, more, &in, stdin_open_ ? 1 : 0) > 0 && stdin_open_ &&
+          (in.revents & (POLLIN | POLLHUP | POLLERR)) != 0)
         read_stdin(ev3io::monotonic_ms());
     }
   }
 
-  void drop(const std::string& why) { ++drops_[why]; }
 
   /// A datagram for the core; what it ignored (or took without effect) is counted by the reason
   /// the core gives.
   void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
-    const ev3proto::MasterReceipt r = master_->handle_datagram(d, net_.peer_of(from), now);
+    const ev3proto::MasterReceipt r = master_->handle_datagram(d, sh_.net.peer_of(from), now);
     if (r.why != ev3proto::MasterIgnored::none) {
-      const std::string key = drop_key(r);
-      drop(key);
-      log_.log(kVerbose, "drop (%s) from %s", key.c_str(), from.str().c_str());
+      sh_.drop(drop_key(r), d, from.str());
     }
     if (r.taken()) {
-      log_.log(kDebug, "recv %s from %s: %s", d.c_str(), from.str().c_str(),
+      sh_.log.log(kDebug, "recv %s from %s: %s", d.c_str(), from.str().c_str(),
                std::string(to_string(r.action)).c_str());
       if (r.action == ev3proto::Action::MasterHandover) handovers_++;
       pump(now);
@@ -152,22 +136,22 @@ class Program {
   /// calls queued sent. A failed write stops the master: nothing more is sent (a msgid or an id
   /// handed out must not be handed out again after a restart, an epoch must not be stood in twice).
   void ready(Millis now) {
-    if (state_failed_) return;
-    state_failed_ = !master_->ready([this](const ev3proto::MasterDurable& d) { return save_state(d); },
+    if (sh_.state_failed) return;
+    sh_.state_failed = !master_->ready([this](const ev3proto::MasterDurable& d) { return save_state(d); },
                    [this, now](const ev3proto::MasterTransmit& t) {
                      if (t.dest == ev3proto::Dest::broadcast) {  // ELECT, LEADER
-                       log_.log(kDebug, "send %s to everyone", t.bytes.c_str());
-                       for (const auto& b : opt_.common.broadcast) net_.send(b, t.bytes, now);
+                       sh_.log.log(kDebug, "send %s to everyone", t.bytes.c_str());
+                       for (const auto& b : opt_.common.broadcast) sh_.net.send(b, t.bytes, now);
                        return;
                      }
-                     const ev3io::Endpoint* ep = net_.endpoint_of(t.peer);
+                     const ev3io::Endpoint* ep = sh_.net.endpoint_of(t.peer);
                      if (ep == nullptr) {
-                       drop("no_route");
-                       log_.log(kVerbose, "drop (no_route): no address for peer %u", static_cast<unsigned>(t.peer));
+                       sh_.count("no_route");
+                       sh_.log.log(kVerbose, "drop (no_route): no address for peer %u", static_cast<unsigned>(t.peer));
                        return;
                      }
-                     log_.log(kDebug, "send %s to %s", t.bytes.c_str(), ep->str().c_str());
-                     net_.send(*ep, t.bytes, now);
+                     sh_.log.log(kDebug, "send %s to %s", t.bytes.c_str(), ep->str().c_str());
+                     sh_.net.send(*ep, t.bytes, now);
                    });
   }
 
@@ -177,7 +161,7 @@ class Program {
     ev3proto::OperatorEvent e;
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (master_->poll_event(e)) {
-      say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, net_), now));
+      say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, sh_.net), now));
       if (auto r = view_.follow_rules(e, master_->registry())) ruled.push_back(std::move(*r));
       dirty_ = true;
     }
@@ -212,7 +196,7 @@ class Program {
 
   void run_script(Millis now) {
     std::string line;
-    while (!quit_ && script_.next(now, line)) handle_line(line, true, now);
+    while (!quit_ && sh_.script.next(now, line)) handle_line(line, true, now);
   }
 
   void handle_line(const std::string& line, bool script, Millis now) {
@@ -227,7 +211,7 @@ class Program {
       case K::none: return;
       case K::help: say(ev3prog::console_help()); return;
       case K::list:
-        for (const std::string& l : view_.table(master_->registry(), drops_, now)) say(l);
+        for (const std::string& l : view_.table(master_->registry(), sh_.drops, now)) say(l);
         return;
       case K::quit: say("quit"); quit_ = true; return;
       case K::rule: say(view_.set_rule(c)); return;
@@ -244,7 +228,7 @@ class Program {
 
   /// One line for the operator.
   void say(const std::string& text) {
-    log_.log(kDebug, "console: %s", text.c_str());
+    sh_.log.log(kDebug, "console: %s", text.c_str());
     if (tty_) {
       std::string s = "\r\033[K" + text + "\n";
       std::fwrite(s.data(), 1, s.size(), stdout);
@@ -271,7 +255,7 @@ class Program {
   }
 
   void redraw(Millis now) {
-    std::vector<std::string> t = view_.table(master_->registry(), drops_, now);
+    std::vector<std::string> t = view_.table(master_->registry(), sh_.drops, now);
     std::string s = "\0337";
     char head[96];
     std::snprintf(head, sizeof head, "ev3-master %s  up %.0fs  agents %zu", listening_.c_str(),
@@ -289,11 +273,11 @@ class Program {
   }
 
   void write_status(Millis now) {
-    const std::string doc = view_.status_json(master_->registry(), drops_, listening_, master_->next_id(), now, start_);
+    const std::string doc = view_.status_json(master_->registry(), sh_.drops, listening_, master_->next_id(), now, start_);
     const std::string tmp = opt_.status_json + ".tmp";
     std::FILE* f = std::fopen(tmp.c_str(), "w");
     if (f == nullptr) {
-      if (!status_warned_) log_.log(kError, "cannot write %s: %s", tmp.c_str(), std::strerror(errno));
+      if (!status_warned_) sh_.log.log(kError, "cannot write %s: %s", tmp.c_str(), std::strerror(errno));
       status_warned_ = true;
       return;
     }
@@ -305,7 +289,7 @@ class Program {
 
   void shutdown() {
     const Millis now = ev3io::monotonic_ms();
-    net_.flush_all();
+    sh_.log_stop(quit_ ? "quit" : nullptr);
     if (!opt_.status_json.empty()) write_status(now);
     if (tty_) {
       std::printf("\033[r\033[%d;1H\n", rows_);
@@ -313,36 +297,22 @@ class Program {
     } else {
       say("stopped");
     }
-    std::string d;
-    for (const auto& kv : drops_) d += " " + kv.first + "=" + std::to_string(kv.second);
-    if (state_failed_)
-      log_.log(kError, "stopping: the state file could not be written; drops:%s", d.empty() ? " none" : d.c_str());
-    else
-      log_.log(kInfo, "stopping (signal %d); drops:%s", signals_.stop_signal(), d.empty() ? " none" : d.c_str());
-    log_.flush();
-    trace_file_.close();
+    sh_.close();
   }
 
   /// --state-file: restores next id, msgid (the end of the reserved block), epoch and members; the
   /// master then starts as a candidate (Election Restart(PC), docs/core.md).
   bool load_state(ev3proto::MasterConfig& cfg, std::string& note) {
     if (opt_.state_file.empty()) return true;
-    std::string text, err;
-    if (!ev3io::read_state_file(opt_.state_file, text, err)) {
-      if (err.empty()) return true;  // first start
-      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s\n", err.c_str());
-      return false;
-    }
+    std::optional<std::string> text;
+    if (!sh_.read_state("--state-file", opt_.state_file, text)) return false;
+    if (!text) return true;  // a first start
     // The library's rule (ev3proto/durable.hpp), the one ev3-agent's file is read by (the PC keeps no
     // floor). The membership is that of the epoch members_epoch: what LEADER carried, what votes
     // count against; a list without its epoch is refused: the floor of the agents' votes rests on it.
     ev3proto::MasterDurable d;
     ev3proto::DurableError why;
-    if (!ev3proto::parse_master_durable(text, d, why)) {
-      std::fprintf(stderr, "ev3-master: bad value for --state-file: %s is damaged: %s\n", opt_.state_file.c_str(),
-                   std::string(why.view()).c_str());
-      return false;
-    }
+    if (!ev3proto::parse_master_durable(*text, d, why)) return sh_.damaged("--state-file", opt_.state_file, why.view());
     cfg.next_id = d.next_id;
     cfg.next_msgid = d.next_msgid;
     cfg.epoch = d.epoch;
@@ -359,8 +329,7 @@ class Program {
   /// Writes the state the core's ready() hands over (--state-file); false when it is not on disk
   /// (then the master sends nothing more and exits with status 1, as ev3-agent does).
   bool save_state(const ev3proto::MasterDurable& d) {
-    return opt_.state_file.empty() || ev3prog::save_state_file("ev3-master", "the master's state", opt_.state_file,
-                                                               ev3proto::durable_text(d).view(), log_);
+    return opt_.state_file.empty() || sh_.save_state("the master's state", opt_.state_file, ev3proto::durable_text(d).view());
   }
 
   /// Election observers (role, epoch, handover): one console line per change.
@@ -382,23 +351,16 @@ class Program {
   }
 
   ev3master::MasterOptions opt_;
-  ev3io::Logger log_;
-  ev3io::Signals signals_;
-  ev3io::UdpTransport net_;
-  ev3prog::Receiver rx_;
+  ev3prog::Shell sh_;  // log, signals, socket, trace file, script, drop counters, state-file writes
   ev3proto::NdjsonTrace trace_{"master"};
-  ev3prog::TraceFile trace_file_;
   std::optional<MasterCore> master_;
   ev3prog::FleetView view_;
-  ev3prog::Counters drops_;
-  ev3prog::Script script_;
   std::string inbuf_;
   std::string listening_;
   Millis start_ = 0, next_status_ = 0, next_redraw_ = 0;
   bool tty_ = false, stdin_open_ = true, quit_ = false, dirty_ = false, status_warned_ = false;
   int rows_ = 24;
   // --state-file, election
-  bool state_failed_ = false;  // a state file write failed: nothing more is sent
   std::uint32_t handovers_ = 0, seen_handovers_ = 0;  // HANDOVERs taken, and said
   ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;
   std::uint32_t seen_epoch_ = 0;

@@ -2,14 +2,17 @@
 /// @brief What ev3-agent and ev3-master do alike around their cores, written once: main()
 ///        (`--driver` anywhere on the command line selects the driver mode, docs/driver.md;
 ///        otherwise the options are parsed: usage on --help, a clear error and exit status 2 on a bad
-///        flag), the driver mode's main, opening the log and trace outputs, loading a console script,
-///        an agent's address for the operator.
+///        flag), the driver mode's main, the program shell (Shell: log, trace file, socket, loop,
+///        script, drop counters, state file), an agent's address for the operator.
 #pragma once
+
+#include <poll.h>
 
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -19,6 +22,7 @@
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
 #include "ev3io/udp.hpp"
+#include "ev3prog/console.hpp"
 #include "ev3prog/driver_json.hpp"
 #include "ev3prog/script.hpp"
 #include "ev3prog/trace_file.hpp"
@@ -60,16 +64,48 @@ int driver_main(int argc, char** argv, const char* program, const char* core, co
   return status;
 }
 
-/// The receive side of a program's event loop: it reads at most kBatch datagrams before the loop
-/// sends what it owes (answers, resends, the copies due), acts on the deadlines due and writes its
-/// status, so a flood cannot starve them.
-class Receiver {
+/// The program shell: what ev3-agent and ev3-master hold around their cores and do with it alike,
+/// written once. The log and the --trace file, the UDP socket and its bounded read, the signals that
+/// stop the loop and the loop's sleep, the console script, the drop counters, the state file (read,
+/// and written atomically: the caller's parser from ev3proto/durable.hpp checks its text) and the
+/// last lines at exit. Each program's Program owns one and adds only what is its own (the robot and
+/// its devices; the terminal, the console's stdin and the status JSON).
+class Shell {
  public:
+  /// Datagrams read in one turn of the loop: a flood delays what the loop owes (answers, resends,
+  /// copies, deadlines, the status) by at most one batch.
   static constexpr std::size_t kBatch = 64;
-  /// Reads up to kBatch datagrams from @p net, each to @p on(bytes, from, now). True when it stopped
-  /// at the bound: the socket may hold more, and the loop must not sleep before reading on.
+
+  /// The shell of program @p program ("ev3-agent": the prefix of its messages on stderr), its socket
+  /// injecting @p faults.
+  Shell(const char* program, const ev3io::FaultConfig& faults) : net(faults), program_(program) {}
+
+  /// Opens the log (named @p log_name, at --log-level, into --log-file or stderr) and the --trace
+  /// file, then binds the socket. 0 when all are open; otherwise the exit status after saying on
+  /// stderr what failed: 2 for an option's bad value, 1 when the socket cannot be bound.
+  int open(const char* log_name, const ev3io::CommonOptions& o);
+
+  /// Loads the console script @p path (given with @p flag, "--script"); nothing when @p path is
+  /// empty. False after saying on stderr why it cannot be read.
+  bool load_script(const char* flag, const std::string& path);
+
+  /// Reads the state file @p path (given with @p flag) into @p text: true, with no @p text when
+  /// there is none yet (a first start); false after saying on stderr why it cannot be read.
+  bool read_state(const char* flag, const std::string& path, std::optional<std::string>& text);
+  /// Says on stderr that the state file @p path (given with @p flag) is damaged, @p why; false.
+  bool damaged(const char* flag, const std::string& path, std::string_view why);
+  /// Writes @p text to the state file @p path atomically (ev3io::write_state_file). False after
+  /// saying in the log and on stderr that @p what is not on disk and that the program sends nothing
+  /// more ("ev3-agent: reason; the election state is not on disk: sending nothing more, exiting").
+  bool save_state(const char* what, const std::string& path, std::string_view text);
+
+  /// The loop goes on: no signal asked to stop, and every state write succeeded.
+  bool running() const noexcept { return signals.stop_signal() == 0 && !state_failed; }
+
+  /// Reads up to kBatch datagrams, each to @p on(bytes, from, now). True when it stopped at the
+  /// bound: the socket may hold more, and the loop must not sleep before reading on.
   template <typename On>
-  bool read(ev3io::UdpTransport& net, On&& on) {
+  bool receive(On&& on) {
     for (std::size_t n = 0; n < kBatch; ++n) {
       if (!net.receive(bytes_, from_)) return false;
       on(bytes_, from_, ev3io::monotonic_ms());
@@ -77,26 +113,46 @@ class Receiver {
     return true;
   }
 
+  /// Counts datagram @p bytes from @p from dropped for @p why (a verbose log line names it).
+  void drop(const std::string& why, std::string_view bytes, const std::string& from = "");
+  /// Counts @p why without a log line.
+  void count(const std::string& why) { ++drops[why]; }
+  /// The drop counters as one line: "decode:bad_number=12 misaddressed=3", "none" when empty.
+  std::string drops_line() const;
+
+  /// Sleeps until @p deadline (the program's own), the socket's next copy due, the log's and the
+  /// trace file's next flush, a datagram, a signal, or one of @p extra's @p n_extra descriptors
+  /// (their revents set); not at all when @p more (receive() stopped at its bound). Returns
+  /// poll's count.
+  int wait(Millis now, Millis deadline, bool more, pollfd* extra = nullptr, std::size_t n_extra = 0);
+
+  /// The stop line: why (the state file, @p why when given, else the signal) and the drop
+  /// counters: "stopping (signal 15); drops: decode:bad_number=12". The copies still due go out first.
+  void log_stop(const char* why = nullptr);
+  /// The last step: the log flushed, the trace file closed.
+  void close();
+
+  ev3io::Logger log;
+  ev3io::Signals signals;
+  ev3io::UdpTransport net;
+  TraceFile trace_file;
+  Script script;
+  Counters drops;
+  bool state_failed = false;  ///< A state write failed: the program sends nothing more and exits.
+
  private:
+  const char* program_;
   std::string bytes_;
   ev3io::Endpoint from_;
 };
 
-/// Opens what a program writes first: the logger (named @p log_name, at --log-level, into
-/// --log-file when given, else stderr) and the --trace file when given. False after saying on stderr
-/// what could not be opened ("@p program: bad value for --log-file: cannot open 'F': reason").
-bool open_outputs(const char* program, const char* log_name, const ev3io::CommonOptions& o, ev3io::Logger& log,
-                  TraceFile& trace);
+/// The drop counter of a datagram that does not decode, for the codec's reason @p r:
+/// "decode:<reason>", spaces as '_' ("decode:bad_number").
+std::string decode_drop_key(ev3proto::Reason r);
 
-/// Writes @p text to the state file @p path (atomically: ev3io::write_state_file). False after
-/// saying in the log and on stderr that @p what is not on disk and that the program sends nothing
-/// more ("@p program: reason; the election state is not on disk: sending nothing more, exiting").
-bool save_state_file(const char* program, const char* what, const std::string& path, std::string_view text,
-                     ev3io::Logger& log);
-
-/// Loads the console script @p path (given with @p flag, "--script") into @p script; nothing when
-/// @p path is empty. False after saying on stderr why it cannot be read.
-bool load_script(const char* program, const char* flag, const std::string& path, Script& script);
+/// Printable form of datagram @p d for the log: at most 100 bytes, other than printable ASCII as
+/// \xNN, "..." when cut.
+std::string printable(std::string_view d);
 
 /// The address of @p agent in @p reg as @p net knows it ("127.0.0.1:40001"); "" when unknown.
 std::string agent_address(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg, std::uint16_t agent,
