@@ -68,13 +68,13 @@ std::string ids_json(const std::vector<std::uint16_t>& ids) {
 }
 
 /// The master node's Election.tla variables after the input: life (MASTER, CANDIDATE,
-/// STEPPED_DOWN), epoch, votes, members / mepoch (the membership of its epoch), want (members()),
+/// STEPPED_DOWN), epoch, votes, members / mepoch (the membership of its epoch), want (want()),
 /// handed_over (HANDOVER sent), self (its id).
 std::string election_json(const Core& m) {
   return "{\"life\":\"" + std::string(to_string(m.role())) + "\",\"self\":" + std::to_string(m.self_id()) +
          ",\"epoch\":" + std::to_string(m.epoch()) + ",\"votes\":" + ids_json(m.votes()) +
-         ",\"members\":" + ids_json(m.published()) + ",\"mepoch\":" + std::to_string(m.published_epoch()) +
-         ",\"want\":" + ids_json(m.members()) + ",\"handed_over\":" + (m.handed_over() ? "true" : "false") + "}";
+         ",\"members\":" + ids_json(m.members()) + ",\"mepoch\":" + std::to_string(m.members_epoch()) +
+         ",\"want\":" + ids_json(m.want()) + ",\"handed_over\":" + (m.handed_over() ? "true" : "false") + "}";
 }
 
 /// Trace sink: every spec action with its message and the variables after it.

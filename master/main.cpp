@@ -340,9 +340,9 @@ class Program {
       seen_role_ = r;
       seen_epoch_ = master_->epoch();
       std::string members;
-      for (std::uint16_t m : master_->published()) members += " " + std::to_string(m);
+      for (std::uint16_t m : master_->members()) members += " " + std::to_string(m);
       say("election: " + std::string(to_string(r)) + " of epoch " + std::to_string(seen_epoch_) + " (members" +
-          (members.empty() ? " none" : members) + " of epoch " + std::to_string(master_->published_epoch()) + ")");
+          (members.empty() ? " none" : members) + " of epoch " + std::to_string(master_->members_epoch()) + ")");
     }
     if (handovers_ != seen_handovers_) {  // (handed_over() is an elected agent's side: never the PC's)
       seen_handovers_ = handovers_;

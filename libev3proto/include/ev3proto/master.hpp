@@ -131,7 +131,7 @@ class Master {
   /// etcd raft's Ready): first @p write gets the durable state when it changed since the last write
   /// (`bool write(const MasterDurable&)`: true once it is on stable storage), then @p send gets every
   /// datagram (`void send(const MasterTransmit&)`). The durable state changes with next_id, the
-  /// epoch, the membership published (published(), published_epoch()), and when less than half of
+  /// epoch, the membership published (members(), members_epoch()), and when less than half of
   /// the reserved msgid block is left: its next_msgid is the end of a block of kMsgidBlock msgids
   /// reserved from next_msgid() on (MsgidReservation), so a master restarted from it continues
   /// above every msgid it sent. The first ready() always writes. When @p write fails, nothing is
@@ -205,17 +205,17 @@ class Master {
   /// the members handed over, and every agent registered and synced since. The PC changes the
   /// membership it publishes towards it one agent per epoch (Reconfigure); an agent declared lost
   /// (DropMember) is no longer wanted until it syncs again.
-  std::vector<std::uint16_t> members() const {
+  std::vector<std::uint16_t> want() const {
     const std::set<std::uint16_t>& m = el_.Want(reg_);
     return std::vector<std::uint16_t>(m.begin(), m.end());
   }
-  /// The membership of the master's epoch (persist it with published_epoch()): LEADER carries it,
+  /// The membership of the master's epoch (persist it with members_epoch()): LEADER carries it,
   /// votes count against it (Election members[PC]).
-  std::vector<std::uint16_t> published() const {
+  std::vector<std::uint16_t> members() const {
     return std::vector<std::uint16_t>(el_.members.begin(), el_.members.end());
   }
   /// The epoch that published it (Election mepoch[PC]).
-  std::uint32_t published_epoch() const noexcept { return el_.mepoch; }
+  std::uint32_t members_epoch() const noexcept { return el_.mepoch; }
   /// What to keep on stable storage (durable.hpp: next_id, next_msgid, epoch, the membership
   /// published and its epoch), next_msgid as it is now (ready() writes the end of a reserved block).
   MasterDurable durable() const {
@@ -228,7 +228,7 @@ class Master {
       if (d.member_count < kMaxMembership) d.members[d.member_count++] = id;
     return d;
   }
-  /// Changes whenever members() or published() may have changed (a program persisting the
+  /// Changes whenever want() or members() may have changed (a program persisting the
   /// membership compares this instead of building it after every datagram).
   std::uint64_t members_rev() const noexcept { return el_.members_rev; }
   /// True once this (elected agent's) master handed its registry over (HANDOVER sent).

@@ -387,8 +387,8 @@ class FleetDriver {
     pc_cfg_.next_id = pc_->next_id();
     pc_cfg_.next_msgid = pc_->next_msgid();
     pc_cfg_.epoch = pc_->epoch();
-    pc_cfg_.members = pc_->published();  // the state file: the membership of its epoch, not members()
-    pc_cfg_.members_epoch = pc_->published_epoch();
+    pc_cfg_.members = pc_->members();  // the state file: the membership of its epoch, not want()
+    pc_cfg_.members_epoch = pc_->members_epoch();
     pc_cfg_.candidate = true;
     pc_.reset();
     lines_.push_back("> pc crashed");

@@ -136,10 +136,10 @@ class MasterDriver {
       } else if (w[0] == "show") {
         std::string l = "show life=" + std::string(to_string(master_->role())) + " epoch=" +
                         std::to_string(master_->epoch()) + " members=";
-        for (auto id : master_->members()) l += std::to_string(id) + ",";
+        for (auto id : master_->want()) l += std::to_string(id) + ",";
         l += " published=";
-        for (auto id : master_->published()) l += std::to_string(id) + ",";
-        l += "@" + std::to_string(master_->published_epoch());
+        for (auto id : master_->members()) l += std::to_string(id) + ",";
+        l += "@" + std::to_string(master_->members_epoch());
         l += " reg=";
         for (const auto& kv : master_->registry())
           l += std::to_string(kv.first) + (kv.second.via ? "via" + std::to_string(kv.second.via) : "") + ",";

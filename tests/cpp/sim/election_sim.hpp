@@ -79,8 +79,8 @@ class ElectionFleet {
     pc_store_.next_id = pc_->next_id();
     pc_store_.next_msgid = pc_->next_msgid();
     pc_store_.epoch = pc_->epoch();
-    pc_store_.members = pc_->published();  // its state file: the membership of its epoch
-    pc_store_.members_epoch = pc_->published_epoch();
+    pc_store_.members = pc_->members();  // its state file: the membership of its epoch
+    pc_store_.members_epoch = pc_->members_epoch();
     pc_store_.candidate = true;
     pc_.reset();
   }
