@@ -271,11 +271,11 @@ class Program {
 
   /// Drains the node's and the runtime's outputs after every call into either: node events (the
   /// LED pattern and behaviour controls to the runtime, its device writes made, its results /
-  /// events / reports to the node: robot_link.hpp settle), then the node's ready(): the durable
+  /// events / reports to the node: robot_link.hpp exchange), then the node's ready(): the durable
   /// state written, then the datagrams. A failed write stops the agent: nothing more is sent (a
   /// VOTE must not go out without its votedFor on disk).
   void pump(Millis now) {
-    link_->settle(
+    link_->exchange(
         *node_, *rt_, now, [this, now](const ev3proto::NodeEvent& e) { on_event(e, now); },
         [this, now] { rio_.flush(*rt_, now); }, [this](const robot::LinkNote& n) { on_note(n); });
     if (sh_.state_failed) return;

@@ -208,7 +208,7 @@ class Robot {
   // still due on disk first, then the datagrams that call queued. A failed write sends nothing, and
   // the robot stops.
   void pump(Millis now) {
-    link_.settle(
+    link_.exchange(
         node_, rt_, now, [this](const ev3proto::NodeEvent& e) { on_event(e); }, [this] { write_devices(); },
         [this](const robot::LinkNote& n) { on_note(n); });
     if (failed_) return;

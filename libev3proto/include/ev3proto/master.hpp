@@ -71,7 +71,7 @@ class Master {
   /// step each (Heartbeat, StartElection, or MasterTick of the entries due then).
   void advance(Millis now) {
     for (;;) {
-      if (settle_role()) continue;  // the PC's first step needs no vote: it wins as it stands
+      if (take_role_steps()) continue;  // the PC's first step needs no vote: it wins as it stands
       const Millis t = next_deadline();
       if (t > now || t == kNever) break;
       Snapshot s = snap();  // before time moves: MasterTick's record shows quiet growing
@@ -243,12 +243,12 @@ class Master {
 
   // ------------------------------------------------ receive: the spec's Handler(m)
 
-  /// Takes @p m: dispatch, its trace record, then the role steps it enabled (settle_role).
+  /// Takes @p m: dispatch, its trace record, then the role steps it enabled (take_role_steps).
   MasterReceipt take(const Message& m, std::string_view bytes, Peer from) {
     Snapshot s = snap();
     const MasterReceipt r = Dispatch(m, from, 0);
     if (r.action != Action::Ignore) record(r.action, s, bytes);
-    while (settle_role()) {
+    while (take_role_steps()) {
     }
     return r;
   }
@@ -256,7 +256,7 @@ class Master {
   /// The role steps that need no input, one at a time, each with its record: BecomeMaster when a
   /// vote completed a majority (or the fresh PC stands), else Reconfigure when an agent synced or
   /// was handed over. False when neither is enabled.
-  bool settle_role() {
+  bool take_role_steps() {
     const bool become = el_.BecomeMasterOk();
     if (!become && !el_.ReconfigureOk(reg_)) return false;
     Snapshot s = snap();

@@ -29,7 +29,7 @@
 ///                    lacks, gets NOT with the runtime's reason (`line 4 col 12: unknown action
 ///                    'trun' (...)`); the START that follows an ACK runs that request (parsed again).
 ///
-/// settle() runs both directions until neither has anything left: a call into the node can give
+/// exchange() runs both directions until neither has anything left: a call into the node can give
 /// a control for the runtime (action_interrupted pauses it), a call into the runtime a result for
 /// the node (a start with a bad argument fails at once).
 #pragma once
@@ -91,7 +91,7 @@ class RobotLink {
 
   /// Once the agent is synced for the first time: the announced devices the runtime has not got
   /// are unplugged for the core (spec DeviceUnplugged: EVENT DEVICE_DISCONNECTED to the master).
-  /// settle() calls it; until then plug and unplug events are not the core's.
+  /// exchange() calls it; until then plug and unplug events are not the core's.
   template <typename Note>
   void report_missing(NodeT& node, const Runtime& rt, Millis now, Note&& note) {
     if (reported_ || !is_synced(node.agent().state())) return;
@@ -195,7 +195,7 @@ class RobotLink {
   /// The node's events (@p program gets those that are not the runtime's) and the runtime's
   /// outputs (@p write makes the device writes: the program's I/O), until neither has any left.
   template <typename Program, typename Write, typename Note>
-  void settle(NodeT& node, Runtime& rt, Millis now, Program&& program, Write&& write, Note&& note) {
+  void exchange(NodeT& node, Runtime& rt, Millis now, Program&& program, Write&& write, Note&& note) {
     for (int round = 0; round < 16; ++round) {
       bool any = false;
       NodeEvent e;

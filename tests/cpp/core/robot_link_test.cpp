@@ -48,8 +48,8 @@ struct Rig {
     }
     notes.push_back(s + (n.taken ? " taken" : ""));
   }
-  void settle(Millis now) {
-    link.settle(
+  void exchange(Millis now) {
+    link.exchange(
         node, rt, now, [](const NodeEvent&) {},
         [this] {
           robot::Write w;
@@ -61,7 +61,7 @@ struct Rig {
   }
   void datagram(const std::string& d, Millis now) {
     node.handle_datagram(d, 1, now);
-    settle(now);
+    exchange(now);
   }
   std::vector<std::string> sent() {
     std::vector<std::string> out;
@@ -84,7 +84,7 @@ TEST(RobotLink, AnnouncesModelADevicesOnlyOnAnEv3devTree) {
 
 TEST(RobotLink, DevicesMissingAtStartAreToldTheMasterOnceSynced) {
   Rig r(true);  // an ev3dev tree with nothing plugged
-  r.settle(0);
+  r.exchange(0);
   EXPECT_TRUE(r.notes.empty());  // no master to tell yet
   r.datagram("1:7:1:2:50001", 10);  // MASTER: id 7
   ASSERT_EQ(r.notes.size(), 1u);
@@ -113,7 +113,7 @@ TEST(RobotLink, WithoutDevicesWaitRunsToActionOkAndDriveIsRefused) {
   for (Millis t = 40; t <= 600; t += 10) {
     if (t >= r.rt.next_deadline()) r.rt.tick(t);
     r.node.advance(t);
-    r.settle(t);
+    r.exchange(t);
   }
   EXPECT_TRUE(has(r.notes, "result 1 taken"));  // Outcome::finished -> action_ok
   const auto out = r.sent();
@@ -132,7 +132,7 @@ TEST(RobotLink, BadArgumentFailsAtStartAndBatteryLowSwitchesBothOff) {
   for (Millis t = 1000; t <= 5000; t += 1000) {
     r.rt.reading(robot::Dev::battery, robot::Attr::voltage_now, "5900000\n", t);
     r.rt.tick(t);
-    r.settle(t);
+    r.exchange(t);
     for (const std::string& s : r.sent()) out.push_back(s);
   }
   EXPECT_TRUE(has(r.notes, "event BATTERY_LOW taken"));
@@ -154,8 +154,8 @@ TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
   robot::Runtime rt(robot::RuntimeConfig{}, 0);
   robot::RobotLink<Node<>> link(cfg.agent.caps.devices);
   std::vector<std::string> out;
-  auto settle = [&](Millis now) {
-    link.settle(
+  auto exchange = [&](Millis now) {
+    link.exchange(
         node, rt, now, [](const NodeEvent&) {}, [&] { for (robot::Write w; rt.poll_write(w);) {} },
         [](const robot::LinkNote&) {});
     NodeTransmit t;
@@ -165,14 +165,14 @@ TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
     for (Millis t = from; t <= to; t += 10) {
       if (t >= rt.next_deadline()) rt.tick(t);
       node.advance(t);
-      settle(t);
+      exchange(t);
     }
   };
   node.handle_datagram("1:7:1:2:50001", 1, 10);
-  settle(10);
+  exchange(10);
   node.handle_datagram("1:7:2:7:custom:behaviour two;state a = wait 100ms -> b;state b = wait 200ms -> end", 1, 20);
   node.handle_datagram("1:7:3:8", 1, 30);  // START
-  settle(30);
+  exchange(30);
   out.clear();
   run(40, 600);
   std::vector<std::string> oks;
@@ -187,7 +187,7 @@ TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
   node.handle_datagram("1:7:4:7:custom:behaviour bad;state a = trun 90 -> end", 1, 700);
   node.handle_datagram("1:7:5:8", 1, 710);
   out.clear();
-  settle(710);
+  exchange(710);
   EXPECT_TRUE(has(out, "ACTION_ERR")) << ::testing::PrintToString(out);
 }
 
@@ -200,8 +200,8 @@ TEST(RobotLink, TheRobotChecksABehaviourOnReceiptAndNotRefusesItWithItsReason) {
   Node<> node(cfg, 0);
   robot::RobotLink<Node<>> link(cfg.agent.caps.devices);
   std::vector<std::string> out, controls;
-  auto settle = [&](Millis now) {
-    link.settle(
+  auto exchange = [&](Millis now) {
+    link.exchange(
         node, rt, now, [](const NodeEvent&) {}, [&] { for (robot::Write w; rt.poll_write(w);) {} },
         [&](const robot::LinkNote& n) {
           if (n.kind == robot::LinkNote::Kind::control) controls.push_back(std::string(to_string(n.control)));
@@ -212,7 +212,7 @@ TEST(RobotLink, TheRobotChecksABehaviourOnReceiptAndNotRefusesItWithItsReason) {
   auto recv = [&](const std::string& d, Millis now) {
     out.clear();
     node.handle_datagram(d, 1, now);
-    settle(now);
+    exchange(now);
     return out;
   };
   recv("1:7:1:2:50001", 10);
@@ -238,7 +238,7 @@ TEST(RobotLink, TheRobotChecksABehaviourOnReceiptAndNotRefusesItWithItsReason) {
     if (t >= rt.next_deadline()) rt.tick(t);
     node.advance(t);
     out.clear();
-    settle(t);
+    exchange(t);
     all.insert(all.end(), out.begin(), out.end());
   }
   EXPECT_TRUE(has(all, "ACTION_OK")) << ::testing::PrintToString(all);
@@ -253,7 +253,7 @@ void plug_model_a(Rig& r, Millis now) {
   r.rt.device_connected(ev3test::sensor(Dev::in1, "lego-ev3-touch", "TOUCH", "TOUCH", "0"), now);
   r.rt.device_connected(ev3test::sensor(Dev::in3, "lego-ev3-color", "COL-REFLECT COL-AMBIENT COL-COLOR", "COL-COLOR", "0"), now);
   r.rt.device_connected(ev3test::sensor(Dev::in4, "lego-ev3-us", "US-DIST-CM US-DIST-IN US-LISTEN", "US-DIST-CM", "1"), now);
-  r.settle(now);
+  r.exchange(now);
 }
 
 /// The bumper reads @p pressed at @p now (one control tick).
@@ -261,7 +261,7 @@ void bumper(Rig& r, bool pressed, Millis now) {
   r.rt.reading(robot::Dev::in1, robot::Attr::value0, pressed ? "1\n" : "0\n", now);
   r.rt.tick(now);
   r.node.advance(now);
-  r.settle(now);
+  r.exchange(now);
 }
 
 TEST(RobotLink, NormalEventsReachTheMasterAsEventWithTheirPort) {
@@ -288,11 +288,11 @@ TEST(RobotLink, NormalEventsReachTheMasterAsEventWithTheirPort) {
   bumper(r, false, 400);
   // A device the model does not use, plugged and unplugged: EVENT with its port, nothing else.
   r.rt.device_connected(ev3test::sensor(robot::Dev::in2, "lego-ev3-gyro", "GYRO-ANG GYRO-RATE", "GYRO-ANG", "0"), 500);
-  r.settle(500);
+  r.exchange(500);
   out = r.sent();
   EXPECT_TRUE(has(out, "EVENT #5 DEVICE_CONNECTED in2")) << ::testing::PrintToString(out);
   r.rt.device_disconnected(robot::Dev::in2, 510);
-  r.settle(510);
+  r.exchange(510);
   out = r.sent();
   EXPECT_TRUE(has(out, "EVENT #6 DEVICE_DISCONNECTED in2")) << ::testing::PrintToString(out);
   EXPECT_EQ(r.node.agent().state(), State::WORKING);
@@ -323,17 +323,17 @@ TEST(RobotLink, DeviceEventsCarryTheirPort) {
   // RobotEvent; replugged, the first back a RobotEvent, the last DevicePlugged (devOk TRUE).
   r.rt.device_disconnected(robot::Dev::in3, 100);
   r.rt.device_disconnected(robot::Dev::in4, 100);
-  r.settle(100);
+  r.exchange(100);
   auto out = r.sent();
   ASSERT_EQ(out.size(), 2u) << ::testing::PrintToString(out);
   EXPECT_TRUE(has(out, "EVENT #2 DEVICE_DISCONNECTED in3"));
   EXPECT_TRUE(has(out, "EVENT #3 DEVICE_DISCONNECTED in4"));
   EXPECT_FALSE(r.node.agent().dev_ok());
   r.rt.device_connected(ev3test::sensor(robot::Dev::in3, "lego-ev3-color", "COL-REFLECT COL-AMBIENT COL-COLOR", "COL-COLOR", "0"), 200);
-  r.settle(200);
+  r.exchange(200);
   EXPECT_FALSE(r.node.agent().dev_ok());
   r.rt.device_connected(ev3test::sensor(robot::Dev::in4, "lego-ev3-us", "US-DIST-CM US-DIST-IN US-LISTEN", "US-DIST-CM", "1"), 300);
-  r.settle(300);
+  r.exchange(300);
   out = r.sent();
   ASSERT_EQ(out.size(), 2u) << ::testing::PrintToString(out);
   EXPECT_TRUE(has(out, "EVENT #4 DEVICE_CONNECTED in3"));
@@ -345,7 +345,7 @@ TEST(RobotLink, TheFirstMissingDeviceIsToldWithItsPort) {
   Rig r(true);
   r.rt.device_connected(ev3test::large_motor(robot::Dev::outB), 0);
   r.rt.device_connected(ev3test::large_motor(robot::Dev::outC), 0);
-  r.settle(0);
+  r.exchange(0);
   r.datagram("1:7:1:2:50001", 10);  // ultrasonic (bit 4), touch, colour missing: the first is in4
   EXPECT_TRUE(has(r.sent(), "EVENT #2 DEVICE_DISCONNECTED in4"));
 }
