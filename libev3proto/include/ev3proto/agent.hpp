@@ -913,8 +913,8 @@ class Agent {
   // ------------------------------------------------ relay and election (Election.tla)
 
   /// What the election's guards and transitions need from the lifecycle.
-  Lifecycle lifecycle() const noexcept {
-    Lifecycle l;
+  LifecycleView lifecycle() const noexcept {
+    LifecycleView l;
     l.state = state_;
     l.id = id_;
     l.score = score();

@@ -6,7 +6,7 @@
 /// Election.tla defines every action X of a node n by an enabling condition on the node's own
 /// variables, XOk(n, s, m, ...), and the new local state XNext(s, m). AgentElection holds one
 /// agent's variables (life is the agent core's State refined by a Role), its XOk guards (`const`,
-/// taking the datagram and what they need from the agent's lifecycle, Lifecycle, as parameters)
+/// taking the datagram and what they need from the agent's lifecycle, LifecycleView, as parameters)
 /// and its transitions, each named as the spec's action. A transition sends its datagrams through
 /// the agent core and returns the lifecycle change it makes (LifecycleEffect), which the agent
 /// applies through its own state table. Which rule takes an election datagram is Choose(); the
@@ -151,14 +151,14 @@ class AgentElection {
   }
   /// Election OfferRelayOk: a direct follower of the current epoch offers to relay (one hop), not to
   /// an agent that has seen a newer epoch. An agent already in the table is offered to again.
-  bool OfferRelayOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool OfferRelayOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     return m.receiver == kBroadcastId && is_assigned_id(m.sender) && DirectFollower(me.state) && e &&
            *e <= epoch;
   }
   /// Election GrantPreVoteOk: no master here (PANIC or candidate), the asker's epoch not older than
   /// ours and its score (RELAY_REQ's second param) not higher than ours.
-  bool GrantPreVoteOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool GrantPreVoteOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto sc = m.param_u32(1);
     return m.receiver == kBroadcastId && is_assigned_id(m.sender) && is_assigned_id(me.id) &&
@@ -167,13 +167,13 @@ class AgentElection {
   }
   /// Election HandlePreVoteOk: still without a master, for our current epoch, from a member not
   /// counted yet.
-  bool HandlePreVoteOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool HandlePreVoteOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     return ToMe(m, me) && me.state == State::PANIC && role != Role::master && e && *e == epoch &&
            !prevotes.contains(m.sender) && members.contains(m.sender);
   }
   /// Election AcceptRelayOk: PANIC (not standing), the offer's epoch not older.
-  bool AcceptRelayOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool AcceptRelayOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto x = m.param_u16(1);
     return ToMe(m, me) && me.state == State::PANIC && role == Role::none && e && x && *x != 0 &&
@@ -181,7 +181,7 @@ class AgentElection {
   }
   /// Election HandleAcceptOk: answers an offer made since the master last changed, and the relay
   /// still follows that master in that epoch directly (and has room).
-  bool HandleAcceptOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool HandleAcceptOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto x = m.param_u16(1);
     return ToMe(m, me) && Following(me.state) && via == 0 && e && x && *e == following &&
@@ -190,7 +190,7 @@ class AgentElection {
   /// Election ForwardOk: a direct follower relaying for the target (master -> agent) or for the
   /// sender (agent -> master); @p inner, the datagram inside (nullptr: it does not decode), is not
   /// itself a RELAY.
-  bool ForwardOk(const Message& m, const Message* inner, const Lifecycle& me) const noexcept {
+  bool ForwardOk(const Message& m, const Message* inner, const LifecycleView& me) const noexcept {
     const auto target = m.param_u16(0);
     if (!ToMe(m, me) || !Following(me.state) || via != 0 || !target) return false;
     if (inner == nullptr || inner->type == MsgType::RELAY) return false;
@@ -198,13 +198,13 @@ class AgentElection {
     return *target == leader && relays.find(m.sender) != nullptr && inner->sender == m.sender;
   }
   /// Election RelayDroppedOk: from our relay while following through it.
-  bool RelayDroppedOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool RelayDroppedOk(const Message& m, const LifecycleView& me) const noexcept {
     return ToMe(m, me) && via != 0 && m.sender == via && is_synced(me.state);
   }
   /// Election StartElectionOk (the back-off timer is the agent's): PANIC or a candidate, an assigned
   /// id, a known membership not older than the floor, pre-votes of a majority of it (itself
   /// included), an epoch left.
-  bool StartElectionOk(const Lifecycle& me) const noexcept {
+  bool StartElectionOk(const LifecycleView& me) const noexcept {
     return enabled && me.state == State::PANIC && role != Role::master && is_assigned_id(me.id) &&
            epoch < 0xFFFFFFFFu && MembershipCurrent() && PreVoteQuorum(me.id);
   }
@@ -213,7 +213,7 @@ class AgentElection {
   bool MembershipCurrent() const noexcept { return mepoch >= floor; }
   /// Election HandleElectOk (the CASE arms that change something): an older epoch (EPOCH_STALE);
   /// otherwise not a healthy follower (unless the PC stands), and a newer epoch or a vote to grant.
-  bool HandleElectOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool HandleElectOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto sc = m.param_u32(1);
     if (m.receiver != kBroadcastId || !e || !sc || me.state == State::IDLE || !is_assigned_id(me.id))
@@ -223,7 +223,7 @@ class AgentElection {
     return *e > epoch || ElectGrant(m.sender, *e, *sc, me.score, m.param_u32(2).value_or(0));
   }
   /// Election HandleVoteOk: a candidate's vote of its epoch, from a member not counted yet.
-  bool HandleVoteOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool HandleVoteOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto c = m.param_u16(1);
     return ToMe(m, me) && role == Role::candidate && e && c && *e == epoch && *c == me.id &&
@@ -237,7 +237,7 @@ class AgentElection {
   }
   /// Election HandleHeartbeatOk: a master's LEADER (not an IDLE agent's business); an older one is
   /// answered EPOCH_STALE; a master takes only a newer one.
-  bool HandleHeartbeatOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool HandleHeartbeatOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto s = m.param_u16(1);
     if (m.receiver != kBroadcastId || !e || !s || *s != m.sender || me.state == State::IDLE ||
@@ -248,7 +248,7 @@ class AgentElection {
   }
   /// Election ShareMembersOk: a peer's RELAY_REQ says it knows a membership older than ours (its
   /// members_epoch, 0 when absent), and we are not master: we send it a copy of our LEADER.
-  bool ShareMembersOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool ShareMembersOk(const Message& m, const LifecycleView& me) const noexcept {
     return enabled && m.type == MsgType::RELAY_REQ && m.receiver == kBroadcastId && is_assigned_id(m.sender) &&
            m.sender != me.id && is_assigned_id(me.id) && me.state != State::IDLE && role != Role::master &&
            mepoch > m.param_u32(2).value_or(0);
@@ -256,12 +256,12 @@ class AgentElection {
   /// Election LearnMembersOk: a copy of a LEADER (leader 0: no master claimed) of a newer
   /// membership than ours: a peer's to us (ShareMembers), or the PC's broadcast as it stands (Teach:
   /// Election.tla sends one copy per agent).
-  bool LearnMembersOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool LearnMembersOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     return is_assigned_id(me.id) && membership_copy(m, me.id) && me.state != State::IDLE && e && *e > mepoch;
   }
   /// Election HandleStaleOk: a newer epoch than ours.
-  bool HandleStaleOk(const Message& m, const Lifecycle& me) const noexcept {
+  bool HandleStaleOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     return ToMe(m, me) && e && *e > epoch;
   }
@@ -269,7 +269,7 @@ class AgentElection {
   /// Which Election rule takes relay / election datagram @p m (not EPOCH_CMD: the agent fences
   /// commands; @p inner: RELAY's inner datagram or nullptr), and what the prelude does first: an
   /// older epoch is answered EPOCH_STALE, a newer one is adopted.
-  Verdict Choose(const Message& m, const Message* inner, const Lifecycle& me) const noexcept {
+  Verdict Choose(const Message& m, const Message* inner, const LifecycleView& me) const noexcept {
     const std::uint32_t e = m.param_u32(0).value_or(0);
     switch (m.type) {
       case MsgType::RELAY_REQ:  // ShareMembers may follow the first two (a record of its own)
@@ -329,7 +329,7 @@ class AgentElection {
     return relay_at < s ? relay_at : s;
   }
   /// Back-off before standing: backoff + score x backoff_step, spread by id (ties stand apart).
-  Millis Backoff(const Lifecycle& me) const noexcept {
+  Millis Backoff(const LifecycleView& me) const noexcept {
     const std::uint32_t sc = me.score < 1000u ? me.score : 1000u;
     return backoff_ + sc * backoff_step_ + (me.id % 16u) * backoff_step_ / 16u;
   }
@@ -344,7 +344,7 @@ class AgentElection {
   /// also the pre-vote request (peers without a master answer PREVOTE_OK) and says which membership
   /// we know (a peer that knows a newer one sends us a copy: ShareMembers).
   template <class Net>
-  void RequestRelay(const Lifecycle& me, Net& n) noexcept {
+  void RequestRelay(const LifecycleView& me, Net& n) noexcept {
     relay_at = me.now + retry_;
     char num[10], sc[10], mk[10];
     const std::string_view p[3] = {decimal(epoch, num), decimal(me.score, sc), decimal(mepoch, mk)};
@@ -360,7 +360,7 @@ class AgentElection {
 
   /// Spec LearnMembers (a newer epoch was adopted by the prelude, as from EPOCH_STALE): the copy's
   /// membership is the one of its epoch; without a master we may now stand with it.
-  void LearnMembers(const Message& m, const Lifecycle& me) noexcept {
+  void LearnMembers(const Message& m, const LifecycleView& me) noexcept {
     Learned(m, *m.param_u32(0));
     if (me.state == State::PANIC && role == Role::none && stand_at == kNever && members.size() > 0)
       stand_at = me.now + Backoff(me);
@@ -422,14 +422,14 @@ class AgentElection {
   /// lifecycle entered PANIC): nobody followed (the relay table dropped with RELAY_DROP), then
   /// masterless (relay requests at once, standing after the back-off).
   template <class Net>
-  void Panic(const Lifecycle& me, Net& n) noexcept {
+  void Panic(const LifecycleView& me, Net& n) noexcept {
     unfollow(n);
     become_masterless(me);
   }
 
   /// Spec StartElection: epoch + 1, vote for itself, ELECT(epoch, score, mepoch) broadcast.
   template <class Net>
-  void StartElection(const Lifecycle& me, Net& n) noexcept {
+  void StartElection(const LifecycleView& me, Net& n) noexcept {
     become_candidate(me);
     char e[10], sc[10], mk[10];
     const std::string_view p[3] = {decimal(epoch, e), decimal(me.score, sc), decimal(mepoch, mk)};
@@ -441,7 +441,7 @@ class AgentElection {
   /// give it time to win before standing ourselves. A vote for the PC raises the floor to the epoch
   /// of its membership (Election Voted): it may be replacing it.
   template <class Net>
-  void HandleElect(const Message& m, Peer from, const Lifecycle& me, Net& n) noexcept {
+  void HandleElect(const Message& m, Peer from, const LifecycleView& me, Net& n) noexcept {
     const std::uint32_t e = *m.param_u32(0);
     const std::uint32_t k = m.param_u32(2).value_or(0);
     if (!ElectGrant(m.sender, e, *m.param_u32(1), me.score, k)) return;
@@ -460,7 +460,7 @@ class AgentElection {
   /// epoch: mepoch, floor); first LEADER(epoch, id, members) broadcast; a Master core runs for it
   /// from now on (node.hpp).
   template <class Net>
-  void BecomeMaster(const Lifecycle& me, Net& n) noexcept {
+  void BecomeMaster(const LifecycleView& me, Net& n) noexcept {
     become_master();
     mepoch = epoch;
     Raised(epoch);
@@ -486,7 +486,7 @@ class AgentElection {
   /// A newer epoch @p e than ours, seen in a datagram a handler takes: SteppedDown, then the epoch
   /// is adopted with no vote and no pre-votes in it.
   template <class Net>
-  void NewerEpoch(std::uint32_t e, const Lifecycle& me, Net& n) noexcept {
+  void NewerEpoch(std::uint32_t e, const LifecycleView& me, Net& n) noexcept {
     SteppedDown(me, n);
     epoch = e;
     voted_for = 0;
@@ -495,7 +495,7 @@ class AgentElection {
   /// Election SteppedDown(n, s), the election's part (the agent pauses a WORKING behaviour): a
   /// candidate or master is masterless again, the old master is not followed.
   template <class Net>
-  void SteppedDown(const Lifecycle& me, Net& n) noexcept {
+  void SteppedDown(const LifecycleView& me, Net& n) noexcept {
     if (role != Role::none) become_masterless(me);
     unfollow(n);
   }
@@ -524,7 +524,7 @@ class AgentElection {
  private:
   /// Without a master (PANIC, or a candidate / master stepping down): no role; with the election on
   /// and an assigned id, relay requests at once and standing after the back-off.
-  void become_masterless(const Lifecycle& me) noexcept {
+  void become_masterless(const LifecycleView& me) noexcept {
     set_role(Role::none);
     prevotes.clear();
     if (!enabled) return;
@@ -534,7 +534,7 @@ class AgentElection {
   }
   /// Stand in the next epoch: vote for itself, count its own vote, ask again (pre-votes for the
   /// epoch after) if this candidacy stalls, then stand again after the back-off.
-  void become_candidate(const Lifecycle& me) noexcept {
+  void become_candidate(const LifecycleView& me) noexcept {
     ++epoch;
     voted_for = me.id;
     votes.restart();
@@ -592,7 +592,7 @@ class AgentElection {
   }
 
  private:
-  static bool ToMe(const Message& m, const Lifecycle& me) noexcept {
+  static bool ToMe(const Message& m, const LifecycleView& me) noexcept {
     return m.receiver == me.id && is_assigned_id(me.id);
   }
   /// Rule @p a takes the datagram; it carries epoch @p e (older: stale; newer: adopted first).

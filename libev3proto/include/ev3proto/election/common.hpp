@@ -179,7 +179,7 @@ class PeerTable {
 /// What Election's guards need from the agent's lifecycle: its state (Election's life, with the
 /// role), id, score, and whether it still hears the master it follows (Election HeartbeatOK, as far
 /// as the agent can see it: heard within the loss timeout).
-struct Lifecycle {
+struct LifecycleView {
   State state = State::IDLE;     ///< The agent's state.
   std::uint16_t id = 0;          ///< Its id.
   std::uint32_t score = 0;       ///< Its score (lower = weaker).
