@@ -65,7 +65,7 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
     }
   }
   if (a.has("ports")) {
-    ev3proto::robot::Reason why;
+    ev3proto::robot::ReasonText why;
     if (!ev3proto::robot::parse_ports(a.get("ports"), out.ports, why)) {
       message = "bad value for --ports: " + std::string(why.view());
       return ParseOutcome::error;

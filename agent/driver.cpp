@@ -187,9 +187,9 @@ class Driver {
       return s + "]";
     };
     const auto& el = c.election();
-    const ev3proto::Role r = el.role;
-    const std::string life = r == ev3proto::Role::master      ? "MASTER"
-                             : r == ev3proto::Role::candidate ? "CANDIDATE"
+    const ev3proto::ElectionRole r = el.role;
+    const std::string life = r == ev3proto::ElectionRole::master      ? "MASTER"
+                             : r == ev3proto::ElectionRole::candidate ? "CANDIDATE"
                                                               : std::string(to_string(c.vars().state));
     return "{\"life\":\"" + life + "\",\"epoch\":" + std::to_string(el.epoch) +
            ",\"votedFor\":" + std::to_string(c.durable().voted_for) +

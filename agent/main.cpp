@@ -77,11 +77,11 @@ std::string roles(std::uint32_t bits) {
   return s.empty() ? "none" : s;
 }
 
-std::string role_name(ev3proto::Role r) {
+std::string role_name(ev3proto::ElectionRole r) {
   switch (r) {
-    case ev3proto::Role::none: return "follower";
-    case ev3proto::Role::candidate: return "CANDIDATE";
-    case ev3proto::Role::master: return "MASTER";
+    case ev3proto::ElectionRole::none: return "follower";
+    case ev3proto::ElectionRole::candidate: return "CANDIDATE";
+    case ev3proto::ElectionRole::master: return "MASTER";
   }
   return "?";
 }
@@ -329,9 +329,9 @@ class Program {
           sh_.log.log(kInfo, "epoch %u (was %u)", e.durable.epoch, e.previous.epoch);
         break;
       case K::role:
-        if (e.role == ev3proto::Role::candidate)
+        if (e.role == ev3proto::ElectionRole::candidate)
           sh_.log.log(kInfo, "election: standing as CANDIDATE in epoch %u (score %u)", e.epoch, a.score());
-        else if (e.role == ev3proto::Role::master)
+        else if (e.role == ev3proto::ElectionRole::master)
           sh_.log.log(kInfo, "election: won epoch %u (score %u): role MASTER", e.epoch, a.score());
         else
           sh_.log.log(kInfo, "election: role %s", role_name(e.role).c_str());

@@ -204,7 +204,7 @@ DeviceChange Ev3Devices::describe(DeviceClass cls, Dev port, SysfsDevice& dev) {
   }
   c.info.driver = robot::parse_driver(texts[0]);
   c.info.driver_name = robot::Text<24>(texts[0]);
-  robot::Reason why;
+  robot::ReasonText why;
   bool ok = false;
   if (cls == DeviceClass::tacho_motor) {
     const robot::MotorTexts t{texts[0], texts[1], texts[2], texts[3], texts[4]};

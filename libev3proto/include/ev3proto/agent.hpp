@@ -864,7 +864,7 @@ class Agent {
   }
   /// Spec Periodic(a): AGENT (IDLE), PANIC (PANIC) or PING(state).
   void Periodic() noexcept {
-    if (el_.role == Role::master) return;  // the Master core run for it sends LEADER
+    if (el_.role == ElectionRole::master) return;  // the Master core run for it sends LEADER
     if (state_ == State::IDLE) {
       const std::string_view p[1] = {cfg_.caps.model};
       emit(Dest::broadcast, kBroadcastId, MsgType::AGENT, p, 1);

@@ -228,7 +228,7 @@ struct AgentVars {
   std::uint32_t win_rev = 0; ///< changes whenever win changes (the window itself: Agent::window())
   // Election.tla variables (traced only when the election is enabled).
   bool election = false;     ///< Election enabled (trace the variables below).
-  Role role = Role::none;    ///< With state: Election life (CANDIDATE, MASTER are PANIC + role).
+  ElectionRole role = ElectionRole::none;    ///< With state: Election life (CANDIDATE, MASTER are PANIC + role).
   std::uint32_t epoch = 1;   ///< epoch
   std::uint16_t voted_for = 0; ///< votedFor (0 = NoNode)
   std::uint16_t leader = 0;  ///< leader (0 = NoNode)

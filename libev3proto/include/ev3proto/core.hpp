@@ -228,7 +228,7 @@ inline constexpr Transition kStays[] = {
 };
 
 /// The state changes Election.tla adds, refined to the core's states (its CANDIDATE and MASTER are
-/// PANIC with a Role; docs/election.md sec. 5): relay accepted or a master's LEADER followed
+/// PANIC with an ElectionRole; docs/election.md sec. 5): relay accepted or a master's LEADER followed
 /// (PANIC -> ACTIVE), the relay dropped us (ACTIVE / WORKING / PAUSED -> PANIC), the master changed
 /// or a newer epoch seen while WORKING (-> PAUSED until the new master resumes it). The election's
 /// guards are Election.tla's (election/agent.hpp); these rows give the state each change leads to.
@@ -306,18 +306,18 @@ constexpr std::string_view to_string(Ignored i) noexcept {
 }
 
 /// An agent's part in the election (Election.tla life CANDIDATE / MASTER; both are the core's PANIC).
-enum class Role : std::uint8_t {
+enum class ElectionRole : std::uint8_t {
   none,      ///< Follower, or PANIC without standing.
   candidate, ///< Stands in its epoch (voted for itself, counts votes).
   master,    ///< Won its epoch: the program runs a Master core for it (docs/core.md).
 };
 
 /// Spelling of a role ("candidate").
-constexpr std::string_view to_string(Role r) noexcept {
+constexpr std::string_view to_string(ElectionRole r) noexcept {
   switch (r) {
-    case Role::none: return "none";
-    case Role::candidate: return "candidate";
-    case Role::master: return "master";
+    case ElectionRole::none: return "none";
+    case ElectionRole::candidate: return "candidate";
+    case ElectionRole::master: return "master";
   }
   return {};
 }

@@ -73,7 +73,7 @@ struct NodeEvent {
   ControlKind control = ControlKind::stop; ///< control
   Durable durable;                         ///< durable: the new epoch, vote and membership
   Durable previous;                        ///< durable: the one before
-  Role role = Role::none;                  ///< role
+  ElectionRole role = ElectionRole::none;                  ///< role
   std::uint16_t leader = 0;                ///< leader
   std::uint16_t via = 0;                   ///< leader
   std::uint32_t epoch = 0;                 ///< role (master), leader (following), master_started / _stopped
@@ -339,7 +339,7 @@ class Node {
       seen_role_ = el.role;
       NodeEvent e = make(NodeEvent::Kind::role);
       e.role = seen_role_;
-      e.epoch = seen_role_ == Role::master ? el.master_epoch : el.epoch;
+      e.epoch = seen_role_ == ElectionRole::master ? el.master_epoch : el.epoch;
       push(e);
     }
     if (el.leader != seen_leader_ || el.following != seen_following_ || el.via != seen_via_) {
@@ -363,7 +363,7 @@ class Node {
   /// once it stepped down and the agent core is master no more.
   void run_master_core(Millis now) {
     const auto& el = agent_.election();
-    if (el.role == Role::master && (!master_ || master_->epoch() != el.master_epoch)) {
+    if (el.role == ElectionRole::master && (!master_ || master_->epoch() != el.master_epoch)) {
       master_.reset();
       std::vector<std::uint16_t> members;
       for (std::size_t i = 0; i < el.members.size(); ++i) members.push_back(el.members[i]);
@@ -376,7 +376,7 @@ class Node {
       push(e);
       master_->advance(now);  // its first LEADER is due now
     }
-    if (master_ && master_->role() == MasterRole::stepped_down && el.role != Role::master) {
+    if (master_ && master_->role() == MasterRole::stepped_down && el.role != ElectionRole::master) {
       // what it sent as it stepped down (HANDOVER to the new master) still goes out
       MasterTransmit mt;
       while (master_->poll_transmit(mt)) parting_.push_back(std::move(mt));
@@ -427,7 +427,7 @@ class Node {
   std::uint32_t seen_durable_rev_ = 0;
   std::uint32_t written_rev_ = 0; // the durable_rev() ready() last had written
   std::uint32_t handed_rev_ = 0;  // the durable_rev() last handed out (ready() or a durable event)
-  Role seen_role_ = Role::none;
+  ElectionRole seen_role_ = ElectionRole::none;
   std::uint16_t seen_leader_ = 0, seen_via_ = 0;
   std::uint32_t seen_following_ = 0;
   std::uint16_t seen_relays_[kMaxSeenRelays] = {};

@@ -56,7 +56,7 @@ inline BehaviourCheck behaviour_check(Runtime& rt) noexcept {
   c.ctx = &rt;
   c.fn = [](void* ctx, std::string_view name, const std::string_view* params, std::size_t count,
             CheckReason& why) noexcept {
-    Reason r;
+    ReasonText r;
     const bool ok = static_cast<Runtime*>(ctx)->check_behaviour(name, params, count, r);
     if (!ok) why.set(r.view());
     return ok;

@@ -84,7 +84,7 @@ struct ActionResult {
   Outcome outcome = Outcome::finished;  ///< finished -> action_ok, interrupted -> action_interrupted,
                                         ///< failed -> action_failed
   Warning warning = Warning::OBSTACLE_DETECTED;  ///< the warning of an interruption
-  Reason detail;                        ///< what happened, for the log
+  ReasonText detail;                        ///< what happened, for the log
 };
 
 /// The robot runtime of model A (see the file comment).
@@ -135,7 +135,7 @@ class Runtime {
         const std::size_t w = r == Role::left ? 0 : 1;
         body_.motor(w).attach(info.motor);
         body_.pos(w).clear();
-        Reason ignored;
+        ReasonText ignored;
         body_.motor(w).apply(Reset{}, writes_, ignored);  // a clean motor: no leftover setpoints
       } else {
         const std::size_t i = Body::in_index(info.dev);
@@ -263,7 +263,7 @@ class Runtime {
   /// A read failed with @p err (not ENODEV: that is device_disconnected()): one DEVICE_ERROR.
   void read_failed(Dev dev, Attr attr, int err, Millis now) noexcept {
     if (dev == Dev::battery && attr == Attr::voltage_now) next_battery_ = now + cfg_.battery_period_ms;
-    Reason why;
+    ReasonText why;
     why.append("reading ").append(to_string(attr)).append(" failed (").append(errno_name(err)).append(")");
     raise_error(dev, why, now);
     pump(now);
@@ -275,7 +275,7 @@ class Runtime {
   /// or holds"; a failed motor write stops the running action.
   void write_failed(const Write& w, int err, Millis now) noexcept {
     if (w.attr != Attr::command) writes_.drop_through_command(w.dev);
-    Reason why;
+    ReasonText why;
     if (w.attr == Attr::position && err == EBUSY) {
       why.append("position is busy: the motor runs or holds (EBUSY); stop it with coast or brake first");
     } else {
@@ -293,7 +293,7 @@ class Runtime {
     error_[index(w.dev)] = false;  // always report a failed write
     raise_error(w.dev, why, now);
     if (is_out_port(w.dev) && runner_.active() && runner_.needs().motors) {
-      Reason r;
+      ReasonText r;
       r.append(to_string(w.dev)).append(": ").append(why.view());
       fail_running(r, now);
     }
@@ -333,7 +333,7 @@ class Runtime {
       case ControlKind::restart: {
         runner_.halt(c, cfg_.tuning.pause_stop);
         leave_behaviour();
-        Reason why;
+        ReasonText why;
         if (off_) {
           why.append("battery low: the robot is shutting down");
           failed(why);
@@ -376,7 +376,7 @@ class Runtime {
   /// The robot's check of BEHAVIOUR @p name with @p args on receipt: parsed, arguments applied,
   /// checked on model A. True when it may run; otherwise false with the reason in @p why. It changes
   /// nothing but the scratch Definition (the running behaviour is the automaton's own copy).
-  bool check_behaviour(std::string_view name, const std::string_view* args, std::size_t n, Reason& why) noexcept {
+  bool check_behaviour(std::string_view name, const std::string_view* args, std::size_t n, ReasonText& why) noexcept {
     return resolve(name, args, n, scratch_, why);
   }
 
@@ -470,7 +470,7 @@ class Runtime {
   void ensure_mode(std::size_t i, Role r, Millis now) noexcept {
     const std::string_view m = default_mode(r);
     if (m.empty()) return;
-    Reason why;
+    ReasonText why;
     Millis retry = 0;
     switch (body_.sensors[i].set_mode(m, now, writes_, why, retry)) {
       case ModeOutcome::written:
@@ -514,7 +514,7 @@ class Runtime {
     st.decimals = p.decimals.view();
     st.num_values = p.num_values.view();
     st.units = p.units.view();
-    Reason why;
+    ReasonText why;
     if (!parse_sensor_mode(st, body_.sensors[i].info(), why)) {
       raise_error(body_.sensors[i].port(), why, now);
       return false;
@@ -525,13 +525,13 @@ class Runtime {
   }
 
   bool garbage(Dev dev, Attr attr, std::string_view text, std::string_view what, Millis now) noexcept {
-    Reason why;
+    ReasonText why;
     bad_file(why, to_string(attr), text, what);
     raise_error(dev, why, now);
     return false;
   }
   /// DEVICE_ERROR once until the device gives a good value again.
-  void raise_error(Dev dev, const Reason& why, Millis now) noexcept {
+  void raise_error(Dev dev, const ReasonText& why, Millis now) noexcept {
     if (error_[index(dev)]) return;
     error_[index(dev)] = true;
     Event e = event(EventKind::DEVICE_ERROR, dev, now);
@@ -596,18 +596,18 @@ class Runtime {
   }
 
   void stop_all(Ctx& c) noexcept {
-    Reason ignored;
+    ReasonText ignored;
     for (std::size_t w = 0; w < 2; ++w)
       if (body_.motor(w).present()) body_.motor(w).apply(Stop{cfg_.tuning.pause_stop}, c.writes, ignored);
   }
 
-  void fail_running(const Reason& why, Millis now) noexcept {
+  void fail_running(const ReasonText& why, Millis now) noexcept {
     Ctx c{body_, writes_, reports_, now};
     runner_.halt(c, cfg_.tuning.pause_stop);
     failed(why);
   }
 
-  void failed(const Reason& why) noexcept {
+  void failed(const ReasonText& why) noexcept {
     ActionResult r;
     r.outcome = Outcome::failed;
     r.detail = why;
@@ -630,7 +630,7 @@ class Runtime {
   /// Parses, sets the arguments of and checks behaviour @p name (a built-in, or `custom` with the
   /// definition in args[0]) into @p def; false with the reason.
   static bool resolve(std::string_view name, const std::string_view* args, std::size_t n, behaviour::Definition& def,
-                      Reason& why) noexcept {
+                      ReasonText& why) noexcept {
     namespace bhv = behaviour;
     char buf[bhv::kMaxMessage + 64];
     bhv::Text t(buf, sizeof buf);
@@ -641,7 +641,7 @@ class Runtime {
 
   /// Loads behaviour @p name with @p args into the automaton: parsed and checked again (as on
   /// receipt) into the scratch Definition, which the automaton copies; false with the reason.
-  bool load_behaviour(std::string_view name, const std::string_view* args, std::size_t n, Reason& why) noexcept {
+  bool load_behaviour(std::string_view name, const std::string_view* args, std::size_t n, ReasonText& why) noexcept {
     namespace bhv = behaviour;
     if (!resolve(name, args, n, scratch_, why)) return false;
     std::uint8_t ports[bhv::kSensorCount] = {};

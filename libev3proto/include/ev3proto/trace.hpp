@@ -157,8 +157,8 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
   c.num("msgid", b.msgid, a.msgid);  // the next msgid: this record sent [b.msgid, a.msgid)
   if (a.election) {  // Election.tla's variables of this agent
     auto life = [](const AgentVars& v) {
-      return v.role == Role::master ? std::string_view("MASTER")
-             : v.role == Role::candidate ? std::string_view("CANDIDATE")
+      return v.role == ElectionRole::master ? std::string_view("MASTER")
+             : v.role == ElectionRole::candidate ? std::string_view("CANDIDATE")
                                          : to_string(v.state);
     };
     auto ids = [&](std::string_view k, std::size_t n, auto get) {

@@ -250,7 +250,7 @@ void expect_same(const action::Plan& a, const action::Plan& b) {
 }
 
 TEST(AutomatonBuiltins, WaitAndDriveStartTheHardCodedPlans) {
-  ev3proto::robot::Reason why;
+  ev3proto::robot::ReasonText why;
   action::Plan hard;
   const std::string_view wait_args[] = {"seconds=1.5"};
   ASSERT_TRUE(ev3proto::robot::build_behaviour("wait", wait_args, 1, hard, why));

@@ -410,7 +410,7 @@ class FleetDriver {
       const Robot& r = *robots_[i - 1]->node;
       const auto& a = r.agent();
       std::string l = name(i) + ": id=" + std::to_string(a.id()) + " " + std::string(to_string(a.state()));
-      if (a.election().role != Role::none) l += "/" + std::string(to_string(a.election().role));
+      if (a.election().role != ElectionRole::none) l += "/" + std::string(to_string(a.election().role));
       l += " epoch=" + std::to_string(a.election().epoch) + " voted=" + std::to_string(a.durable().voted_for) +
            " leader=" + std::to_string(a.election().leader) + " via=" + std::to_string(a.election().via) + " relays=[";
       for (std::size_t k = 0; k < a.election().relays.size(); ++k) l += (k ? "," : "") + std::to_string(a.election().relays.id(k));

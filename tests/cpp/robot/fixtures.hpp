@@ -18,7 +18,7 @@ inline ev3proto::robot::DeviceInfo large_motor(ev3proto::robot::Dev d) {
   i.driver_name = Text<24>("lego-ev3-l-motor");
   const MotorTexts t{"lego-ev3-l-motor", "1050", "360",
                      "run-forever run-to-abs-pos run-to-rel-pos run-timed run-direct stop reset", "coast brake hold"};
-  ev3proto::robot::Reason why;
+  ev3proto::robot::ReasonText why;
   parse_motor_info(t, i.motor, why);
   return i;
 }
@@ -33,7 +33,7 @@ inline ev3proto::robot::DeviceInfo sensor(ev3proto::robot::Dev d, std::string_vi
   i.driver = parse_driver(driver);
   i.driver_name = Text<24>(driver);
   const SensorTexts t{driver, modes, mode, decimals, "1", ""};
-  ev3proto::robot::Reason why;
+  ev3proto::robot::ReasonText why;
   parse_sensor_info(t, i.sensor, why);
   return i;
 }

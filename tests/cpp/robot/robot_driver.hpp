@@ -110,7 +110,7 @@ class RobotDriver {
       RuntimeConfig cfg;
       for (std::size_t i = 1; i < w.size(); ++i) {
         if (kv(w[i], "ports", v)) {
-          Reason why;
+          ReasonText why;
           if (!parse_ports(v, cfg.ports, why)) return say("error: " + std::string(why.view()));
         } else if (kv(w[i], "wheel", v)) {
           cfg.geo.wheel_diameter_mm = std::stod(v);
@@ -299,7 +299,7 @@ class RobotDriver {
     Dev d{};
     if (!parse_port(w[1], d)) return say("error: port " + w[1]);
     Writes out;
-    Reason why;
+    ReasonText why;
     bool ok = false;
     if (is_out_port(d)) {
       if (world_.motors.count(d) == 0) return say("error: no motor on " + w[1]);
@@ -387,7 +387,7 @@ class RobotDriver {
       t.count_per_rot = cpr;
       t.commands = m.commands;
       t.stop_actions = m.stop_actions;
-      Reason why;
+      ReasonText why;
       info.cls = DeviceClass::tacho_motor;
       world_.motors[d] = m;
       known_[d] = true;

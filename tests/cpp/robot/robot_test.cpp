@@ -109,7 +109,7 @@ TEST(Device, DriversClassesStates) {
 
 TEST(Device, MotorInfoRefusesGarbage) {
   MotorInfo m;
-  Reason why;
+  ReasonText why;
   MotorTexts t{"lego-ev3-l-motor\n", "1050\n", "360\n", "run-forever run-to-abs-pos run-to-rel-pos run-timed run-direct stop reset\n",
                "coast brake hold\n"};
   ASSERT_TRUE(parse_motor_info(t, m, why)) << why.view();
@@ -133,7 +133,7 @@ TEST(Device, MotorInfoRefusesGarbage) {
 
 TEST(Device, SensorInfoAndModeChange) {
   SensorInfo s;
-  Reason why;
+  ReasonText why;
   SensorTexts t{"lego-ev3-us", "US-DIST-CM US-DIST-IN US-LISTEN US-SI-CM US-SI-IN US-DC-CM US-DC-IN\n", "US-DIST-CM\n",
                 "1\n", "1\n", "cm\n"};
   ASSERT_TRUE(parse_sensor_info(t, s, why)) << why.view();
@@ -273,7 +273,7 @@ TEST(Detectors, BatteryNeedsToStayLow) {
 
 TEST(Model, Ports) {
   PortMap m;
-  Reason why;
+  ReasonText why;
   EXPECT_EQ(m.of(Role::left), Dev::outB);
   EXPECT_EQ(m.of(Role::ultrasonic), Dev::in4);
   ASSERT_TRUE(parse_ports("left=outA,right=outD,color=in2", m, why)) << why.view();
@@ -334,14 +334,14 @@ TEST(Behaviours, RolesNameTheirDevices) {
     EXPECT_EQ(kModelADeviceNames[i], device_name(static_cast<Role>(i)));
   EXPECT_EQ(ev3proto::behaviour::kModelA.devices, kModelADevices);
   PortMap m;
-  Reason why;
+  ReasonText why;
   EXPECT_FALSE(parse_ports("gyro=in2", m, why));
   EXPECT_EQ(why.view(), "unknown role 'gyro' (left, right, touch, colour, ultrasonic)");
 }
 
 TEST(Behaviours, BuildPlans) {
   action::Plan p;
-  Reason why;
+  ReasonText why;
   const std::string_view wait_args[] = {"seconds=0.25"};
   ASSERT_TRUE(build_behaviour("wait", wait_args, 1, p, why));
   EXPECT_EQ(p.steps[0].kind, action::Kind::wait);

@@ -254,7 +254,7 @@ struct SimSensor {
     t.num_values = n;
     t.units = modes[mode].units;
     SensorInfo out;
-    Reason why;
+    ReasonText why;
     parse_sensor_info(t, out, why);
     return out;
   }

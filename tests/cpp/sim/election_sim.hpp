@@ -183,7 +183,7 @@ class ElectionFleet {
   void flush() {
     for (std::size_t i = 0; i < nodes_.size(); ++i) {
       SimNode& nd = *nodes_[i]->node;
-      if (nd.agent().election().role == Role::master) note_master(nd.agent().election().master_epoch, nd.agent().id());
+      if (nd.agent().election().role == ElectionRole::master) note_master(nd.agent().election().master_epoch, nd.agent().id());
       NodeEvent e;
       while (nd.poll_event(e)) {
       }

@@ -39,7 +39,7 @@ void check(ElectionFleet& f) {
 std::size_t count_masters(ElectionFleet& f, std::size_t& which) {
   std::size_t n = 0;
   for (std::size_t i = 0; i < f.size(); ++i)
-    if (f.agent(i).election().role == Role::master) {
+    if (f.agent(i).election().role == ElectionRole::master) {
       ++n;
       which = i;
     }

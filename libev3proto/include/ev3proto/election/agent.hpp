@@ -5,7 +5,7 @@
 ///
 /// Election.tla defines every action X of a node n by an enabling condition on the node's own
 /// variables, XOk(n, s, m, ...), and the new local state XNext(s, m). AgentElection holds one
-/// agent's variables (life is the agent core's State refined by a Role), its XOk guards (`const`,
+/// agent's variables (life is the agent core's State refined by an ElectionRole), its XOk guards (`const`,
 /// taking the datagram and what they need from the agent's lifecycle, LifecycleView, as parameters)
 /// and its transitions, each named as the spec's action. A transition sends its datagrams through
 /// the agent core and returns the lifecycle change it makes (LifecycleEffect), which the agent
@@ -51,7 +51,7 @@ class AgentElection {
 
   // ------------------------------------------------------------ Election's variables of the agent
   bool enabled;                    ///< Relay and election on.
-  Role role = Role::none;          ///< life CANDIDATE / MASTER (the agent's state is then PANIC).
+  ElectionRole role = ElectionRole::none;          ///< life CANDIDATE / MASTER (the agent's state is then PANIC).
   std::uint32_t epoch;             ///< epoch
   std::uint16_t voted_for;         ///< votedFor (0 = NoNode)
   std::uint16_t leader = 0;        ///< leader (0 = NoNode)
@@ -147,7 +147,7 @@ class AgentElection {
 
   /// Election RequestRelayOk (the retry timer is the agent's): PANIC or a candidate.
   bool RequestRelayOk(State s) const noexcept {
-    return enabled && s == State::PANIC && role != Role::master;
+    return enabled && s == State::PANIC && role != ElectionRole::master;
   }
   /// Election OfferRelayOk: a direct follower of the current epoch offers to relay (one hop), not to
   /// an agent that has seen a newer epoch. An agent already in the table is offered to again.
@@ -162,21 +162,21 @@ class AgentElection {
     const auto e = m.param_u32(0);
     const auto sc = m.param_u32(1);
     return m.receiver == kBroadcastId && is_assigned_id(m.sender) && is_assigned_id(me.id) &&
-           me.state == State::PANIC && role != Role::master && e && sc && *e >= epoch &&
+           me.state == State::PANIC && role != ElectionRole::master && e && sc && *e >= epoch &&
            *sc <= me.score;
   }
   /// Election HandlePreVoteOk: still without a master, for our current epoch, from a member not
   /// counted yet.
   bool HandlePreVoteOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
-    return ToMe(m, me) && me.state == State::PANIC && role != Role::master && e && *e == epoch &&
+    return ToMe(m, me) && me.state == State::PANIC && role != ElectionRole::master && e && *e == epoch &&
            !prevotes.contains(m.sender) && members.contains(m.sender);
   }
   /// Election AcceptRelayOk: PANIC (not standing), the offer's epoch not older.
   bool AcceptRelayOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto x = m.param_u16(1);
-    return ToMe(m, me) && me.state == State::PANIC && role == Role::none && e && x && *x != 0 &&
+    return ToMe(m, me) && me.state == State::PANIC && role == ElectionRole::none && e && x && *x != 0 &&
            *x != me.id && *e >= epoch && is_assigned_id(m.sender);
   }
   /// Election HandleAcceptOk: answers an offer made since the master last changed, and the relay
@@ -205,7 +205,7 @@ class AgentElection {
   /// id, a known membership not older than the floor, pre-votes of a majority of it (itself
   /// included), an epoch left.
   bool StartElectionOk(const LifecycleView& me) const noexcept {
-    return enabled && me.state == State::PANIC && role != Role::master && is_assigned_id(me.id) &&
+    return enabled && me.state == State::PANIC && role != ElectionRole::master && is_assigned_id(me.id) &&
            epoch < 0xFFFFFFFFu && MembershipCurrent() && PreVoteQuorum(me.id);
   }
   /// Election's `mepoch >= floor`: the membership known is not older than one this agent voted to
@@ -226,14 +226,14 @@ class AgentElection {
   bool HandleVoteOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto c = m.param_u16(1);
-    return ToMe(m, me) && role == Role::candidate && e && c && *e == epoch && *c == me.id &&
+    return ToMe(m, me) && role == ElectionRole::candidate && e && c && *e == epoch && *c == me.id &&
            !votes.contains(m.sender) && members.contains(m.sender);
   }
   /// Election BecomeMasterOk: a candidate of an epoch newer than its membership's (no membership
   /// of this epoch is published yet) with votes of a strict majority of the membership (QuorumOf:
   /// its own vote is among the votes when it is a member).
   bool BecomeMasterOk() const noexcept {
-    return role == Role::candidate && epoch > mepoch && QuorumOf(votes, members, 0);
+    return role == ElectionRole::candidate && epoch > mepoch && QuorumOf(votes, members, 0);
   }
   /// Election HandleHeartbeatOk: a master's LEADER (not an IDLE agent's business); an older one is
   /// answered EPOCH_STALE; a master takes only a newer one.
@@ -244,13 +244,13 @@ class AgentElection {
         !is_assigned_id(me.id))
       return false;
     if (*e < epoch) return true;  // EPOCH_STALE
-    return role != Role::master || *e > epoch;
+    return role != ElectionRole::master || *e > epoch;
   }
   /// Election ShareMembersOk: a peer's RELAY_REQ says it knows a membership older than ours (its
   /// members_epoch, 0 when absent), and we are not master: we send it a copy of our LEADER.
   bool ShareMembersOk(const Message& m, const LifecycleView& me) const noexcept {
     return enabled && m.type == MsgType::RELAY_REQ && m.receiver == kBroadcastId && is_assigned_id(m.sender) &&
-           m.sender != me.id && is_assigned_id(me.id) && me.state != State::IDLE && role != Role::master &&
+           m.sender != me.id && is_assigned_id(me.id) && me.state != State::IDLE && role != ElectionRole::master &&
            mepoch > m.param_u32(2).value_or(0);
   }
   /// Election LearnMembersOk: a copy of a LEADER (leader 0: no master claimed) of a newer
@@ -362,7 +362,7 @@ class AgentElection {
   /// membership is the one of its epoch; without a master we may now stand with it.
   void LearnMembers(const Message& m, const LifecycleView& me) noexcept {
     Learned(m, *m.param_u32(0));
-    if (me.state == State::PANIC && role == Role::none && stand_at == kNever && members.size() > 0)
+    if (me.state == State::PANIC && role == ElectionRole::none && stand_at == kNever && members.size() > 0)
       stand_at = me.now + Backoff(me);
   }
 
@@ -447,7 +447,7 @@ class AgentElection {
     if (!ElectGrant(m.sender, e, *m.param_u32(1), me.score, k)) return;
     voted_for = m.sender;
     if (m.sender == kMasterId) Raised(k);
-    if (me.state == State::PANIC && role == Role::none) stand_at = me.now + candidate_ + Backoff(me);
+    if (me.state == State::PANIC && role == ElectionRole::none) stand_at = me.now + candidate_ + Backoff(me);
     char num[10], who[10];
     const std::string_view p[2] = {decimal(e, num), decimal(m.sender, who)};
     n.emit_to(from, m.sender, MsgType::VOTE, p, 2);
@@ -496,7 +496,7 @@ class AgentElection {
   /// candidate or master is masterless again, the old master is not followed.
   template <class Net>
   void SteppedDown(const LifecycleView& me, Net& n) noexcept {
-    if (role != Role::none) become_masterless(me);
+    if (role != ElectionRole::none) become_masterless(me);
     unfollow(n);
   }
 
@@ -513,7 +513,7 @@ class AgentElection {
   /// Follow master @p l of epoch @p e, through relay @p v (0: directly): no role, no relay
   /// requests, no standing, no pre-votes.
   void become_follower(std::uint16_t l, std::uint32_t e, std::uint16_t v) noexcept {
-    set_role(Role::none);
+    set_role(ElectionRole::none);
     leader = l;
     following = e;
     via = v;
@@ -525,7 +525,7 @@ class AgentElection {
   /// Without a master (PANIC, or a candidate / master stepping down): no role; with the election on
   /// and an assigned id, relay requests at once and standing after the back-off.
   void become_masterless(const LifecycleView& me) noexcept {
-    set_role(Role::none);
+    set_role(ElectionRole::none);
     prevotes.clear();
     if (!enabled) return;
     const bool can = is_assigned_id(me.id);
@@ -539,23 +539,23 @@ class AgentElection {
     voted_for = me.id;
     votes.restart();
     if (members.contains(me.id)) votes.add(me.id);
-    set_role(Role::candidate);
+    set_role(ElectionRole::candidate);
     prevotes.clear();
     relay_at = me.now + candidate_;
     stand_at = me.now + candidate_ + Backoff(me);
   }
   /// Master of its epoch: a Master core runs for it (node.hpp); no relay requests, no standing.
   void become_master() noexcept {
-    set_role(Role::master);
+    set_role(ElectionRole::master);
     relay_at = stand_at = kNever;
   }
   /// The role changes (only through the become_* functions): a candidate's votes are forgotten when
   /// it is one no more; becoming master records the epoch won.
-  void set_role(Role r) noexcept {
+  void set_role(ElectionRole r) noexcept {
     if (r == role) return;
-    if (r == Role::master) master_epoch = epoch;
+    if (r == ElectionRole::master) master_epoch = epoch;
     role = r;
-    if (r != Role::candidate) votes.clear();
+    if (r != ElectionRole::candidate) votes.clear();
   }
   /// leader, following, via cleared; relays dropped (RELAY_DROP), offers forgotten.
   template <class Net>

@@ -276,7 +276,7 @@ class ActionRunner {
     cause_ = EventKind::OBSTACLE_DETECTED;
     if (plan_.count == 0) return end(Outcome::finished);
     phase_ = Phase::running;
-    Reason why;
+    ReasonText why;
     if (!check(plan_, c.body, why)) return fail(c, why, false);
     return start_step(c);
   }
@@ -284,7 +284,7 @@ class ActionRunner {
   /// Checks every step of @p plan against the motors' limits before anything moves (a Repeat whose
   /// third step has a speed beyond max_speed is refused whole). Motors not there are not checked
   /// here (the step that needs them fails when it starts).
-  static bool check(const action::Plan& plan, const Body& b, Reason& why) noexcept {
+  static bool check(const action::Plan& plan, const Body& b, ReasonText& why) noexcept {
     for (std::size_t i = 0; i < plan.count; ++i) {
       const action::Step& s = plan.steps[i];
       for (std::size_t w = 0; w < 2; ++w) {
@@ -310,7 +310,7 @@ class ActionRunner {
   Outcome tick(Ctx& c) noexcept {
     if (phase_ != Phase::running) return Outcome::running;
     if (waiting_) {  // the step waits for its first readings (a start right after discovery)
-      Reason why;
+      ReasonText why;
       if (motors_ready(c, why)) return start_step(c);
       if (c.now - started_ >= c.body.tuning.stale_ms) return fail(c, why);
       return Outcome::running;
@@ -401,7 +401,7 @@ class ActionRunner {
     return phase_ == Phase::running && step().kind == action::Kind::wait ? due_ : kNever;
   }
   /// What happened, in words ("drove 300.2 mm", "outB stalled at 120 of 614 counts").
-  const Reason& detail() const noexcept { return detail_; }
+  const ReasonText& detail() const noexcept { return detail_; }
   /// The event that interrupted the plan (after Outcome::interrupted).
   EventKind cause() const noexcept { return cause_; }
 
@@ -416,8 +416,8 @@ class ActionRunner {
   }
 
   /// Ends the plan failed; the motors are stopped unless nothing was commanded yet (@p stop false).
-  Outcome fail(Ctx& c, const Reason& why, bool stop = true) noexcept {
-    const Reason copy = why;  // why may be detail_ itself
+  Outcome fail(Ctx& c, const ReasonText& why, bool stop = true) noexcept {
+    const ReasonText copy = why;  // why may be detail_ itself
     if (stop && moves_motors()) stop_motors(c, StopAction::brake);
     detail_ = copy;
     return end(Outcome::failed);
@@ -445,7 +445,7 @@ class ActionRunner {
     cmd_at_ = c.now;
     waiting_ = false;
     if (s.kind != action::Kind::wait && s.kind != action::Kind::pause) {
-      Reason why;
+      ReasonText why;
       if (!motors_ready(c, why)) {
         bool absent = false;
         for (std::size_t w = 0; w < 2; ++w) absent = absent || !c.body.motor(w).present();
@@ -458,7 +458,7 @@ class ActionRunner {
       case action::Kind::drive_distance:
       case action::Kind::turn: return start_move(c);
       case action::Kind::run_forever: {
-        Reason why;
+        ReasonText why;
         for (std::size_t w = 0; w < 2; ++w) {
           anchor_[w] = c.body.pos(w).position;
           progress_at_[w] = c.now;
@@ -467,7 +467,7 @@ class ActionRunner {
         return Outcome::running;
       }
       case action::Kind::stop: {
-        Reason why;
+        ReasonText why;
         if (!motors_ready(c, why)) return fail(c, why);
         stop_motors(c, s.stop);
         return Outcome::running;
@@ -475,7 +475,7 @@ class ActionRunner {
       case action::Kind::pause: {
         for (std::size_t i = 0; i < 4; ++i)
           if ((s.sensors & (1u << i)) != 0 && !c.body.sensors[i].present()) {
-            Reason why;
+            ReasonText why;
             why.append(to_string(static_cast<Dev>(index(Dev::in1) + i))).append(": no sensor on the port");
             return fail(c, why, false);
           }
@@ -489,7 +489,7 @@ class ActionRunner {
     return Outcome::running;
   }
 
-  bool motors_ready(Ctx& c, Reason& why) const noexcept {
+  bool motors_ready(Ctx& c, ReasonText& why) const noexcept {
     for (std::size_t w = 0; w < 2; ++w) {
       const Tacho& m = c.body.motor(w);
       if (!m.present()) {
@@ -517,7 +517,7 @@ class ActionRunner {
 
   Outcome start_move(Ctx& c) noexcept {
     const action::Step& s = step();
-    Reason why;
+    ReasonText why;
     if (!motors_ready(c, why)) return fail(c, why);
     Body& b = c.body;
     for (std::size_t w = 0; w < 2; ++w) {
@@ -543,7 +543,7 @@ class ActionRunner {
   /// Commands the left wheel with @p l and the right with @p r (each only when @p use_l / @p use_r),
   /// or neither: when one is refused nothing is written and @p why says why.
   template <typename L, typename R>
-  static bool both(Ctx& c, const L& l, const R& r, Reason& why, bool use_l = true, bool use_r = true) noexcept {
+  static bool both(Ctx& c, const L& l, const R& r, ReasonText& why, bool use_l = true, bool use_r = true) noexcept {
     Tacho left = c.body.left, right = c.body.right;
     Writes scratch;
     if ((use_l && !left.apply(l, scratch, why)) || (use_r && !right.apply(r, scratch, why))) return false;
@@ -555,7 +555,7 @@ class ActionRunner {
 
   Outcome resume_move(Ctx& c) noexcept {
     const action::Step& s = step();
-    Reason why;
+    ReasonText why;
     if (!motors_ready(c, why)) return fail(c, why);
     cmd_at_ = c.now;
     for (std::size_t w = 0; w < 2; ++w) {
@@ -580,7 +580,7 @@ class ActionRunner {
     for (std::size_t w = 0; w < 2; ++w) {
       const MotorReadings& r = c.body.pos(w);
       if (!c.body.motor(w).present() || (r.valid && c.now - r.at < c.body.tuning.stale_ms)) continue;
-      Reason why;
+      ReasonText why;
       why.append(to_string(c.body.motor(w).port())).append(": no good position for ");
       if (r.valid)
         why.append_int(static_cast<std::int64_t>(c.now - r.at)).append(" ms");
@@ -622,7 +622,7 @@ class ActionRunner {
       const bool at_target = reached(w, p, c.body.tuning);
       const bool stuck = stalled(c, w);
       if (!at_target && stuck) {
-        Reason why;
+        ReasonText why;
         why.append(to_string(c.body.motor(w).port())).append(" stalled at ").append_int(p - start_pos_[w])
             .append(" of ").append_int(counts_[w]).append(" counts");
         return fail(c, why);
@@ -660,7 +660,7 @@ class ActionRunner {
     for (std::size_t w = 0; w < 2; ++w) {
       const bool commanded = (w == 0 ? s.speed : s.speed_right) != 0;
       if (stalled(c, w) && commanded) {
-        Reason why;
+        ReasonText why;
         why.append(to_string(c.body.motor(w).port())).append(" stalled (no progress for ")
             .append_int(static_cast<std::int64_t>(c.body.tuning.stall_ms)).append(" ms)");
         return fail(c, why);
@@ -683,7 +683,7 @@ class ActionRunner {
   }
 
   Outcome still_turning(Ctx& c) noexcept {
-    Reason why;
+    ReasonText why;
     const std::size_t w = still(c, 0) ? 1 : 0;
     why.append(to_string(c.body.motor(w).port())).append(" still turning ")
         .append_int(static_cast<std::int64_t>(c.now - started_)).append(" ms after stop");
@@ -705,7 +705,7 @@ class ActionRunner {
       const SensorReadings& r = c.body.readings[i];
       if (!r.valid || r.info_stale || r.at < c.now) {
         if (c.now - started_ >= s.ms + c.body.tuning.stale_ms) {
-          Reason why;
+          ReasonText why;
           why.append(to_string(static_cast<Dev>(index(Dev::in1) + i))).append(": no good reading after settling");
           return fail(c, why);
         }
@@ -728,7 +728,7 @@ class ActionRunner {
   }
 
   void stop_motors(Ctx& c, StopAction how) noexcept {
-    Reason ignored;  // a refused stop (motor gone) leaves nothing to stop
+    ReasonText ignored;  // a refused stop (motor gone) leaves nothing to stop
     for (std::size_t w = 0; w < 2; ++w) {
       Tacho& m = c.body.motor(w);
       if (!m.present()) continue;
@@ -749,7 +749,7 @@ class ActionRunner {
   std::int32_t counts_[2] = {0, 0}, start_pos_[2] = {0, 0}, target_[2] = {0, 0};
   std::int32_t anchor_[2] = {0, 0};
   Millis progress_at_[2] = {0, 0};
-  Reason detail_;
+  ReasonText detail_;
   EventKind cause_ = EventKind::OBSTACLE_DETECTED;
 };
 

@@ -58,14 +58,14 @@ constexpr bool split_arg(std::string_view a, std::string_view& key, std::string_
   value = a.substr(eq + 1);
   return true;
 }
-constexpr bool unknown_arg(std::string_view a, std::string_view takes, Reason& why) noexcept {
+constexpr bool unknown_arg(std::string_view a, std::string_view takes, ReasonText& why) noexcept {
   why.clear();
   why.append("unknown argument ");
   append_quoted(why, a);
   why.append(" (").append(takes).append(")");
   return false;
 }
-constexpr bool bad_value(std::string_view key, std::string_view v, std::string_view expected, Reason& why) noexcept {
+constexpr bool bad_value(std::string_view key, std::string_view v, std::string_view expected, ReasonText& why) noexcept {
   why.clear();
   why.append("bad value for ").append(key).append(": ");
   append_quoted(why, v);
@@ -75,7 +75,7 @@ constexpr bool bad_value(std::string_view key, std::string_view v, std::string_v
 }  // namespace detail
 
 /// `wait seconds=N`: N a positive decimal with at most 3 digits after the point, at most 10^6.
-constexpr bool build_wait(const std::string_view* args, std::size_t n, action::Plan& out, Reason& why) noexcept {
+constexpr bool build_wait(const std::string_view* args, std::size_t n, action::Plan& out, ReasonText& why) noexcept {
   std::int32_t ms = -1;
   for (std::size_t i = 0; i < n; ++i) {
     std::string_view k, v;
@@ -97,7 +97,7 @@ constexpr bool build_wait(const std::string_view* args, std::size_t n, action::P
 /// `drive speed=N [stop=coast|brake|hold]`: both wheels at N counts per second (deg/s on the EV3
 /// motors; negative backwards; the motors' max_speed is checked when it starts) until an obstacle
 /// (OBSTACLE_DETECTED, PROXIMITY_ALERT: driving forward) or STOP.
-constexpr bool build_drive(const std::string_view* args, std::size_t n, action::Plan& out, Reason& why) noexcept {
+constexpr bool build_drive(const std::string_view* args, std::size_t n, action::Plan& out, ReasonText& why) noexcept {
   bool have_speed = false;
   std::int32_t speed = 0;
   StopAction stop = StopAction::brake;
@@ -125,7 +125,7 @@ constexpr bool build_drive(const std::string_view* args, std::size_t n, action::
 /// The Plan of built-in behaviour @p name with @p args; false with the reason ("behaviour 'x' has
 /// no runner", a bad argument).
 constexpr bool build_behaviour(std::string_view name, const std::string_view* args, std::size_t n,
-                               action::Plan& out, Reason& why) noexcept {
+                               action::Plan& out, ReasonText& why) noexcept {
   if (name == "wait") return build_wait(args, n, out, why);
   if (name == "drive") return build_drive(args, n, out, why);
   why.clear();

@@ -131,20 +131,20 @@ class Tacho {
     return true;  // a run command: turning, or holding / stopped at its end (unknown here)
   }
 
-  bool apply(const RunForever& c, Writes& w, Reason& why) noexcept {
+  bool apply(const RunForever& c, Writes& w, ReasonText& why) noexcept {
     if (!can(MotorCommand::run_forever, why) || !speed_ok(c.speed_sp, why)) return false;
     w.push_int(port_, Attr::speed_sp, c.speed_sp);
     command(MotorCommand::run_forever, w);
     last_speed_ = c.speed_sp;
     return true;
   }
-  bool apply(const RunToAbsPos& c, Writes& w, Reason& why) noexcept {
+  bool apply(const RunToAbsPos& c, Writes& w, ReasonText& why) noexcept {
     return run_to(MotorCommand::run_to_abs_pos, c.position_sp, c.speed_sp, c.stop_action, w, why);
   }
-  bool apply(const RunToRelPos& c, Writes& w, Reason& why) noexcept {
+  bool apply(const RunToRelPos& c, Writes& w, ReasonText& why) noexcept {
     return run_to(MotorCommand::run_to_rel_pos, c.position_sp, c.speed_sp, c.stop_action, w, why);
   }
-  bool apply(const RunTimed& c, Writes& w, Reason& why) noexcept {
+  bool apply(const RunTimed& c, Writes& w, ReasonText& why) noexcept {
     if (!can(MotorCommand::run_timed, why) || !speed_ok(c.speed_sp, why) || !stop_ok(c.stop_action, why))
       return false;
     if (c.time_sp < 0) {
@@ -160,7 +160,7 @@ class Tacho {
     return true;
   }
   /// stop; with hold after a run-to-*-pos: run-forever at 0 first (the trap, see the file doc).
-  bool apply(const Stop& c, Writes& w, Reason& why) noexcept {
+  bool apply(const Stop& c, Writes& w, ReasonText& why) noexcept {
     if (!can(MotorCommand::stop, why) || !stop_ok(c.stop_action, why)) return false;
     if (c.stop_action == StopAction::hold &&
         (last_ == MotorCommand::run_to_abs_pos || last_ == MotorCommand::run_to_rel_pos) &&
@@ -174,14 +174,14 @@ class Tacho {
     last_stop_ = c.stop_action;
     return true;
   }
-  bool apply(const Reset&, Writes& w, Reason& why) noexcept {
+  bool apply(const Reset&, Writes& w, ReasonText& why) noexcept {
     if (!can(MotorCommand::reset, why)) return false;
     command(MotorCommand::reset, w);
     last_stop_ = StopAction::coast;
     last_speed_ = 0;
     return true;
   }
-  bool apply(const SetPosition& c, Writes& w, Reason& why) noexcept {
+  bool apply(const SetPosition& c, Writes& w, ReasonText& why) noexcept {
     if (!present_) return absent(why);
     if (may_be_busy()) {
       start(why).append("position is busy while the motor runs or holds (EBUSY): stop it with coast or brake first");
@@ -195,16 +195,16 @@ class Tacho {
   StopAction last_stop_action() const noexcept { return last_stop_; }
 
  private:
-  Reason& start(Reason& why) const noexcept {
+  ReasonText& start(ReasonText& why) const noexcept {
     why.clear();
     why.append(to_string(port_)).append(": ");
     return why;
   }
-  bool absent(Reason& why) const noexcept {
+  bool absent(ReasonText& why) const noexcept {
     start(why).append("no motor on the port");
     return false;
   }
-  bool can(MotorCommand c, Reason& why) const noexcept {
+  bool can(MotorCommand c, ReasonText& why) const noexcept {
     if (!present_) return absent(why);
     if ((info_.commands & bit(c)) == 0) {
       start(why).append("the motor does not list ").append(to_string(c)).append(" in commands");
@@ -212,21 +212,21 @@ class Tacho {
     }
     return true;
   }
-  bool speed_ok(std::int32_t s, Reason& why) const noexcept {
+  bool speed_ok(std::int32_t s, ReasonText& why) const noexcept {
     if (s > info_.max_speed || s < -info_.max_speed) {
       start(why).append("speed_sp ").append_int(s).append(" is beyond max_speed ").append_int(info_.max_speed);
       return false;
     }
     return true;
   }
-  bool stop_ok(StopAction s, Reason& why) const noexcept {
+  bool stop_ok(StopAction s, ReasonText& why) const noexcept {
     if ((info_.stop_actions & bit(s)) == 0) {
       start(why).append("the motor does not list ").append(to_string(s)).append(" in stop_actions");
       return false;
     }
     return true;
   }
-  bool run_to(MotorCommand c, std::int32_t pos, std::int32_t speed, StopAction stop, Writes& w, Reason& why) noexcept {
+  bool run_to(MotorCommand c, std::int32_t pos, std::int32_t speed, StopAction stop, Writes& w, ReasonText& why) noexcept {
     if (!can(c, why) || !speed_ok(speed, why) || !stop_ok(stop, why)) return false;
     if (speed == 0) {
       start(why).append("speed_sp 0 never reaches position_sp");
@@ -289,7 +289,7 @@ class Sensor {
 
   /// Sets mode @p mode at @p now: skipped when already set (except single-shot modes), never
   /// twice within kUltrasonicModeGapMs on the ultrasonic (then too_soon with @p retry_at).
-  ModeOutcome set_mode(std::string_view mode, Millis now, Writes& w, Reason& why, Millis& retry_at) noexcept {
+  ModeOutcome set_mode(std::string_view mode, Millis now, Writes& w, ReasonText& why, Millis& retry_at) noexcept {
     why.clear();
     if (!present_) {
       why.append(to_string(port_)).append(": no sensor on the port");

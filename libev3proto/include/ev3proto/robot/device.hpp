@@ -321,7 +321,7 @@ struct DeviceInfo {
 };
 
 /// Sets @p why to "FILE 'TEXT' WHAT" and returns false.
-constexpr bool bad_file(Reason& why, std::string_view file, std::string_view text, std::string_view what) noexcept {
+constexpr bool bad_file(ReasonText& why, std::string_view file, std::string_view text, std::string_view what) noexcept {
   why.clear();
   why.append(file).append(" ");
   append_quoted(why, text);
@@ -336,7 +336,7 @@ struct MotorTexts {
 
 /// Builds MotorInfo from the texts of a motor's files. False, with @p why naming the file and the
 /// bad text, when one is garbage (a motor that does not list `stop`, a max_speed of 0 ...).
-constexpr bool parse_motor_info(const MotorTexts& t, MotorInfo& out, Reason& why) noexcept {
+constexpr bool parse_motor_info(const MotorTexts& t, MotorInfo& out, ReasonText& why) noexcept {
   MotorInfo m;
   m.driver = parse_driver(t.driver_name);
   auto bad = [&why](std::string_view file, std::string_view text, std::string_view what) {
@@ -368,7 +368,7 @@ struct SensorTexts {
 };
 
 /// The mode-dependent part of a sensor (decimals, num_values, units, current mode) from its texts.
-constexpr bool parse_sensor_mode(const SensorTexts& t, SensorInfo& s, Reason& why) noexcept {
+constexpr bool parse_sensor_mode(const SensorTexts& t, SensorInfo& s, ReasonText& why) noexcept {
   auto bad = [&why](std::string_view file, std::string_view text, std::string_view what) {
     return bad_file(why, file, text, what);
   };
@@ -386,7 +386,7 @@ constexpr bool parse_sensor_mode(const SensorTexts& t, SensorInfo& s, Reason& wh
 }
 
 /// Builds SensorInfo from the texts of a sensor's files (see parse_motor_info).
-constexpr bool parse_sensor_info(const SensorTexts& t, SensorInfo& out, Reason& why) noexcept {
+constexpr bool parse_sensor_info(const SensorTexts& t, SensorInfo& out, ReasonText& why) noexcept {
   SensorInfo s;
   s.driver = parse_driver(t.driver_name);
   for (Tokens k(t.modes); !k.done(); k.next()) {

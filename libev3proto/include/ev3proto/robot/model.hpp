@@ -101,7 +101,7 @@ struct PortMap {
 /// "left=outA,right=outD" or "touch=in2,ultrasonic=in1,colour=in4". Roles: left, right (output
 /// ports outA..outD), touch, colour (or color), ultrasonic (input ports in1..in4). Every port is
 /// used by one role at most. Returns false with @p why on the first problem; @p map is then unchanged.
-constexpr bool parse_ports(std::string_view spec, PortMap& map, Reason& why) noexcept {
+constexpr bool parse_ports(std::string_view spec, PortMap& map, ReasonText& why) noexcept {
   PortMap m = map;
   why.clear();
   while (!spec.empty()) {

@@ -65,7 +65,7 @@ class Text {
 };
 
 /// A reason for a refusal or an error, in words ("speed_sp 1200 is above outB's max_speed 1050").
-using Reason = Text<128>;
+using ReasonText = Text<128>;
 
 /// @p s without the trailing newline(s) sysfs puts after a value.
 constexpr std::string_view chomp(std::string_view s) noexcept {
