@@ -336,7 +336,7 @@ TEST(Runtime, NegatedParamsAndRepeat) {
   Rng rng;
   EXPECT_EQ(d.value(d.steps[a.first_step].main, rng), -100);
   EXPECT_EQ(d.value(d.steps[a.first_step].speed, rng), 300);
-  EXPECT_EQ(d.steps[a.first_step + 1].action, Action::pause);
+  EXPECT_EQ(d.steps[a.first_step + 1].action, ActionKind::pause);
   EXPECT_EQ(d.value(d.steps[a.first_step + 1].main, rng), 1000);
 }
 

@@ -89,7 +89,7 @@ inline std::string dump(const Definition& d) {
     for (std::uint8_t k = 0; k < st.step_count; ++k) {
       const Step& step = d.steps[st.first_step + k];
       o << (k ? ", " : "") << with_text([&](Text& t) { write(t, d, step, true); });
-      const Arg& speed = step.action == Action::run ? step.main : step.speed;
+      const Arg& speed = step.action == ActionKind::run ? step.main : step.speed;
       if (speed.implicit) o << " [speed $" << d.params[speed.param].name.view() << "]";
     }
     if (repeat) o << ")";
@@ -141,9 +141,9 @@ inline std::string run_case(const std::vector<std::string>& input) {
       robot &= ~role_bit(dev);
     } else if (opt == "--lacks") {
       std::uint8_t a = 0;
-      while (a < kActionCount && to_string(static_cast<Action>(a)) != val) ++a;
+      while (a < kActionCount && to_string(static_cast<ActionKind>(a)) != val) ++a;
       if (a == kActionCount) return "bad case: unknown action " + val + "\n";
-      model.actions &= ~bit(static_cast<Action>(a));
+      model.actions &= ~bit(static_cast<ActionKind>(a));
     } else {
       return "bad case: unknown option " + opt + "\n";
     }

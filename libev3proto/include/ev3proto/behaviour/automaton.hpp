@@ -283,7 +283,7 @@ class Automaton {
     const State& st = def_.states[s];
     if (st.step_count == 0) return robot::StopAction::brake;
     const Step& step = def_.steps[st.first_step];
-    const Arg& a = step.action == Action::stop ? step.main : step.halt;
+    const Arg& a = step.action == ActionKind::stop ? step.main : step.halt;
     return a.kind == Arg::Kind::none ? robot::StopAction::brake : static_cast<robot::StopAction>(def_.value(a, rng_));
   }
 
@@ -328,13 +328,13 @@ class Automaton {
                                          : static_cast<robot::StopAction>(def_.value(step.halt, rng_));
       robot::action::Step a;
       switch (step.action) {
-        case Action::run: a = robot::action::run_forever(main, main, halt); break;
-        case Action::drive: a = robot::action::drive_distance(main, speed, halt); break;
-        case Action::turn: a = robot::action::turn(main, speed, halt); break;
-        case Action::stop: a = robot::action::stop(static_cast<robot::StopAction>(main)); break;
-        case Action::pause: a = robot::action::pause(static_cast<robot::Millis>(main), pause_ports); break;
-        case Action::wait: a = robot::action::wait(static_cast<robot::Millis>(main)); break;
-        case Action::repeat: break;  // not a step: State::repeat
+        case ActionKind::run: a = robot::action::run_forever(main, main, halt); break;
+        case ActionKind::drive: a = robot::action::drive_distance(main, speed, halt); break;
+        case ActionKind::turn: a = robot::action::turn(main, speed, halt); break;
+        case ActionKind::stop: a = robot::action::stop(static_cast<robot::StopAction>(main)); break;
+        case ActionKind::pause: a = robot::action::pause(static_cast<robot::Millis>(main), pause_ports); break;
+        case ActionKind::wait: a = robot::action::wait(static_cast<robot::Millis>(main)); break;
+        case ActionKind::repeat: break;  // not a step: State::repeat
       }
       a.interrupts = interrupts;
       if (backwards(a))  // the bumper and the ultrasonic face forward (robot::action::kForwardWarnings)

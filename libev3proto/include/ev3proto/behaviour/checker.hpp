@@ -52,7 +52,7 @@ inline std::uint32_t devices_needed(const Definition& def, const Model& model) n
     const State& st = def.states[s];
     if (st.implicit) continue;  // the predefined stop state needs nothing: no motors, nothing to stop
     for (std::uint8_t k = 0; k < st.step_count; ++k)
-      if (def.steps[st.first_step + k].action != Action::wait) need |= kDriveMotors;
+      if (def.steps[st.first_step + k].action != ActionKind::wait) need |= kDriveMotors;
   }
   for (std::uint8_t k = 0; k < def.reaction_count; ++k) {
     const Reaction& r = def.reactions[k];
@@ -212,7 +212,7 @@ struct Checker {
   void model_actions() noexcept {
     for (std::uint8_t s = 0; s < def.state_count; ++s) {
       const State& st = def.states[s];
-      if ((st.repeat != 1 || st.step_count != 1) && !(model.actions & bit(Action::repeat)))
+      if ((st.repeat != 1 || st.step_count != 1) && !(model.actions & bit(ActionKind::repeat)))
         find(Code::model_action, def.steps[st.first_step].pos,
              [&](Text& m) { m << "model " << model.name << " has no action repeat"; });
       for (std::uint8_t k = 0; k < st.step_count; ++k) {
@@ -244,7 +244,7 @@ struct Checker {
       };
       for (std::uint8_t k = 0; k < def.step_count; ++k) {
         const Step& s = def.steps[k];
-        if (s.action != Action::wait && (kDriveMotors & role_bit(dev)) && s.pos.line != 0)
+        if (s.action != ActionKind::wait && (kDriveMotors & role_bit(dev)) && s.pos.line != 0)
           take(s.pos, [&](Text& t) { t << to_string(s.action); });
       }
       for (std::uint8_t k = 0; k < def.reaction_count; ++k) {
@@ -324,18 +324,18 @@ struct Checker {
       const Step& s = def.steps[k];
       const std::string_view who = to_string(s.action);
       switch (s.action) {
-        case Action::run: check_value(s.main, run_speed, who, reported); break;
-        case Action::drive:
+        case ActionKind::run: check_value(s.main, run_speed, who, reported); break;
+        case ActionKind::drive:
           check_value(s.main, distance, who, reported);
           check_value(s.speed, speed, who, reported);
           break;
-        case Action::turn:
+        case ActionKind::turn:
           check_value(s.main, angle, who, reported);
           check_value(s.speed, speed, who, reported);
           break;
-        case Action::pause: check_value(s.main, pause, who, reported); break;
-        case Action::wait: check_value(s.main, wait, who, reported); break;
-        case Action::stop: case Action::repeat: break;
+        case ActionKind::pause: check_value(s.main, pause, who, reported); break;
+        case ActionKind::wait: check_value(s.main, wait, who, reported); break;
+        case ActionKind::stop: case ActionKind::repeat: break;
       }
     }
     for (std::uint8_t k = 0; k < def.reaction_count; ++k) {

@@ -116,7 +116,7 @@ struct Arg {
 /// how run, drive and turn stop the motors when they end or are interrupted (option stop=, brake
 /// when not written).
 struct Step {
-  Action action = Action::pause;
+  ActionKind action = ActionKind::pause;
   Arg main;
   Arg speed;
   Arg halt;
@@ -298,8 +298,8 @@ struct Definition {
   bool moves(std::uint8_t s) const noexcept {
     const State& st = states[s];
     for (std::uint8_t k = 0; k < st.step_count; ++k) {
-      const Action a = steps[st.first_step + k].action;
-      if (a == Action::run || a == Action::drive || a == Action::turn) return true;
+      const ActionKind a = steps[st.first_step + k].action;
+      if (a == ActionKind::run || a == ActionKind::drive || a == ActionKind::turn) return true;
     }
     return false;
   }

@@ -29,7 +29,7 @@ using robot::StopAction;
 /// An action of the behaviour language: one of the robot layer's actions (robot/actions.hpp
 /// action::Kind, other values), or `repeat`. The value is the bit position in Model::actions. `repeat` is Repeat(n, ...): a state that runs its
 /// steps n times.
-enum class Action : std::uint8_t {
+enum class ActionKind : std::uint8_t {
   run = 0,    ///< RunForever: both wheels at a speed until something else happens
   drive = 1,  ///< DriveDistance: straight ahead (or back) a distance
   turn = 2,   ///< Turn: in place about the axle midpoint, wheels opposite (positive: left)
@@ -41,18 +41,18 @@ enum class Action : std::uint8_t {
 inline constexpr std::size_t kActionCount = 7;
 
 /// Bit of an action in an action mask.
-constexpr std::uint32_t bit(Action a) noexcept { return std::uint32_t{1} << static_cast<unsigned>(a); }
+constexpr std::uint32_t bit(ActionKind a) noexcept { return std::uint32_t{1} << static_cast<unsigned>(a); }
 
 /// The action's keyword in the language.
-constexpr std::string_view to_string(Action a) noexcept {
+constexpr std::string_view to_string(ActionKind a) noexcept {
   switch (a) {
-    case Action::run: return "run";
-    case Action::drive: return "drive";
-    case Action::turn: return "turn";
-    case Action::stop: return "stop";
-    case Action::pause: return "pause";
-    case Action::wait: return "wait";
-    case Action::repeat: return "repeat";
+    case ActionKind::run: return "run";
+    case ActionKind::drive: return "drive";
+    case ActionKind::turn: return "turn";
+    case ActionKind::stop: return "stop";
+    case ActionKind::pause: return "pause";
+    case ActionKind::wait: return "wait";
+    case ActionKind::repeat: return "repeat";
   }
   return "?";
 }
@@ -61,7 +61,7 @@ constexpr std::string_view to_string(Action a) noexcept {
 struct Model {
   std::string_view name;       ///< as announced in AGENT ("A")
   std::uint32_t devices = 0;   ///< devices the model is built with (role_bit(Role))
-  std::uint32_t actions = 0;   ///< actions it implements (bit(Action))
+  std::uint32_t actions = 0;   ///< actions it implements (bit(ActionKind))
   std::int32_t max_speed = 0;  ///< drive motors' max_speed, degrees of the wheel per second
 };
 
@@ -73,8 +73,8 @@ inline constexpr std::uint32_t kDriveMotors = robot::kMotors;
 inline constexpr Model kModelA{
     "A",
     robot::kModelADevices,
-    bit(Action::run) | bit(Action::drive) | bit(Action::turn) | bit(Action::stop) | bit(Action::pause) |
-        bit(Action::wait) | bit(Action::repeat),
+    bit(ActionKind::run) | bit(ActionKind::drive) | bit(ActionKind::turn) | bit(ActionKind::stop) | bit(ActionKind::pause) |
+        bit(ActionKind::wait) | bit(ActionKind::repeat),
     1050,
 };
 

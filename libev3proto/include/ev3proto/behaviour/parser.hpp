@@ -468,34 +468,34 @@ struct Parser {
     const Option* options = raw.options;
     const std::size_t option_count = raw.option_count;
     std::uint8_t k = 0;
-    while (k < kActionCount && to_string(static_cast<Action>(k)) != a.text) ++k;
-    if (k == kActionCount || static_cast<Action>(k) == Action::repeat)
+    while (k < kActionCount && to_string(static_cast<ActionKind>(k)) != a.text) ++k;
+    if (k == kActionCount || static_cast<ActionKind>(k) == ActionKind::repeat)
       return error(Code::meaning, a.pos, [&](Text& m) {
         m << "unknown action '" << a.text << "' (actions: run, drive, turn, stop, pause, wait, repeat)";
       });
     if (raw.too_many_options)
       return error(Code::limit, options[3].name.pos, [&](Text& m) { m << a.text << " has too many options"; });
     Step s;
-    s.action = static_cast<Action>(k);
+    s.action = static_cast<ActionKind>(k);
     s.pos = a.pos;
     Slot main_slot = Slot::speed;
     bool main_needed = true;
     bool takes_speed = false;  // the option speed=
     bool moves = true;         // the option stop=
     switch (s.action) {
-      case Action::run: main_slot = Slot::speed; main_needed = false; break;
-      case Action::drive: main_slot = Slot::distance; takes_speed = true; break;
-      case Action::turn: main_slot = Slot::angle; takes_speed = true; break;
-      case Action::stop: main_slot = Slot::stop_mode; main_needed = false; moves = false; break;
-      case Action::pause: case Action::wait: main_slot = Slot::duration; moves = false; break;
-      case Action::repeat: break;
+      case ActionKind::run: main_slot = Slot::speed; main_needed = false; break;
+      case ActionKind::drive: main_slot = Slot::distance; takes_speed = true; break;
+      case ActionKind::turn: main_slot = Slot::angle; takes_speed = true; break;
+      case ActionKind::stop: main_slot = Slot::stop_mode; main_needed = false; moves = false; break;
+      case ActionKind::pause: case ActionKind::wait: main_slot = Slot::duration; moves = false; break;
+      case ActionKind::repeat: break;
     }
     const Number brake{static_cast<std::int32_t>(StopAction::brake), Unit::none, Dim::stop_mode};
     if (has_main) {
       if (!make_arg(main, main_slot, a.text, s.main)) return false;
     } else if (main_needed) {
       return error(Code::meaning, a.pos, [&](Text& m) { m << a.text << " needs " << describe(main_slot); });
-    } else if (s.action == Action::stop) {
+    } else if (s.action == ActionKind::stop) {
       s.main = implicit_arg(brake, a.pos);
     }
     for (std::size_t i = 0; i < option_count; ++i) {
@@ -517,12 +517,12 @@ struct Parser {
       s.halt = implicit_arg(brake, a.pos);
     }
     // The speed of run, drive and turn defaults to the param `speed`.
-    Arg* speed = s.action == Action::run ? &s.main : takes_speed ? &s.speed : nullptr;
+    Arg* speed = s.action == ActionKind::run ? &s.main : takes_speed ? &s.speed : nullptr;
     if (speed != nullptr && speed->kind == Arg::Kind::none) {
       const std::uint8_t p = def.find_param("speed");
       if (p == kNone || def.params[p].dim() != Dim::plain)
         return error(Code::meaning, a.pos, [&](Text& m) {
-          m << a.text << " needs a speed: write " << (s.action == Action::run ? "run N" : "speed=N")
+          m << a.text << " needs a speed: write " << (s.action == ActionKind::run ? "run N" : "speed=N")
             << " or declare param speed";
         });
       speed->kind = Arg::Kind::param;
@@ -552,7 +552,7 @@ struct Parser {
         m << "too many actions in one repeat (at most " << kMaxRepeatSteps << ")";
       });
     for (std::uint8_t k = first_step; k < def.step_count; ++k)
-      if (def.steps[k].action == Action::run)
+      if (def.steps[k].action == ActionKind::run)
         return error(Code::meaning, def.steps[k].pos, [&](Text& m) { m << "run never finishes, so it cannot be inside repeat"; });
     repeat = static_cast<std::uint16_t>(n.value);
     return true;
@@ -585,14 +585,14 @@ struct Parser {
         return error(Code::meaning, n.pos, [&](Text& m) {
           m << "the first state is where the behaviour starts: it cannot be the stop state end";
         });
-      if (repeat != 1 || steps != 1 || first.action != Action::stop)
+      if (repeat != 1 || steps != 1 || first.action != ActionKind::stop)
         return error(Code::meaning, first.pos, [&](Text& m) {
           m << "the stop state end can only stop the motors (stop coast, brake or hold)";
         });
       if (has_next)
         return error(Code::meaning, next_name.pos, [&](Text& m) { m << "the stop state end has no next state"; });
     } else {
-      const bool unbounded = repeat == 1 && steps == 1 && first.action == Action::run;
+      const bool unbounded = repeat == 1 && steps == 1 && first.action == ActionKind::run;
       if (unbounded && has_next)
         return error(Code::meaning, next_name.pos, [&](Text& m) {
           m << "run never finishes, so state " << n.text << " has no default next state (leave it with on or when)";
@@ -761,7 +761,7 @@ struct Parser {
     std::uint8_t end = def.find_state("end");
     if (end == kNone) {  // the predefined stop state: stop brake
       Step s;
-      s.action = Action::stop;
+      s.action = ActionKind::stop;
       s.main = implicit_arg(Number{static_cast<std::int32_t>(StopAction::brake), Unit::none, Dim::stop_mode}, Pos{});
       if (def.step_count >= kMaxSteps)
         return error(Code::limit, def.name_pos, [&](Text& m) { m << "too many actions (at most " << kMaxSteps << ", the stop state's included)"; });

@@ -43,7 +43,7 @@ inline void write(Text& out, const Definition& def, const Arg& a) {
 /// stop's brake with @p all).
 inline void write(Text& out, const Definition& def, const Step& s, bool all = false) {
   out << to_string(s.action);
-  if (s.main.kind != Arg::Kind::none && (!s.main.implicit || (all && s.action == Action::stop))) {
+  if (s.main.kind != Arg::Kind::none && (!s.main.implicit || (all && s.action == ActionKind::stop))) {
     out << ' ';
     write(out, def, s.main);
   }
