@@ -495,7 +495,7 @@ class Agent {
       case Action::RecvResume:
       case Action::RecvStandby:
       case Action::RecvContinue:
-      case Action::RecvRestart: Command(h, m); break;
+      case Action::RecvRestart: ObeyCommand(h, m); break;
       case Action::RecvDuplicate: RecvDuplicate(m); break;
       default: Ignore(m); break;
     }
@@ -503,7 +503,7 @@ class Agent {
 
   /// A fresh command from the master: the state table is the guard. With no row for the state
   /// (and wait) it is refused "wrong state"; otherwise its handler runs towards the row's state.
-  void Command(Action h, const Message& m) noexcept {
+  void ObeyCommand(Action h, const Message& m) noexcept {
     const Next next = next_state(state_, h, wait_);
     if (!next) return Refuse(m, Refusal::wrong_state);
     switch (h) {

@@ -101,8 +101,8 @@ constexpr std::string_view to_string(NodeEvent::Kind k) noexcept {
 /// @tparam AgentTrace the agent core's trace sink (agent.hpp).
 /// @tparam MasterTrace the Master core's trace sink (master.hpp); each Master core gets the sink
 ///         master_trace(id, epoch) returns (NodeConfig).
-/// @tparam CopyWindow (sender, msgid) pairs the window in front of the Master core remembers.
-template <typename AgentTrace = NoTrace, typename MasterTrace = NoTrace, std::size_t CopyWindow = 4096>
+/// @tparam CopySlots (sender, msgid) pairs the window in front of the Master core remembers.
+template <typename AgentTrace = NoTrace, typename MasterTrace = NoTrace, std::size_t CopySlots = 4096>
 class Node {
  public:
   /// The agent core.
@@ -416,7 +416,7 @@ class Node {
   Config cfg_;
   AgentCore agent_;
   std::optional<MasterCore> master_;
-  DedupeWindow<CopyWindow> copies_;  // in front of master_: one copy of each (sender, msgid)
+  DedupeWindow<CopySlots> copies_;  // in front of master_: one copy of each (sender, msgid)
   Message rx_;
   std::string mtx_;                  // the Master core's datagram last polled
   std::vector<MasterTransmit> parting_; // a dropped Master core's datagrams not polled yet (no heap until one)
