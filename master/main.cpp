@@ -122,7 +122,7 @@ class Program {
   void on_datagram(const std::string& d, const ev3io::Endpoint& from, Millis now) {
     const ev3proto::MasterReceipt r = master_->handle_datagram(d, sh_.net.peer_of(from), now);
     if (r.why != ev3proto::MasterIgnored::none) {
-      sh_.drop(drop_key(r), d, from.str());
+      sh_.drop(drop_key(r), d, &from);
     }
     if (r.taken()) {
       sh_.log.log(kDebug, "recv %s from %s: %s", d.c_str(), from.str().c_str(),

@@ -1,6 +1,7 @@
 #include "ev3prog/program.hpp"
 
 #include <algorithm>
+#include <cassert>
 #include <cerrno>
 
 #include "ev3io/state_file.hpp"
@@ -65,11 +66,11 @@ bool Shell::save_state(const char* what, const std::string& path, std::string_vi
   return false;
 }
 
-void Shell::drop(const std::string& why, std::string_view bytes, const std::string& from) {
+void Shell::drop(const std::string& why, std::string_view bytes, const ev3io::Endpoint* from) {
   const std::uint64_t n = ++drops[why];
   if (log.enabled(ev3io::kVerbose))
     log.log(ev3io::kVerbose, "drop (%s, %llu so far)%s%s: %s", why.c_str(), static_cast<unsigned long long>(n),
-            from.empty() ? "" : " from ", from.c_str(), printable(bytes).c_str());
+            from == nullptr ? "" : " from ", from == nullptr ? "" : from->str().c_str(), printable(bytes).c_str());
 }
 
 std::string Shell::drops_line() const {
@@ -81,8 +82,9 @@ std::string Shell::drops_line() const {
 int Shell::wait(Millis now, Millis deadline, bool more, pollfd* extra, std::size_t n_extra) {
   deadline = std::min({deadline, net.next_send(), log.tick(now), trace_file.tick(now)});
   if (more) deadline = now;
-  pollfd p[4] = {{net.fd(), POLLIN, 0}, {}, {}, {}};
-  n_extra = std::min<std::size_t>(n_extra, 3);
+  assert(n_extra <= kMaxExtra);
+  pollfd p[kMaxExtra + 1] = {{net.fd(), POLLIN, 0}, {}, {}, {}};
+  n_extra = std::min(n_extra, kMaxExtra);
   for (std::size_t i = 0; i < n_extra; ++i) p[i + 1] = extra[i];
   const int n = signals.wait(p, n_extra + 1, deadline);
   for (std::size_t i = 0; i < n_extra; ++i) extra[i].revents = p[i + 1].revents;

@@ -113,8 +113,9 @@ class Shell {
     return true;
   }
 
-  /// Counts datagram @p bytes from @p from dropped for @p why (a verbose log line names it).
-  void drop(const std::string& why, std::string_view bytes, const std::string& from = "");
+  /// Counts datagram @p bytes from @p from (none: not said) dropped for @p why; a verbose log line
+  /// names it (the address is formatted only then).
+  void drop(const std::string& why, std::string_view bytes, const ev3io::Endpoint* from = nullptr);
   /// Counts @p why without a log line.
   void count(const std::string& why) { ++drops[why]; }
   /// The drop counters as one line: "decode:bad_number=12 misaddressed=3", "none" when empty.
@@ -122,8 +123,9 @@ class Shell {
 
   /// Sleeps until @p deadline (the program's own), the socket's next copy due, the log's and the
   /// trace file's next flush, a datagram, a signal, or one of @p extra's @p n_extra descriptors
-  /// (their revents set); not at all when @p more (receive() stopped at its bound). Returns
-  /// poll's count.
+  /// (their revents set; at most kMaxExtra, checked where it is called); not at all when @p more
+  /// (receive() stopped at its bound). Returns poll's count.
+  static constexpr std::size_t kMaxExtra = 3;
   int wait(Millis now, Millis deadline, bool more, pollfd* extra = nullptr, std::size_t n_extra = 0);
 
   /// The stop line: why (the state file, @p why when given, else the signal) and the drop

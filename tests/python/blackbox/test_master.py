@@ -92,8 +92,8 @@ def test_pong_carries_the_ping_msgid(start_master, agents):
     wait_until(lambda: status_agents(m).get(a.id, {}).get("state") == "WORKING", 2, "state WORKING")
 
 
-def test_unregistered_ping_gets_no_pong(start_master, agents):
-    m = start_master()
+def test_unregistered_ping_gets_no_pong(start_master, agents, tmp_path):
+    m = start_master("--log-level", "4")
     a = agent(agents, m, 50021)
     a.id = 777
     mark = a.mark()
@@ -102,6 +102,9 @@ def test_unregistered_ping_gets_no_pong(start_master, agents):
     assert not [x for _, x, _ in a.received(mark) if x.type == T["PONG"]]
     wait_until(lambda: (read_status(m.status) or {}).get("drops", {}).get("unknown_sender"), 2,
                "unknown_sender counted")
+    # at --log-level 4 (verbose) the drop is logged with its count and the sender's address
+    wait_until(lambda: f"drop (unknown_sender, 1 so far) from 127.0.0.1:{a.port}: "
+               in (tmp_path / "master.log").read_text(), 2, "the verbose drop line")
 
 
 def test_unanswered_command_is_resent_with_its_msgid(start_master, agents):
