@@ -34,7 +34,8 @@ import time
 from concurrent.futures import ThreadPoolExecutor
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-SPEC = os.path.join(ROOT, "spec", "tla")
+SPEC = os.path.join(ROOT, "spec", "tla")   # check --spec DIR: that copy instead
+SHIPPED_SPEC = SPEC
 JAR = os.path.join(ROOT, ".tools", "tla2tools.jar")
 BUILD = os.path.join(ROOT, "build", "spec")
 MANIFEST = os.path.join(SPEC, "manifest.json")
@@ -50,6 +51,27 @@ C1_SECONDS = 10
 C1_ONLY = ["-XX:TieredStopAtLevel=1"]
 # TLC runs at a time in check and refute (one JVM each; a model's own -workers as the manifest says).
 JOBS = int(os.environ.get("SPEC_JOBS", "2"))
+# Every run of check and refute is stopped, and fails naming its model, when it has run LIMIT_FACTOR
+# times the seconds manifest.json gives for it (a variant: its own seconds, else its model's), and at
+# least LIMIT_FLOOR seconds: a change that livelocks a model (counters growing without bound, TLC
+# exploring for ever) fails within minutes instead of holding the suite until CI kills it.
+LIMIT_FACTOR = float(os.environ.get("SPEC_LIMIT_FACTOR", "10"))
+LIMIT_FLOOR = float(os.environ.get("SPEC_LIMIT_FLOOR", "60"))
+
+
+def limit(seconds):
+    """The most seconds a run expected to take @p seconds (None: unknown, 5) may take."""
+    return max(LIMIT_FLOOR, LIMIT_FACTOR * (seconds if seconds is not None else 5.0))
+
+
+def no_verdict(name, out, secs, expected):
+    """The failure line of a run stopped at its limit: where TLC was (depth, distinct states)."""
+    prog = re.findall(r"Progress\((\d+)\) at [^:]*:\d+:\d+: ([\d,]+) states generated.*?([\d,]+) distinct", out)
+    where = ("TLC's last progress report (one a minute): depth %s, %s distinct states" % (prog[-1][0], prog[-1][2])
+             if prog else "TLC had not reported its progress yet")
+    return ("FAIL %s: no verdict within %.0f s (%g times the %s s it takes, at least %.0f s); %s: a livelock, "
+            "whose counters grow without bound?" % (name, secs, LIMIT_FACTOR,
+                                                    expected if expected is not None else "5", LIMIT_FLOOR, where))
 
 
 def load_manifest():
@@ -57,8 +79,9 @@ def load_manifest():
         return json.load(f)
 
 
-def run(cmd, timeout=None, cwd=SPEC):
+def run(cmd, timeout=None, cwd=None):
     """rc, output, seconds; rc None when the run took longer than timeout (it is killed)."""
+    cwd = cwd or SPEC
     t0 = time.monotonic()
     try:
         p = subprocess.run(cmd, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -116,7 +139,7 @@ def sany(module):
         raise SystemExit("SANY failed on %s" % module)
 
 
-def tlc(module, cfg, workers=2, extra=(), name=None, cwd=SPEC, timeout=None, seconds=None):
+def tlc(module, cfg, workers=2, extra=(), name=None, cwd=None, timeout=None, seconds=None):
     """TLC on module (a .tla in cwd, the spec directory unless a mutant's copy) with cfg; seconds:
     how long the run is expected to take, if known (C1_SECONDS)."""
     md = metadir(name or module)
@@ -186,13 +209,14 @@ def check_model(m):
     """TLC on a model of the manifest. "dump": NAME also dumps its state graph where `ev3-conformance
     replay` takes it (build/conformance/NAME-graph.dot, recorded with the spec's digest): make
     conformance then replays the graph of this run instead of running TLC on the model again."""
-    if not m.get("dump"):
-        return tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"],
-                   seconds=m.get("measured", {}).get("seconds"))
+    secs = m.get("measured", {}).get("seconds")
+    if not m.get("dump") or SPEC != SHIPPED_SPEC:  # a copy's graph is not the shipped spec's
+        return tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"], seconds=secs,
+                   timeout=limit(secs))
     sys.path.insert(0, os.path.join(ROOT, "conformance"))
     from ev3conformance import graph
     rc, out, secs = tlc(m["module"], m["cfg"], workers=m.get("workers", 1), name=m["name"],
-                        extra=graph.dump_args(m["dump"]), seconds=m.get("measured", {}).get("seconds"))
+                        extra=graph.dump_args(m["dump"]), seconds=secs, timeout=limit(secs))
     if rc == 0 and "Model checking completed. No error has been found." in out:
         graph.record_dump(m["module"], m["cfg"], m["dump"], out)
     return rc, out, secs
@@ -205,16 +229,25 @@ def of_size(m, size):
     return m["size"] == size
 
 
+def chosen(m, args):
+    """Whether `check` runs manifest model m: of its --size, and named by --only if given."""
+    return of_size(m, args.size) and (not getattr(args, "only", None) or m["name"] in args.only)
+
+
 def cmd_check(args):
     man = load_manifest()
     check_tsv()
     failed = False
-    models = [m for m in man["models"] if of_size(m, args.size)]
+    models = [m for m in man["models"] if chosen(m, args)]
     for mod in sorted({m["module"] for m in models}):
         sany(mod)
     # One worker: TLC's reported depth is only exact with a single worker.
     runs = in_parallel(check_model, models, key=lambda m: ("check", m["name"]))
     for m, (rc, out, secs) in zip(models, runs):
+        if rc is None:
+            print(no_verdict(m["name"], out, secs, m.get("measured", {}).get("seconds")))
+            failed = True
+            continue
         fig = figures(out)
         v = violation(out)
         if v or fig is None or "Model checking completed. No error has been found." not in out:
@@ -247,11 +280,11 @@ def is_liveness(p):
     return not (p.endswith("Inv") or p.endswith("Prop") or p == "TypeOK")
 
 
-def variant_cfg(base, bug, props, name=None, sets=None, src=SPEC, dest=BUILD):
+def variant_cfg(base, bug, props, name=None, sets=None, src=None, dest=BUILD):
     """The base cfg (in src) with BUG = bug (bug None: BUG as it is) and the constants in sets
     changed, and only the given properties checked (props None: the base cfg's own properties);
     written to dest, its path returned."""
-    with open(os.path.join(src, base)) as f:
+    with open(os.path.join(src or SPEC, base)) as f:
         lines = f.read().splitlines()
     sets = dict(sets or {})
     outl, skip = [], False
@@ -347,7 +380,13 @@ def refute_run(v):
     base = refute_base(v)
     cfg = variant_cfg(base["cfg"], v["bug"], v["all"] if "all" in v else man["refute_props"][base["module"]],
                       name="%s-%s" % (v["bug"], v["model"]))
-    return tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"], seconds=v.get("seconds"))
+    return tlc(base["module"], cfg, workers=1, name="refute-" + v["bug"], seconds=v.get("seconds"),
+               timeout=limit(refute_seconds(v, base)))
+
+
+def refute_seconds(v, base):
+    """What a variant's run is expected to take: its own seconds, else its model's."""
+    return v.get("seconds", base.get("measured", {}).get("seconds"))
 
 
 def refute_key(v):
@@ -359,6 +398,10 @@ def cmd_refute(args):
     man = load_manifest()
     failed = False
     for v, (rc, out, secs) in zip(man["refute"], in_parallel(refute_run, man["refute"], key=refute_key)):
+        if rc is None:
+            print(no_verdict("BUG=%s on %s" % (v["bug"], v["model"]), out, secs, refute_seconds(v, refute_base(v))))
+            failed = True
+            continue
         got = violation(out)
         live = [p for p in v.get("all", []) if is_liveness(p)]
         if got == "temporal" and len(live) == 1:
@@ -521,9 +564,15 @@ def cmd_mutate(args):
     failed = []
     print("%-6s %-9s %-20s %-30s %4s %7s  %s" % ("id", "class", "killed by", "property", "exit",
                                                 "seconds", "expected"))
+    timeouts = []
     for mu in todo:
         model, prop, rc, secs, runs = run_mutant(mu, models)
-        got = "%s:%s" % (model, prop) if model else "survives"
+        # a run stopped at its timeout is no verdict: neither a kill nor a survival
+        timed_out = [r[0] for r in runs if r[1] == "timeout"]
+        got = "%s:%s" % (model, prop) if model else ("timeout" if timed_out else "survives")
+        if got == "timeout":
+            timeouts.append(mu["id"])
+            model, prop = ",".join(timed_out), "(no verdict: timed out)"
         ok = got == mu["expect"]
         passed = ", ".join("%s %s %.0fs" % (r[0], r[1], r[3]) for r in runs if r[1] in ("passed", "timeout")
                            ) if len(runs) > 1 or not model else ""
@@ -534,9 +583,11 @@ def cmd_mutate(args):
             failed.append(mu["id"])
         sys.stdout.flush()
     skipped = len([mu for mu in muts if mu["expect"] == "survives" and mu not in todo]) if not args.only else 0
-    print("mutations: %d run, %d as expected%s, %.0f s in all%s" % (
+    print("mutations: %d run, %d as expected%s%s, %.0f s in all%s" % (
         len(todo), len(todo) - len(failed),
         "" if not skipped else ", %d equivalent ones not run (--all runs them)" % skipped,
+        "" if not timeouts else ", %d without a verdict (timed out, counted neither killed nor surviving: %s)"
+        % (len(timeouts), " ".join(timeouts)),
         time.monotonic() - t0, "" if not failed else "; FAILED: " + " ".join(failed)))
     if failed:
         raise SystemExit(1)
@@ -641,8 +692,9 @@ def cmd_diagram(args):
 
 def election_tlc(entry, name, extra=(), seconds=None):
     workers = entry.get("workers", 2)
+    secs = seconds if seconds is not None else entry.get("measured", {}).get("seconds")
     return tlc(entry["module"], entry["cfg"], workers=workers, name=name, extra=list(extra),
-               seconds=seconds if seconds is not None else entry.get("measured", {}).get("seconds"))
+               seconds=secs, timeout=limit(secs))
 
 
 def thesis_run(th):
@@ -656,6 +708,9 @@ def election_model(m):
 def election_thesis(el):
     th = el["thesis"]
     rc, out, secs = next(in_parallel(thesis_run, [th], key=lambda th: ("thesis",)))
+    if rc is None:
+        print(no_verdict("thesis", out, secs, 5))
+        return False, out
     got = violation(out)
     ok = rc == 12 and got == th["property"]
     print("%-4s thesis         expect exit 12 on %s: got exit %d on %s  %5.1fs" % (
@@ -671,10 +726,14 @@ def election_check(args):
     failed = False
     for mod in ("MCElection", "MCElectionLive", "MCThesisElection", "MCSystem"):
         sany(mod)
-    if args.size in ("small", "quick"):
+    if args.size in ("small", "quick") and not args.only:
         failed |= not election_thesis(el)[0]
-    models = [m for m in el["models"] + el.get("live", []) if of_size(m, args.size)]
+    models = [m for m in el["models"] + el.get("live", []) if chosen(m, args)]
     for m, (rc, out, secs) in zip(models, in_parallel(election_model, models, key=lambda m: ("el", m["name"]))):
+        if rc is None:
+            print(no_verdict(m["name"], out, secs, m.get("measured", {}).get("seconds")))
+            failed = True
+            continue
         fig = figures(out)
         v = violation(out)
         if rc != 0 or v or fig is None or "Model checking completed. No error has been found." not in out:
@@ -697,10 +756,13 @@ def election_check(args):
         else:
             print(line + "  ok")
     sim = el.get("simulate")
-    if sim and sim["size"] == args.size:
+    if sim and sim["size"] == args.size and not args.only:
         extra = ["-simulate", "num=%d" % sim["num"], "-depth", str(sim["depth"]),
                  "-seed", str(sim["seed"])]
         rc, out, secs = election_tlc(sim, "election-sim", extra)
+        if rc is None:
+            print(no_verdict("election-sim", out, secs, sim.get("measured", {}).get("seconds")))
+            return False
         v = violation(out)
         # TLC 2.18 -simulate prints only "Progress: N states checked." and stops after
         # num behaviours (traces); it reports no count of them, so completion is
@@ -754,6 +816,11 @@ def election_refute(args):
     failed = False
     for v, (rc, out, secs) in zip(el["refute"], in_parallel(election_refute_run, el["refute"],
                                                             key=election_refute_key)):
+        if rc is None:
+            print(no_verdict("BUG=%s on %s" % (v["bug"], v["model"]), out, secs,
+                             v.get("seconds", election_refute_base(v).get("measured", {}).get("seconds"))))
+            failed = True
+            continue
         got = violation(out)
         # exit 12: an invariant is violated; 13: a temporal property (the Live variant)
         ok = rc == v.get("exit", 12) and got == v["property"]
@@ -826,16 +893,34 @@ def all_jobs(args):
     man = load_manifest()
     el = man["election"]
     if args.cmd == "check":
-        jobs = [(("check", m["name"]), check_model, m, cost(m)) for m in man["models"] if of_size(m, args.size)]
-        if args.size in ("small", "quick"):
+        jobs = [(("check", m["name"]), check_model, m, cost(m)) for m in man["models"] if chosen(m, args)]
+        if args.size in ("small", "quick") and not args.only:
             jobs.append((("thesis",), thesis_run, el["thesis"], 5))
         return jobs + [(("el", m["name"]), election_model, m, cost(m))
-                       for m in el["models"] + el.get("live", []) if of_size(m, args.size)]
+                       for m in el["models"] + el.get("live", []) if chosen(m, args)]
     if args.cmd == "refute":
         return ([(refute_key(v), refute_run, v, v.get("seconds", 5)) for v in man["refute"]]
                 + [(election_refute_key(v), election_refute_run, v, v.get("seconds", 5) * election_refute_base(v).get("workers", 2))
                    for v in el["refute"]])
     return []
+
+
+def check_args(args):
+    """--spec: the directory checked from here on; --only: every name a model of the manifest."""
+    global SPEC
+    if args.spec:
+        if not os.path.isfile(os.path.join(args.spec, "MCFleet.tla")):
+            raise SystemExit("--spec %s: not a copy of spec/tla (no MCFleet.tla there)" % args.spec)
+        SPEC = os.path.abspath(args.spec)
+    if args.only:
+        man = load_manifest()
+        known = {m["name"] for m in man["models"] + man["election"]["models"] + man["election"].get("live", [])}
+        unknown = sorted(set(args.only) - known)
+        if unknown:
+            raise SystemExit("--only: %s: no such model in manifest.json (models: %s)"
+                             % (", ".join(unknown), ", ".join(sorted(known))))
+        if args.update:
+            raise SystemExit("--only and --update: the manifest is updated by a run of every model")
 
 
 def main():
@@ -844,6 +929,9 @@ def main():
     c = sub.add_parser("check")
     c.add_argument("--size", choices=["small", "full", "quick"], default="small")
     c.add_argument("--update", action="store_true", help="record the figures in the manifest")
+    c.add_argument("--only", nargs="+", metavar="MODEL",
+                   help="these models of manifest.json alone (no thesis, trace modules or simulation)")
+    c.add_argument("--spec", metavar="DIR", help="a copy of spec/tla to check instead (a change tried out)")
     sub.add_parser("refute")
     d = sub.add_parser("diagram")
     d.add_argument("--check", action="store_true")
@@ -852,12 +940,14 @@ def main():
     mu.add_argument("--all", action="store_true", help="also those expected to survive")
     mu.add_argument("--list", action="store_true", help="the catalogue, checked, nothing run")
     args = ap.parse_args()
+    if args.cmd == "check":
+        check_args(args)
     if args.cmd == "mutate":
         cmd_mutate(args)
         return
     start_all(all_jobs(args))
     {"check": cmd_check, "refute": cmd_refute, "diagram": cmd_diagram}[args.cmd](args)
-    if args.cmd == "check" and args.size != "quick":
+    if args.cmd == "check" and args.size != "quick" and not args.only:
         trace_modules()
     election_main(args)  # relay and election, after the lifecycle models
 
