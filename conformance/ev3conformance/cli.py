@@ -316,13 +316,17 @@ def _cmd_mutate(args: argparse.Namespace) -> int:
         return 2
     caught, counted = mutate.score(res)
     surv = [o for o in res if o.status == "survived"]
-    other = [o for o in res if o.status not in ("caught", "survived")]
-    per = [o.seconds for o in res if o.status in ("caught", "survived")]
+    timed = [o for o in res if o.status == "timeout"]
+    other = [o for o in res if o.status not in ("caught", "survived", "timeout")]
+    per = [o.seconds for o in res if o.status in ("caught", "survived", "timeout")]
     print(f"mutation score: {caught}/{counted} caught ({100.0 * caught / max(1, counted):.1f}%); "
+          f"{len(timed)} without a verdict (timed out: not caught); "
           f"{len(other)} not counted (stale/equivalent/build-failed); "
           f"{sum(per) / max(1, len(per)):.0f}s per mutant on average, {time.monotonic() - t0:.0f}s in all")
     for o in surv:
         print(f"SURVIVED {o.mutant.name}: {o.mutant.what} ({o.detail})")
+    for o in timed:
+        print(f"TIMEOUT {o.mutant.name}: {o.mutant.what} (no check named a difference: {o.detail})")
     for o in other:
         print(f"{o.status.upper()} {o.mutant.name}: {o.detail[:300]}")
     return 0 if counted and caught * 100 >= args.min_score * counted else 1

@@ -6,6 +6,7 @@ from __future__ import annotations
 import functools
 import json
 import os
+import signal
 import subprocess
 import tempfile
 import threading
@@ -22,6 +23,15 @@ def default_bin() -> Path:
 
 class DriverError(RuntimeError):
     pass
+
+
+class DriverKilled(DriverError):
+    """The driver was killed (its CPU limit: SIGXCPU, then SIGKILL) instead of answering: no verdict
+    on what it computes, only that it did not finish. A crash (SIGSEGV, SIGABRT) is a DriverError."""
+
+
+# The signals of a CPU limit (prlimit --cpu: SIGXCPU at the soft limit, SIGKILL at the hard one).
+KILLED = {-signal.SIGXCPU, -signal.SIGKILL}
 
 
 class Driver:
@@ -46,8 +56,13 @@ class Driver:
     def _read(self, sent: str) -> dict:
         line = self.proc.stdout.readline()
         if not line:
-            raise DriverError(f"{' '.join(self.argv)} exited (status {self.proc.poll()}) without "
-                              f"answering {sent!r}; stderr:\n{self.stderr()}")
+            try:
+                status = self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                status = None
+            kind = DriverKilled if status in KILLED else DriverError
+            raise kind(f"{' '.join(self.argv)} exited (status {status}) without "
+                       f"answering {sent!r}; stderr:\n{self.stderr()}")
         self.lines += 1
         try:
             return json.loads(line)

@@ -22,8 +22,11 @@ Checks, stopping at the first that fails:
                     view, e.g. Election's HeartbeatOK), then the agent trace and the agent replay;
   master mutants:   master replay of MCMaster's state graph, strict (stops at the first mismatch).
 
-A mutant is caught when a check fails (a mismatch, a driver crash, or the driver killed by its CPU
-limit: prlimit), survives otherwise. One whose site no longer holds its code exactly once is "stale"
+A mutant is caught when a check fails naming what differs (a mismatch, a trace TLC rejects, a driver
+that crashes or exits), survives when every check passes. A check that ends because the mutant did not
+finish (the driver killed by its CPU limit, prlimit; a hung driver or transcript program) is no
+verdict: the next check runs, and a mutant no check catches that timed out is reported as "timeout",
+apart from the caught and the surviving, and counted against the score (not caught). One whose site no longer holds its code exactly once is "stale"
 and not counted; one that leaves the binaries byte-identical is "equivalent" and not counted.
 """
 
@@ -427,7 +430,7 @@ def election_scripts() -> dict[str, list[dict]]:
 @dataclass
 class Outcome:
     mutant: Mutant
-    status: str  # caught / survived / stale / equivalent / build-failed
+    status: str  # caught / survived / timeout / stale / equivalent / build-failed
     by: str = ""
     seconds: float = 0.0
     detail: str = ""
@@ -524,22 +527,28 @@ class Checks:
         # the replay's kill reaches the driver itself): its EOF fails the check (caught).
         return ["prlimit", f"--cpu={int(self.limit)}", str(self.bin / prog), "--driver"]
 
-    def agent_replay(self) -> tuple[bool, str]:
+    # Each check returns (verdict, what): True passed, False failed (the mutant caught), None no
+    # verdict (timed out).
+    def agent_replay(self) -> tuple[bool | None, str]:
         from ev3conformance import replay
         try:
             f = replay.AgentReplay(self.ag, self.agc, self.argv("ev3-agent"), cache=self.ag_cache,
                                    sample=self.sample).run()
         except replay.Mismatch as m:
             return False, m.report.splitlines()[0]
+        except drv.DriverKilled as e:
+            return None, f"driver killed (CPU limit): {str(e).splitlines()[0]}"
         except drv.DriverError as e:
             return False, f"driver failed: {str(e).splitlines()[0]}"
         return True, f"{f.replayed} edges matched"
 
-    def master_replay(self) -> tuple[bool, str]:
+    def master_replay(self) -> tuple[bool | None, str]:
         from ev3conformance import master_replay as mr
         try:
             f = mr.MasterReplay(self.ms, self.msc, self.argv("ev3-master"), (),
                                 stop_first=True, cache=self.ms_cache).run()
+        except drv.DriverKilled as e:
+            return None, f"driver killed (CPU limit): {str(e).splitlines()[0]}"
         except (drv.DriverError, RuntimeError) as e:
             return False, f"driver failed: {str(e).splitlines()[0]}"
         if f.classes:
@@ -547,7 +556,7 @@ class Checks:
             return False, f"MISMATCH (master): {act} differs in [{', '.join(flds)}]"
         return True, f"{f.matched} edges matched"
 
-    def agent_trace(self, work: Path) -> tuple[bool, str]:
+    def agent_trace(self, work: Path) -> tuple[bool | None, str]:
         from ev3conformance import tracecheck
         work.mkdir(parents=True, exist_ok=True)
         trace = work / "agent.ndjson"
@@ -557,14 +566,16 @@ class Checks:
             p = subprocess.run(self.argv("ev3-agent") + ["--trace", str(trace)], input=inp, text=True,
                                capture_output=True, timeout=10 * self.limit)
         except subprocess.TimeoutExpired:
-            return False, "driver hung on the trace scenario"
+            return None, "driver hung on the trace scenario"
+        if p.returncode in drv.KILLED:
+            return None, f"driver killed (signal {-p.returncode}: CPU limit) on the trace scenario"
         if p.returncode != 0 or not trace.exists():
             return False, f"driver exit {p.returncode} on the trace scenario"
         r = tracecheck.validate(trace, TRACE_CONSTS, workdir=work)
         return r.ok, r.message.splitlines()[0]
 
 
-    def election_traces(self, work: Path) -> tuple[bool, str]:
+    def election_traces(self, work: Path) -> tuple[bool | None, str]:
         """Each election scenario through the driver (--trace), each trace validated by TLC."""
         from ev3conformance import tracecheck
         work.mkdir(parents=True, exist_ok=True)
@@ -577,7 +588,9 @@ class Checks:
                 p = subprocess.run(self.argv("ev3-agent") + ["--trace", str(trace)], input=inp, text=True,
                                    capture_output=True, timeout=10 * self.limit)
             except subprocess.TimeoutExpired:
-                return False, f"driver hung on the election scenario {name}"
+                return None, f"driver hung on the election scenario {name}"
+            if p.returncode in drv.KILLED:
+                return None, f"driver killed (signal {-p.returncode}: CPU limit) on the election scenario {name}"
             if p.returncode != 0 or not trace.exists():
                 return False, f"driver exit {p.returncode} on the election scenario {name}"
             r = tracecheck.validate(trace, ELECTION_CONSTS, workdir=work)
@@ -586,7 +599,7 @@ class Checks:
             n += r.records
         return True, f"{len(election_scripts())} election traces, {n} records matched"
 
-    def fleet_transcripts(self) -> tuple[bool, str]:
+    def fleet_transcripts(self) -> tuple[bool | None, str]:
         """The fleet transcripts (tests/cpp/testdata/fleet_*.txt) of the mutant's transcript program:
         several nodes (node.hpp: the agent core and its Master core) and the PC over a scripted
         network, each datagram and action compared with the file."""
@@ -596,7 +609,9 @@ class Checks:
                                 "--gtest_filter=*FleetTranscript*", "--gtest_brief=1"], env=env, text=True,
                                capture_output=True, timeout=10 * self.limit)
         except subprocess.TimeoutExpired:
-            return False, "the fleet transcripts hung"
+            return None, "the fleet transcripts hung"
+        if p.returncode in drv.KILLED:
+            return None, f"the fleet transcripts killed (signal {-p.returncode}: CPU limit)"
         if p.returncode != 0:
             failed = sorted(set(re.findall(r"\[  FAILED  \] \S*FleetTranscript\.Matches/(\w+)", p.stdout)))
             case = re.search(r"(fleet_\w+\.txt:\d+)", p.stdout)
@@ -672,9 +687,11 @@ def run(root: Path, names: list[str] | None = None, jobs: int = 2, limit: float 
             o = Outcome(m, "survived")
             for label, fn in checks:
                 good, msg = fn()
-                if not good:
+                if good is False:
                     o.status, o.by, o.detail = "caught", label, msg
                     break
+                if good is None:  # no verdict: the next check may still name what differs
+                    o.status, o.by = "timeout", label
                 o.detail = (o.detail + "; " if o.detail else "") + f"{label}: {msg}"
             o.seconds = time.monotonic() - s
             res.append(o)
@@ -686,5 +703,5 @@ def run(root: Path, names: list[str] | None = None, jobs: int = 2, limit: float 
 
 
 def score(res: list[Outcome]) -> tuple[int, int]:
-    counted = [o for o in res if o.status in ("caught", "survived")]
+    counted = [o for o in res if o.status in ("caught", "survived", "timeout")]
     return sum(o.status == "caught" for o in counted), len(counted)

@@ -149,3 +149,17 @@ def test_an_agent_trace_without_behaviours_needs_the_driver(tmp_path, monkeypatc
     assert not r.ok and "ev3-agent --driver (input facts)" in r.message and "make build" in r.message
     r = tracecheck.validate(trace, dict(CHECK, Behaviours=["wait"]))
     assert r.ok, r.message
+
+
+def test_a_driver_killed_by_its_cpu_limit_is_no_verdict_and_a_crash_is_a_failure():
+    # ev3-conformance mutate runs each mutant's driver under prlimit --cpu: one killed there did not
+    # finish (DriverKilled: no verdict), one that crashes failed (a DriverError, not DriverKilled)
+    from ev3conformance import driver as drv
+    loop = drv.Driver(["prlimit", "--cpu=1", sys.executable, "-c", "while True: pass"])
+    with pytest.raises(drv.DriverKilled):
+        loop.ask({"type": "facts"})
+    crash = drv.Driver([sys.executable, "-c", "import os, signal, sys; sys.stdin.readline(); "
+                        "os.kill(os.getpid(), signal.SIGSEGV)"])
+    with pytest.raises(drv.DriverError) as e:
+        crash.ask({"type": "facts"})
+    assert not isinstance(e.value, drv.DriverKilled) and "status -11" in str(e.value)
