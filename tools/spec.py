@@ -799,13 +799,13 @@ def election_refute_run(v):
     base = election_refute_base(v)
     # "only": the variant is checked on these properties alone (another property the bug
     # also breaks would be found first and hide whether this one is reached)
-    cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-%s-%s" % (v["bug"], v["model"]),
-                      sets=v.get("set"))
+    cfg = variant_cfg(base["cfg"], v["bug"], v.get("only"), name="el-%s-%s%s" % (
+        v["bug"], v["model"], "".join("-" + p for p in v.get("only", ()))), sets=v.get("set"))
     return election_tlc(dict(base, cfg=cfg), "refute-" + v["bug"], seconds=v.get("seconds"))
 
 
 def election_refute_key(v):
-    return ("el-refute", v["bug"], v["model"])
+    return ("el-refute", v["bug"], v["model"], tuple(v.get("only", ())))
 
 
 def election_refute(args):

@@ -240,10 +240,12 @@ HeartbeatOK(a) ==
 
 \* Agent a misses heartbeats past the threshold: WORKING -> PAUSED (behaviour
 \* stopped), ACTIVE or PAUSED -> PANIC.  An agent that panics drops the
-\* agents it relays for and tells them (RELAY_DROP).
+\* agents it relays for and tells them (RELAY_DROP).  The broken variant
+\* PauseFromActive (the name of the same broken rule in AgentLogic) pauses an
+\* ACTIVE agent instead (System's LifecycleFromProp: PAUSED only from WORKING).
 TimeoutOk(s) == s.life \in Followers
 TimeoutNext(s) ==
-    IF s.life = "WORKING" THEN [s EXCEPT !.life = "PAUSED"]
+    IF s.life = "WORKING" \/ (BUG = "PauseFromActive" /\ s.life = "ACTIVE") THEN [s EXCEPT !.life = "PAUSED"]
     ELSE LET t == [s EXCEPT !.life = "PANIC", !.leader = NoNode, !.following = 0, !.via = NoNode]
          IN IF BUG = "KeepTableOnPanic" THEN t ELSE [t EXCEPT !.relays = {}, !.offered = {}]
 Timeout(a) ==

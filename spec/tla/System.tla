@@ -109,6 +109,8 @@ SysTimeout(a) ==
 \* Agent a, following master m.src in epoch m.e over a direct link, hears its
 \* LEADER again (the heartbeat): its timer restarts, nothing else changes
 \* (Election's HandleHeartbeat takes only a LEADER that changes something).
+\* The broken variant ResumeOnHeartbeat also puts a PAUSED agent back to work
+\* (no command: the motion the master stopped resumes on its own).
 RefreshOk(s, m) ==
     /\ m.t = "HB" /\ m.dst = NoNode
     /\ s.life \in Followers /\ s.via = NoNode
@@ -118,7 +120,12 @@ Refresh(a, m) ==
     /\ silence' = [silence EXCEPT ![a] = 0]
     /\ heard' = [heard EXCEPT ![a] = 0]
     /\ lastAction' = <<"Refresh", a, m>>
-    /\ UNCHANGED <<evars, told, obeyed, hnet, handed>>
+    /\ IF BUG = "ResumeOnHeartbeat" /\ life[a] = "PAUSED"
+       THEN /\ life' = [life EXCEPT ![a] = "WORKING"]
+            /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
+                           down, faults, lost, elected, applied, members, mepoch, floor, want, changes,
+                           told, obeyed, hnet, handed>>
+       ELSE UNCHANGED <<evars, told, obeyed, hnet, handed>>
 
 -----------------------------------------------------------------------------
 (* HANDOVER.                                                               *)
@@ -257,4 +264,40 @@ ObeyedNewestEpochInv ==
 \* of epoch e is not a master of an older epoch any more.
 HandoverStepsDownInv ==
     \A h \in handed : life[h.src] = "MASTER" => epoch[h.src] > h.e
+
+\* A WORKING agent works for the master whose command it obeyed: a command of
+\* the master it follows, in the epoch it follows, took effect at it (obeyed,
+\* the environment's record, not the agent's).
+WorkingForCommanderInv ==
+    \A a \in Agents : life[a] = "WORKING" =>
+        \E r \in obeyed : r.a = a /\ r.src = leader[a] /\ r.e = following[a]
+
+\* The lifecycle's rules of the whole system, over every step (action
+\* properties: free in states, as AgentLogic's AllowedTransitionsProp): the
+\* steps that may move an agent into each state, and the states it may come
+\* from.  Motion starts only on a command: WORKING is entered by ApplyCommand
+\* alone, from ACTIVE or PAUSED; MASTER by BecomeMaster from CANDIDATE,
+\* CANDIDATE by StartElection from PANIC, DOWN by Crash; an agent leaves DOWN
+\* by Restart alone, into PANIC.
+EnteredBy ==
+    [WORKING   |-> {"ApplyCommand"},
+     MASTER    |-> {"BecomeMaster"},
+     CANDIDATE |-> {"StartElection"},
+     DOWN      |-> {"Crash"},
+     ACTIVE    |-> {"HandleHeartbeat", "AcceptRelay"},
+     PAUSED    |-> {"Timeout", "HandleHeartbeat", "HandleElect", "HandleStale"},
+     PANIC     |-> {"Timeout", "RelayDropped", "Restart", "HandleElect", "HandleStale"}]
+EnteredFrom ==
+    [WORKING   |-> {"ACTIVE", "PAUSED"},
+     MASTER    |-> {"CANDIDATE"},
+     CANDIDATE |-> {"PANIC"},
+     DOWN      |-> Lives \ {"DOWN"},
+     ACTIVE    |-> {"PANIC", "CANDIDATE", "MASTER"},
+     PAUSED    |-> {"WORKING"},
+     PANIC     |-> Lives \ {"PANIC"}]
+Moved(a) == life'[a] # life[a]
+LifecycleStepProp ==
+    [][\A a \in Agents : Moved(a) => lastAction'[1] \in EnteredBy[life'[a]]]_allvars
+LifecycleFromProp ==
+    [][\A a \in Agents : Moved(a) => life[a] \in EnteredFrom[life'[a]]]_allvars
 =============================================================================
