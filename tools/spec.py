@@ -40,9 +40,7 @@ JAR = os.path.join(ROOT, ".tools", "tla2tools.jar")
 BUILD = os.path.join(ROOT, "build", "spec")
 MANIFEST = os.path.join(SPEC, "manifest.json")
 DOCS = os.path.join(ROOT, "docs")
-# TLC's classes mapped from the archive make deps writes (class data sharing; tools/deps.sh).
-JSA = os.path.join(ROOT, ".tools", "tla2tools.jsa")
-JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"] + (["-XX:SharedArchiveFile=" + JSA] if os.path.exists(JSA) else [])
+JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"]
 # A run expected to take less than C1_SECONDS (the manifest's figure; a run with none: a refute
 # variant or a spec mutation, which stop at the first violation) leaves out the JVM's optimising
 # compiler (C2): on runs of seconds its compiler threads cost more CPU than they win back, about half

@@ -24,10 +24,7 @@ ROOT = Path(os.environ.get("EV3_ROOT") or Path(__file__).resolve().parents[2])
 SPEC = ROOT / "spec" / "tla"
 JAR = ROOT / ".tools" / "tla2tools.jar"
 BUILD = ROOT / "build" / "conformance"
-# TLC's classes mapped from the archive make deps writes (class data sharing; tools/deps.sh), when
-# there is one: about 0.3 s of CPU less per run.
-JSA = ROOT / ".tools" / "tla2tools.jsa"
-JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"] + ([f"-XX:SharedArchiveFile={JSA}"] if JSA.exists() else [])
+JAVA = ["java", "-XX:+UseParallelGC", "-Xss16m"]
 # Most TLC runs of this package (trace checks, simulations) take seconds: there the JVM's optimising
 # compiler (C2) costs more CPU than it wins back, so they run on its first compiler alone; a state
 # graph's dump (minutes for MCAgent) keeps C2 (docs/spec.md "Commands").
