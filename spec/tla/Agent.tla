@@ -170,6 +170,9 @@ Halted == ag.state = "OFF"
 LedInv == L!LedMatches(ag)
 \* Motors run (a behaviour runs) only in WORKING.
 BehaviourOnlyInWorkingInv == L!MotionOnlyWorking(ag)
+\* The motors run only while the action runs: never while it waits for CONTINUE
+\* (after ACTION_INTERR) or RESTART (after ACTION_ERR).
+MotorsOnlyWhileRunningInv == L!MotionOnlyRunning(ag)
 \* Never WORKING more than TLoss ticks after last hearing the master.
 NoUnsupervisedMotionInv == L!Supervised(ag)
 \* No command is acted on while its (sender, msgid) is in the window.

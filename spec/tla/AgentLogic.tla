@@ -224,12 +224,14 @@ RecvPause(a, m) ==
                 Ack(a, m))
     ELSE Refuse(a, m, "wrong state")
 
-\* RESUME: PAUSED -> WORKING where it was (still waiting if it was waiting).
+\* RESUME: PAUSED -> WORKING where it was (still waiting if it was waiting:
+\* the motors stay off until CONTINUE or RESTART).  The broken variant
+\* ResumeWhileWaiting turns them on whatever the action waits for.
 RecvResumeOk(a, m) == FromMaster(a, m) /\ m.type = "RESUME" /\ Fresh(a, m)
 RecvResume(a, m) ==
     IF a.state = "PAUSED"
     THEN Answer(a, m, [Goto(a, "WORKING") EXCEPT
-                         !.motors = IF a.wait = "NONE" THEN "ON" ELSE "OFF"],
+                         !.motors = IF a.wait = "NONE" \/ BUG = "ResumeWhileWaiting" THEN "ON" ELSE "OFF"],
                 Ack(a, m))
     ELSE Refuse(a, m, "wrong state")
 
@@ -433,5 +435,6 @@ TransitionOk(a, b, n) == a.state = b.state \/ <<a.state, b.state, n>> \in Allowe
 \* Local invariants of one agent.
 LedMatches(a)          == a.led = LedOf[a.state]
 MotionOnlyWorking(a)   == a.motors = "ON" => a.state = "WORKING"
+MotionOnlyRunning(a)   == a.motors = "ON" => a.wait = "NONE"
 Supervised(a)          == a.state = "WORKING" => a.silence <= TLoss
 =============================================================================
