@@ -156,10 +156,16 @@ def test_a_driver_killed_by_its_cpu_limit_is_no_verdict_and_a_crash_is_a_failure
     # finish (DriverKilled: no verdict), one that crashes failed (a DriverError, not DriverKilled)
     from ev3conformance import driver as drv
     loop = drv.Driver(["prlimit", "--cpu=1", sys.executable, "-c", "while True: pass"])
-    with pytest.raises(drv.DriverKilled):
-        loop.ask({"type": "facts"})
+    try:
+        with pytest.raises(drv.DriverKilled):
+            loop.ask({"type": "facts"})
+    finally:
+        loop.close()
     crash = drv.Driver([sys.executable, "-c", "import os, signal, sys; sys.stdin.readline(); "
                         "os.kill(os.getpid(), signal.SIGSEGV)"])
-    with pytest.raises(drv.DriverError) as e:
-        crash.ask({"type": "facts"})
+    try:
+        with pytest.raises(drv.DriverError) as e:
+            crash.ask({"type": "facts"})
+    finally:
+        crash.close()
     assert not isinstance(e.value, drv.DriverKilled) and "status -11" in str(e.value)
