@@ -83,7 +83,7 @@ int Shell::wait(Millis now, Millis deadline, bool more, pollfd* extra, std::size
   deadline = std::min({deadline, net.next_send(), log.tick(now), trace_file.tick(now)});
   if (more) deadline = now;
   assert(n_extra <= kMaxExtra);
-  pollfd p[kMaxExtra + 1] = {{net.fd(), POLLIN, 0}, {}, {}, {}};
+  pollfd p[kMaxExtra + 1] = {{net.fd(), POLLIN, 0}};
   n_extra = std::min(n_extra, kMaxExtra);
   for (std::size_t i = 0; i < n_extra; ++i) p[i + 1] = extra[i];
   const int n = signals.wait(p, n_extra + 1, deadline);

@@ -62,14 +62,13 @@ def limit(seconds):
     return max(LIMIT_FLOOR, LIMIT_FACTOR * (seconds if seconds is not None else 5.0))
 
 
-def no_verdict(name, out, secs, expected):
+def no_verdict(name, out, secs):
     """The failure line of a run stopped at its limit: where TLC was (depth, distinct states)."""
     prog = re.findall(r"Progress\((\d+)\) at [^:]*:\d+:\d+: ([\d,]+) states generated.*?([\d,]+) distinct", out)
     where = ("TLC's last progress report (one a minute): depth %s, %s distinct states" % (prog[-1][0], prog[-1][2])
              if prog else "TLC had not reported its progress yet")
-    return ("FAIL %s: no verdict within %.0f s (%g times the %s s it takes, at least %.0f s); %s: a livelock, "
-            "whose counters grow without bound?" % (name, secs, LIMIT_FACTOR,
-                                                    expected if expected is not None else "5", LIMIT_FLOOR, where))
+    return ("FAIL %s: no verdict within %.0f s (%g times its time in manifest.json, at least %.0f s); %s: a "
+            "livelock, whose counters grow without bound?" % (name, secs, LIMIT_FACTOR, LIMIT_FLOOR, where))
 
 
 def load_manifest():
@@ -243,7 +242,7 @@ def cmd_check(args):
     runs = in_parallel(check_model, models, key=lambda m: ("check", m["name"]))
     for m, (rc, out, secs) in zip(models, runs):
         if rc is None:
-            print(no_verdict(m["name"], out, secs, m.get("measured", {}).get("seconds")))
+            print(no_verdict(m["name"], out, secs))
             failed = True
             continue
         fig = figures(out)
@@ -397,7 +396,7 @@ def cmd_refute(args):
     failed = False
     for v, (rc, out, secs) in zip(man["refute"], in_parallel(refute_run, man["refute"], key=refute_key)):
         if rc is None:
-            print(no_verdict("BUG=%s on %s" % (v["bug"], v["model"]), out, secs, refute_seconds(v, refute_base(v))))
+            print(no_verdict("BUG=%s on %s" % (v["bug"], v["model"]), out, secs))
             failed = True
             continue
         got = violation(out)
@@ -707,7 +706,7 @@ def election_thesis(el):
     th = el["thesis"]
     rc, out, secs = next(in_parallel(thesis_run, [th], key=lambda th: ("thesis",)))
     if rc is None:
-        print(no_verdict("thesis", out, secs, 5))
+        print(no_verdict("thesis", out, secs))
         return False, out
     got = violation(out)
     ok = rc == 12 and got == th["property"]
@@ -729,7 +728,7 @@ def election_check(args):
     models = [m for m in el["models"] + el.get("live", []) if chosen(m, args)]
     for m, (rc, out, secs) in zip(models, in_parallel(election_model, models, key=lambda m: ("el", m["name"]))):
         if rc is None:
-            print(no_verdict(m["name"], out, secs, m.get("measured", {}).get("seconds")))
+            print(no_verdict(m["name"], out, secs))
             failed = True
             continue
         fig = figures(out)
@@ -759,7 +758,7 @@ def election_check(args):
                  "-seed", str(sim["seed"])]
         rc, out, secs = election_tlc(sim, "election-sim", extra)
         if rc is None:
-            print(no_verdict("election-sim", out, secs, sim.get("measured", {}).get("seconds")))
+            print(no_verdict("election-sim", out, secs))
             return False
         v = violation(out)
         # TLC 2.18 -simulate prints only "Progress: N states checked." and stops after
@@ -815,8 +814,7 @@ def election_refute(args):
     for v, (rc, out, secs) in zip(el["refute"], in_parallel(election_refute_run, el["refute"],
                                                             key=election_refute_key)):
         if rc is None:
-            print(no_verdict("BUG=%s on %s" % (v["bug"], v["model"]), out, secs,
-                             v.get("seconds", election_refute_base(v).get("measured", {}).get("seconds"))))
+            print(no_verdict("BUG=%s on %s" % (v["bug"], v["model"]), out, secs))
             failed = True
             continue
         got = violation(out)

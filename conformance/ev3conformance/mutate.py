@@ -26,8 +26,8 @@ A mutant is caught when a check fails naming what differs (a mismatch, a trace T
 that crashes or exits), survives when every check passes. A check that ends because the mutant did not
 finish (the driver killed by its CPU limit, prlimit; a hung driver or transcript program) is no
 verdict: the next check runs, and a mutant no check catches that timed out is reported as "timeout",
-apart from the caught and the surviving, and counted against the score (not caught). One whose site no longer holds its code exactly once is "stale"
-and not counted; one that leaves the binaries byte-identical is "equivalent" and not counted.
+apart from the caught and the surviving, and counted against the score (not caught). One whose site
+no longer holds its code exactly once is "stale" and not counted; one that leaves the binaries byte-identical is "equivalent" and not counted.
 """
 
 from __future__ import annotations
@@ -524,7 +524,7 @@ class Checks:
 
     def argv(self, prog: str) -> list[str]:
         # A looping mutant is killed by the CPU limit (prlimit execs the driver: same process, so
-        # the replay's kill reaches the driver itself): its EOF fails the check (caught).
+        # the replay's kill reaches the driver itself): its EOF is no verdict (drv.DriverKilled).
         return ["prlimit", f"--cpu={int(self.limit)}", str(self.bin / prog), "--driver"]
 
     # Each check returns (verdict, what): True passed, False failed (the mutant caught), None no
