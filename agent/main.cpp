@@ -417,7 +417,7 @@ class Program {
     const std::string members(ev3proto::IdListText().ids(d.members, d.member_count).view());
     sh_.log.log(kDebug, "durable: epoch %u, voted for %u, members [%s] of epoch %u, floor %u", d.epoch, d.voted_for,
              members.c_str(), d.mepoch, d.floor);
-    return state_path_.empty() || sh_.save_state("the election state", state_path_, ev3proto::durable_text(d).view());
+    return sh_.save_state("the election state", state_path_, ev3proto::durable_text(d).view());
   }
 
   /// --master-script: console commands for the Master core, from the moment this agent won.

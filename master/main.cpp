@@ -329,7 +329,7 @@ class Program {
   /// Writes the state the core's ready() hands over (--state-file); false when it is not on disk
   /// (then the master sends nothing more and exits with status 1, as ev3-agent does).
   bool save_state(const ev3proto::MasterDurable& d) {
-    return opt_.state_file.empty() || sh_.save_state("the master's state", opt_.state_file, ev3proto::durable_text(d).view());
+    return sh_.save_state("the master's state", opt_.state_file, ev3proto::durable_text(d).view());
   }
 
   /// Election observers (role, epoch, handover): one console line per change.

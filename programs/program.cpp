@@ -60,7 +60,9 @@ bool Shell::damaged(const char* flag, const std::string& path, std::string_view 
 
 bool Shell::save_state(const char* what, const std::string& path, std::string_view text) {
   std::string err;
-  if (ev3io::write_state_file(path, text, err)) return true;
+  // The trace's records of the change reach the file with it, before any datagram announces it.
+  trace_file.flush();
+  if (path.empty() || ev3io::write_state_file(path, text, err)) return true;
   log.log(ev3io::kError, "%s; %s is not on disk: sending nothing more, exiting", err.c_str(), what);
   std::fprintf(stderr, "%s: %s; %s is not on disk: sending nothing more, exiting\n", program_, err.c_str(), what);
   return false;

@@ -24,10 +24,14 @@ void TraceFile::write(const std::string& line) {
   std::fputc('\n', f_);
 }
 
+void TraceFile::flush() {
+  if (f_ != nullptr) std::fflush(f_);
+}
+
 ev3proto::Millis TraceFile::tick(ev3proto::Millis now) {
   if (f_ == nullptr) return kNever;
   if (now >= next_flush_) {
-    std::fflush(f_);
+    flush();
     next_flush_ = now + kFlushEveryMs;
   }
   return next_flush_;

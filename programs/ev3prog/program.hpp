@@ -94,7 +94,8 @@ class Shell {
   bool read_state(const char* flag, const std::string& path, std::optional<std::string>& text);
   /// Says on stderr that the state file @p path (given with @p flag) is damaged, @p why; false.
   bool damaged(const char* flag, const std::string& path, std::string_view why);
-  /// Writes @p text to the state file @p path atomically (ev3io::write_state_file). False after
+  /// Flushes the trace file, then writes @p text to the state file @p path atomically
+  /// (ev3io::write_state_file; nothing when @p path is "": true). False after
   /// saying in the log and on stderr that @p what is not on disk and that the program sends nothing
   /// more ("ev3-agent: reason; the election state is not on disk: sending nothing more, exiting").
   bool save_state(const char* what, const std::string& path, std::string_view text);

@@ -1,7 +1,8 @@
 /// @file trace_file.hpp
 /// @brief A program's --trace FILE: the NDJSON trace of its cores (one line per spec action,
-///        docs/core.md "Trace"), written with stdio and flushed at most every 200 ms by the event
-///        loop, so a killed program leaves a trace that ends at most 200 ms before it.
+///        docs/core.md "Trace"), written with stdio and flushed every 200 ms by the event loop and
+///        at every state-file write, so a killed program leaves a trace that ends at most 200 ms
+///        before it and holds every durable change (an epoch, a vote, a membership) it announced.
 #pragma once
 
 #include <cstdio>
@@ -32,6 +33,8 @@ class TraceFile {
   /// Flushes when 200 ms have passed since the last flush; the next time to call it (kNever when
   /// closed).
   ev3proto::Millis tick(ev3proto::Millis now);
+  /// Flushes now (nothing when closed).
+  void flush();
   /// Flushes and closes.
   void close();
 

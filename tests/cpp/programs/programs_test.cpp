@@ -14,6 +14,7 @@
 
 #include "ev3io/state_file.hpp"
 #include "ev3prog/console.hpp"
+#include "ev3prog/program.hpp"
 #include "ev3prog/script.hpp"
 #include "ev3prog/trace_file.hpp"
 #include "ev3io/cli.hpp"
@@ -444,6 +445,30 @@ TEST(TraceFile, LinesFlushedEvery200ms) {
   ASSERT_TRUE(ev3io::read_lines(path, lines, err));
   EXPECT_EQ(lines.size(), 2u);
   std::remove(path.c_str());
+}
+
+// A state write flushes the trace first: a program killed right after announcing an epoch leaves
+// the record of the change in its trace (the merged-run check needs it to know who was elected).
+TEST(Shell, StateWriteFlushesTheTraceFirst) {
+  const std::string trace = temp_path("shell_trace.ndjson"), state = temp_path("shell.state");
+  ev3prog::Shell sh("ev3-test", ev3io::FaultConfig{});
+  ASSERT_EQ(sh.trace_file.open(trace), "");
+  sh.trace_file.write("{\"action\":\"BecomeMaster\"}");
+  std::vector<std::string> lines;
+  std::string err;
+  ASSERT_TRUE(ev3io::read_lines(trace, lines, err));
+  EXPECT_TRUE(lines.empty());  // still in the buffer
+  ASSERT_TRUE(sh.save_state("the test's state", state, "epoch 4\n"));
+  ASSERT_TRUE(ev3io::read_lines(trace, lines, err));
+  EXPECT_EQ(lines, (std::vector<std::string>{"{\"action\":\"BecomeMaster\"}"}));
+  sh.trace_file.write("{\"action\":\"Vote\"}");
+  EXPECT_TRUE(sh.save_state("the test's state", "", "epoch 5\n"));  // no state file: the trace still flushed
+  lines.clear();
+  ASSERT_TRUE(ev3io::read_lines(trace, lines, err));
+  EXPECT_EQ(lines.size(), 2u);
+  sh.trace_file.close();
+  std::remove(trace.c_str());
+  std::remove(state.c_str());
 }
 
 }  // namespace
