@@ -118,7 +118,7 @@ RefreshOk(s, m) ==
 Refresh(a, m) ==
     /\ RefreshOk(Loc(a), m) /\ Linked(m.src, a)
     /\ silence' = [silence EXCEPT ![a] = 0]
-    /\ heard' = [heard EXCEPT ![a] = 0]
+    /\ heard' = IF leader[a] = m.src /\ following[a] = m.e THEN [heard EXCEPT ![a] = 0] ELSE heard
     /\ lastAction' = <<"Refresh", a, m>>
     /\ IF BUG = "ResumeOnHeartbeat" /\ life[a] = "PAUSED"
        THEN /\ life' = [life EXCEPT ![a] = "WORKING"]
@@ -138,7 +138,9 @@ Refresh(a, m) ==
 \* HandoverKeepsMaster sends HANDOVER but keeps the node a master of its epoch
 \* (the master core not stopped).  v's timer restarts on a LEADER it takes (not
 \* on an older one, answered EPOCH_STALE).  The PC has no timer and hands
-\* nothing over: a newer LEADER makes it stand again (Election).
+\* nothing over: a newer LEADER makes it stand again (Election).  The broken variant
+\* TimerOnStale restarts the timer on an older LEADER too (one the agent answers EPOCH_STALE):
+\* the late LEADER of a master it no longer follows keeps it working.
 Hands(v, s, m) == v # PC /\ s.life = "MASTER" /\ ~Stale(s, m)
 SysHandleHeartbeat(v, m) ==
     LET s == Loc(v) IN
@@ -152,8 +154,8 @@ SysHandleHeartbeat(v, m) ==
                THEN hnet \cup {[src |-> v, dst |-> m.src, e |-> m.e, mem |-> members[v]]}
                ELSE hnet
     /\ handed' = IF Hands(v, s, m) THEN handed \cup {[src |-> v, e |-> m.e]} ELSE handed
-    /\ silence' = IF v # PC /\ ~Stale(s, m) THEN [silence EXCEPT ![v] = 0] ELSE silence
-    /\ heard' = IF v # PC /\ ~Stale(s, m) THEN [heard EXCEPT ![v] = 0] ELSE heard
+    /\ silence' = IF v # PC /\ (~Stale(s, m) \/ BUG = "TimerOnStale") THEN [silence EXCEPT ![v] = 0] ELSE silence
+    /\ heard' = IF v # PC /\ leader'[v] = m.src /\ following'[v] = m.e THEN [heard EXCEPT ![v] = 0] ELSE heard
     /\ told' = IF v # PC THEN [told EXCEPT ![v] = Max2(@, m.e)] ELSE told
     /\ lastAction' = <<"HandleHeartbeat", v, m>>
     /\ UNCHANGED <<down, faults, lost, elected, applied, obeyed>>
