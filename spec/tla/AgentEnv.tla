@@ -15,14 +15,15 @@
 (*    master's (PeerSrcs: a peer's id, an unsynced agent's temporary id).  *)
 (*  - The agent crashes and restarts (Reboot): it comes back as at Init,   *)
 (*    with a new temporary id drawn (here the same TempId), nothing kept.  *)
-(*  - answered: history, the (sender, msgid) of the last Window datagrams  *)
-(*    the agent answered afresh (acted on, or refused), oldest first;      *)
-(*    kept by the environment, not read from the agent's window (a window  *)
-(*    that forgets too early, or is keyed wrongly, is invisible to         *)
-(*    ActedOnceInv, which reads the window itself: spec mutations A05,     *)
-(*    A10, docs/spec.md).  A reboot empties it (the agent's window is      *)
-(*    lost with it).  again: the last step answered afresh a datagram that *)
-(*    was among them.                                                      *)
+(*  - first: history, for every (sender, msgid) the agent answered afresh *)
+(*    (acted on, or refused) in this life, the answer it gave then (ACK,   *)
+(*    or NOT and its reason); kept by the environment, not read from the   *)
+(*    agent's window, and not bounded by it: a window that forgets too     *)
+(*    early, is keyed wrongly, or lets a copy delayed past Window newer    *)
+(*    commands through is invisible to ActedOnceInv, which reads the       *)
+(*    window itself (spec mutations A05, A10, docs/spec.md).  A reboot     *)
+(*    empties it (the agent's window is lost with it).  again: the last    *)
+(*    step answered afresh a datagram already in it.                       *)
 (*                                                                         *)
 (* Older epochs (a fenced master) are Election.tla's (StaleMasterFenced-   *)
 (* Inv): the one-agent model has one master.                               *)
@@ -33,9 +34,9 @@ CONSTANT PeerSrcs   \* sender ids that are not the master's
 
 ASSUME MasterId \notin PeerSrcs
 
-VARIABLES heard, gone, answered, again
+VARIABLES heard, gone, first, again
 
-envVars == <<ag, out, lastAction, heard, gone, answered, again>>
+envVars == <<ag, out, lastAction, heard, gone, first, again>>
 
 Cap == TPaused + 1
 
@@ -51,26 +52,31 @@ PeerMsgs ==
 \* A datagram of the master that reaches the agent (whatever the agent does with it).
 Genuine(m) == m.src = MasterId /\ L!AddressedTo(ag, m)
 
-EnvInit == Init /\ heard = 0 /\ gone = FALSE /\ answered = <<>> /\ again = FALSE
+EnvInit == Init /\ heard = 0 /\ gone = FALSE /\ first = {} /\ again = FALSE
 
 \* The handlers that answer a datagram afresh: act on it (or refuse it) and ACK (NOT) it.
 FreshAnswers == L!RecvNames \ {"RecvPong", "RecvDuplicate", "Ignore"}
+
+\* What the agent answered in a step that emitted o: each ACK or NOT, its sender field cleared (a
+\* MASTER's ACK carries the id it was given; the master reads the type, ref and reason).
+Replies(o) == {[o[j] EXCEPT !.src = 0] : j \in {k \in 1..Len(o) : o[k].type \in {"ACK", "NOT"}}}
+\* m's (sender, msgid) was answered afresh before, in this life.
+Known(m) == \E f \in first : f.src = m.src /\ f.msgid = m.msgid
 
 Deliver(m) ==
     /\ m.src = MasterId => ~gone
     /\ Receive(m)
     /\ heard' = IF Genuine(m) THEN 0 ELSE heard
-    /\ answered' = IF lastAction'.name \notin FreshAnswers THEN answered
-                   ELSE LET w == Append(answered, <<m.src, m.msgid>>)
-                        IN IF Len(w) > Window THEN Tail(w) ELSE w
-    /\ again' = (lastAction'.name \in FreshAnswers
-                 /\ \E i \in 1..Len(answered) : answered[i] = <<m.src, m.msgid>>)
+    /\ first' = IF lastAction'.name \in FreshAnswers /\ ~Known(m)
+                THEN first \cup {[src |-> m.src, msgid |-> m.msgid, ans |-> Replies(out')]}
+                ELSE first
+    /\ again' = (lastAction'.name \in FreshAnswers /\ Known(m))
     /\ UNCHANGED gone
 
 TickE == Tick /\ heard' = (IF heard < Cap THEN heard + 1 ELSE Cap) /\ again' = FALSE
-         /\ UNCHANGED <<gone, answered>>
-HeartbeatLostE == HeartbeatLost /\ again' = FALSE /\ UNCHANGED <<heard, gone, answered>>
-SyncTimeoutE == SyncTimeout /\ again' = FALSE /\ UNCHANGED <<heard, gone, answered>>
+         /\ UNCHANGED <<gone, first>>
+HeartbeatLostE == HeartbeatLost /\ again' = FALSE /\ UNCHANGED <<heard, gone, first>>
+SyncTimeoutE == SyncTimeout /\ again' = FALSE /\ UNCHANGED <<heard, gone, first>>
 
 Internal ==
     /\ \/ ActionOk \/ \E e \in L!Warnings : ActionInterrupted(e)
@@ -79,11 +85,11 @@ Internal ==
        \/ BatteryLow
        \/ \E e \in L!RobotEvents, p \in EventPorts : RobotEvent(e, p)
     /\ again' = FALSE
-    /\ UNCHANGED <<heard, gone, answered>>
+    /\ UNCHANGED <<heard, gone, first>>
 
 \* The master is gone for good.
 MasterGone == ~gone /\ gone' = TRUE /\ again' = FALSE
-              /\ UNCHANGED <<ag, out, lastAction, heard, answered>>
+              /\ UNCHANGED <<ag, out, lastAction, heard, first>>
 
 \* The agent crashes (power, firmware) and starts again from scratch.
 Reboot ==
@@ -91,7 +97,7 @@ Reboot ==
     /\ ag' = L!InitAgent(TempId)
     /\ out' = <<>>
     /\ lastAction' = [name |-> "Init", args |-> <<>>]
-    /\ answered' = <<>>
+    /\ first' = {}
     /\ again' = FALSE
     /\ UNCHANGED <<heard, gone>>
 
@@ -119,9 +125,18 @@ SyncedHeardInv ==
     /\ ag.state = "ACTIVE" => heard <= TLoss
     /\ ag.state = "PAUSED" => heard <= TPaused
 
-\* No datagram is answered afresh (acted on) again while it is among the last Window the
-\* agent answered afresh: a copy gets the stored answer (RecvDuplicate).
+\* No datagram is answered afresh (acted on) twice in a life: a copy gets the stored answer
+\* (RecvDuplicate) while the window remembers it, and is ignored as stale after, however many
+\* newer commands came between.
 AnsweredOnceInv == ~again
+
+\* A copy gets the answer the original got: whatever the agent answers to a datagram whose
+\* (sender, msgid) it answered afresh before in this life is that first answer (a copy of a
+\* refused command is refused again, not ACKed).
+StoredAnswerProp ==
+    [][lastAction'.name \in L!RecvNames =>
+         \A f \in first : f.src = lastAction'.args[1].src /\ f.msgid = lastAction'.args[1].msgid
+                          /\ Replies(out') # {} => Replies(out') = f.ans]_envVars
 
 \* Datagrams not from the master change nothing the agent does: no state change, nothing
 \* emitted.
@@ -136,6 +151,10 @@ MasterGoneLeavesWorking == (gone /\ ag.state = "WORKING") ~> ag.state # "WORKING
 TransitionsProp ==
     [][lastAction'.name = "Init" \/ L!TransitionOk(ag, ag', lastAction'.name)]_envVars
 
-\* The view: out and lastAction name the last step (for traces); no successor depends on them.
-EnvView == <<ag, heard, gone, answered, again>>
+\* The views: out and lastAction name the last step (for traces); no successor depends on them.
+\* EnvView (MCAgentEnv.cfg) also leaves out the history of first answers, which only
+\* AnsweredOnceInv and StoredAnswerProp read: they are checked with CopiesView
+\* (MCAgentEnvCopies.cfg), where two states that differ in it stay apart.
+EnvView == <<ag, heard, gone>>
+CopiesView == <<ag, heard, gone, first, again>>
 =============================================================================

@@ -257,10 +257,11 @@ RecvRestart(a, m) ==
     ELSE Refuse(a, m, "wrong state")
 
 \* A copy (or resend) of a command or MASTER already answered: the same
-\* answer again, nothing else.
+\* answer again, nothing else.  (BUG "AckCopies": a copy is ACKed whatever the
+\* original got, so the master takes a refused command for done.)
 RecvDuplicateOk(a, m) == FromMaster(a, m) /\ Answered(m) /\ Seen(a, m)
                          /\ BUG # "NoDedupe"
-RecvDuplicate(a, m) == [ag |-> a, out |-> <<Stored(a, m)>>]
+RecvDuplicate(a, m) == [ag |-> a, out |-> <<IF BUG = "AckCopies" THEN Ack(a, m) ELSE Stored(a, m)>>]
 
 \* Which receive handler takes m (at most one does).
 Handler(a, m) ==

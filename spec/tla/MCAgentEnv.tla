@@ -9,4 +9,10 @@ MCAssignIds  == {2}
 MCMsgIds     == 1..4
 MCPeerSrcs   == {9, 50001}
 MCEventPorts == {"in1"}
+\* MCAgentEnvCopies.cfg: the master's datagrams only (no peers, no device events) and three
+\* msgids (MASTER, BEHAVIOUR, START reach WORKING; a command in the wrong state is refused), with
+\* the environment's history of first answers in the view.
+CopiesPeerSrcs   == {}
+CopiesEventPorts == {}
+CopiesMsgIds     == 1..3
 =============================================================================
