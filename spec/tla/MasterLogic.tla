@@ -25,7 +25,7 @@ CONSTANTS
                   \*   endpoint, PONG carries msgid 0 and draws none (Fleet.tla,
                   \*   keeps the state space finite; docs/spec.md)
     BUG           \* "none"; or one broken rule (NoPanicResync, NoReconcile,
-                  \*   StaleReconcile, NoBumpNextId, PendingResend, RetryRefused, ReuseIds,
+                  \*   StaleReconcile, AnswerKeepsHi, NoBumpNextId, PendingResend, RetryRefused, ReuseIds,
                   \*   PongUnsynced, HeardByTemp)
 
 ASSUME TDrop \in Nat \ {0} /\ MaxResends \in Nat /\ ExactMsgids \in BOOLEAN
@@ -193,12 +193,13 @@ PermanentRefusal(r) == r \notin TransientRefusals
 \* PING) until the operator commands again.  A transient refusal leaves desired
 \* as it is (giving up there loses liveness: TLC found an agent left ACTIVE
 \* for good after a "no behaviour" during a resync).  Anything else (stale
-\* msgid, unknown sender) only raises hi.
+\* msgid, unknown sender) only raises hi.  (BUG "AnswerKeepsHi": an answer does
+\* not raise hi, so a PING sent before it and delivered after it reconciles.)
 MasterAnswer(ms, m) ==
     LET k == ById(ms, m.src) IN
     IF k = {} THEN [ms |-> ms, out |-> {}]
     ELSE LET x == Entry(k)
-             y0 == [x EXCEPT !.hi = Max(@, m.msgid)]
+             y0 == [x EXCEPT !.hi = IF BUG = "AnswerKeepsHi" THEN @ ELSE Max(@, m.msgid)]
              y1 == [y0 EXCEPT !.quiet = 0]
          IN IF ~x.pending \/ m.ref # x.mid THEN [ms |-> Replace(ms, x, y0), out |-> {}]
             ELSE IF ~x.synced /\ m.type = "NOT" THEN [ms |-> Replace(ms, x, y1), out |-> {}]
