@@ -340,6 +340,18 @@ UniqueIdsInv ==
                          => ag[a].id # ag[b].id
 \* The master's registry never holds one id twice.
 RegistryInv == \A x, y \in ms.reg : x.id = y.id => x = y
+\* A correct run draws a bounded number of msgids: the protocol converges, so what makes the
+\* master draw again is paid for by the budgets.  Per agent endpoint: the first sync, one msgid
+\* per operator command, and per fault (a loss, a duplicate, a crash, a late datagram, an agent's
+\* crash, a false suspicion) at most Redraws: the resync's MASTER and the commands reconcile
+\* restores the agent with (BEHAVIOUR, START).  With 2, fleet_suspect exceeds it.  A run that
+\* refuses and resends a command, or resyncs an agent, for ever exceeds it: a violation with a
+\* trace (within a minute on fleet_late, spec mutation M14), not a state space that never ends.
+\* Checked by the make-spec fleet models (the spec-full ones rely on the run limit).
+Redraws == 3
+Faults == MaxLoss + MaxDup + MaxCrashes + MaxLate + MaxAgentCrashes + MaxSuspect
+CounterBoundInv ==
+    \A k \in DOMAIN ms.msgid : ms.msgid[k] <= 1 + Redraws * (1 + Faults) + MaxOps
 \* (A crash -- any state to OFF, the acrash budget spent -- and a restart --
 \* OFF to IDLE -- are not the agent's transitions.)
 AllowedTransitionsProp ==
@@ -360,6 +372,11 @@ CommandsTakeEffect == \A a \in Agents : <>[](ag[a].state = "WORKING")
 CrashLeadsToPanic == \A a \in Agents : lost[a] ~> ag[a].state = "PANIC"
 \* An agent in PANIC resyncs (once the master is back).
 Resync == \A a \in Agents : ag[a].state = "PANIC" ~> ag[a].state \in L!Synced
+\* Resync and restore: while the master wants an agent WORKING (the entry of its endpoint has
+\* desired WORKING), the agent gets there -- through a false suspicion, a resync, reconcile's
+\* BEHAVIOUR and START -- unless the master stops wanting it (a new command, a refusal, a drop).
+Wanted(a) == \E x \in ms.reg : x.ep = a /\ x.desired = "WORKING"
+Restored == \A a \in Agents : Wanted(a) ~> (ag[a].state = "WORKING" \/ ~Wanted(a))
 \* The master and every agent agree in the end: the agent is synced and the
 \* master holds it, synced, under the same id, for good (an agent synced to
 \* nobody -- PONGed by a master whose MASTER it ignores -- fails it).
