@@ -76,9 +76,11 @@ SysInit ==
     /\ hnet = {}
     /\ handed = {}
 
-\* Election's variables but lastAction (the name of the step, written by every action).
-evars == <<life, epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
+\* Election's variables but lastAction (the name of the step, written by every action), and
+\* those but life.
+restvars == <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
            down, faults, lost, elected, applied, members, mepoch, floor, want, changes>>
+evars == <<life, restvars>>
 
 -----------------------------------------------------------------------------
 (* Time.                                                                   *)
@@ -122,9 +124,7 @@ Refresh(a, m) ==
     /\ lastAction' = <<"Refresh", a, m>>
     /\ IF BUG = "ResumeOnHeartbeat" /\ life[a] = "PAUSED"
        THEN /\ life' = [life EXCEPT ![a] = "WORKING"]
-            /\ UNCHANGED <<epoch, votedFor, votes, leader, following, via, relays, offered, prevotes, net,
-                           down, faults, lost, elected, applied, members, mepoch, floor, want, changes,
-                           told, obeyed, hnet, handed>>
+            /\ UNCHANGED <<restvars, told, obeyed, hnet, handed>>
        ELSE UNCHANGED <<evars, told, obeyed, hnet, handed>>
 
 -----------------------------------------------------------------------------
