@@ -25,7 +25,7 @@ CONSTANTS
                   \*   endpoint, PONG carries msgid 0 and draws none (Fleet.tla,
                   \*   keeps the state space finite; docs/spec.md)
     BUG           \* "none"; or one broken rule (NoPanicResync, NoReconcile,
-                  \*   StaleReconcile, AnswerKeepsHi, NoBumpNextId, PendingResend, RetryRefused, ReuseIds,
+                  \*   StaleReconcile, AnswerKeepsHi, RestoreWithoutStart, NoBumpNextId, PendingResend, RetryRefused, ReuseIds,
                   \*   PongUnsynced, HeardByTemp)
 
 ASSUME TDrop \in Nat \ {0} /\ MaxResends \in Nat /\ ExactMsgids \in BOOLEAN
@@ -119,11 +119,14 @@ DesiredAfter(c, d) ==
 \* An agent paused by master loss gets RESUME; one that resynced (ACTIVE,
 \* behaviour unloaded) gets its behaviour and START again.  ACTIVE cannot be
 \* brought to PAUSED without running, so that pair is left alone; nor is an
-\* UNKNOWN desired state (after a refusal).
+\* UNKNOWN desired state (after a refusal).  (BUG "RestoreWithoutStart": the
+\* behaviour without START; the agent stays ACTIVE and every fresh PING sends
+\* the behaviour again: a livelock, which Fleet's CounterBoundInv reports.)
 Restore(st, d, beh) ==
     CASE d = "WORKING" /\ st = "PAUSED"  -> <<Cmd0("RESUME")>>
       [] d = "WORKING" /\ st = "ACTIVE" /\ beh # NoBehaviour
-                                         -> <<Cmd("BEHAVIOUR", beh), Cmd0("START")>>
+                                         -> IF BUG = "RestoreWithoutStart" THEN <<Cmd("BEHAVIOUR", beh)>>
+                                            ELSE <<Cmd("BEHAVIOUR", beh), Cmd0("START")>>
       [] d = "PAUSED" /\ st = "WORKING"  -> <<Cmd0("PAUSE")>>
       [] d = "ACTIVE" /\ st \in {"WORKING", "PAUSED"} -> <<Cmd0("STOP")>>
       [] OTHER                           -> <<>>
