@@ -375,6 +375,8 @@ Resync == \A a \in Agents : ag[a].state = "PANIC" ~> ag[a].state \in L!Synced
 \* Resync and restore: while the master wants an agent WORKING (the entry of its endpoint has
 \* desired WORKING), the agent gets there -- through a false suspicion, a resync, reconcile's
 \* BEHAVIOUR and START -- unless the master stops wanting it (a new command, a refusal, a drop).
+\* Checked on fleet_suspect: CommandsTakeEffect implies it, and without operator commands it is
+\* vacuous (no entry wants WORKING).
 Wanted(a) == \E x \in ms.reg : x.ep = a /\ x.desired = "WORKING"
 Restored == \A a \in Agents : Wanted(a) ~> (ag[a].state = "WORKING" \/ ~Wanted(a))
 \* The master and every agent agree in the end: the agent is synced and the
