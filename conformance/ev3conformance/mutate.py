@@ -27,7 +27,8 @@ that crashes or exits), survives when every check passes. A check that ends beca
 finish (the driver killed by its CPU limit, prlimit; a hung driver or transcript program) is no
 verdict: the next check runs, and a mutant no check catches that timed out is reported as "timeout",
 apart from the caught and the surviving, and counted against the score (not caught). One whose site
-no longer holds its code exactly once is "stale" and not counted; one that leaves the binaries byte-identical is "equivalent" and not counted.
+no longer holds its code exactly once is "stale" and not counted; one that leaves the binaries
+byte-identical is "equivalent" and not counted.
 """
 
 from __future__ import annotations

@@ -61,8 +61,8 @@ EnvSpec == EnvInit /\ [][EnvNext]_envVars
 
 \* A PING makes the master start a command (reconcile: a msgid drawn in this step) only if it
 \* is fresh by the environment's record: its msgid above every msgid recorded from its sender
-\* before it.  A PING sent before the agent's last answer and delivered after it reports a state
-\* the agent has left.
+\* before it.  A PING the agent sent ahead of its last answer, delivered later than that answer,
+\* reports a state the agent has left.
 PingFreshProp ==
     [][(lastAction'.name = "MasterPing"
         /\ \E o \in out' : o.m.type \in Commands /\ o.m.msgid >= ms.msgid[0])
