@@ -1,5 +1,6 @@
 # libev3proto: the front door. Every target installs what is missing first (`make deps`).
-#   make demo      a master and three agents on this machine: sync, behaviour, master lost, election (~30 s)
+#   make demo      a master and three agents on this machine: sync, behaviour, master lost, election (~30 s);
+#                  SIGNED=1: in signed mode
 #   make test      every test: C++ units, Python, black-box UDP, TLA+ small models, fuzz smoke, armel,
 #                  the installed library and examples/robot (test-example)
 #   make check     the edit loop (under 5 min): build, C++ units and transcripts, the Python tests
@@ -113,8 +114,9 @@ test-example: build
 # it validates the three agents' traces with TLC
 # (AgentLogic composed with Election.tla's per-agent rules), the master's, and the whole run (every
 # trace merged by send/receive: ev3-conformance merged) and fails if one does not conform.
+# SIGNED=1: every node in signed mode with a fresh key (docs/protocol.md "Signed datagrams").
 demo: build
-	@$(PY) tools/demo.py --bin $(BIN)
+	@$(PY) tools/demo.py --bin $(BIN) $(if $(filter 1,$(SIGNED)),--signed)
 
 # Spec -> implementation: MCAgent's state graph replayed against `ev3-agent --driver` (every edge,
 # except that of the edges where the agent ignores a datagram or answers a duplicate, 78 % of them,

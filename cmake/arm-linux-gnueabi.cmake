@@ -9,8 +9,12 @@ set(CMAKE_CXX_COMPILER arm-linux-gnueabi-g++)
 # agent's --master-script runs).
 set(CMAKE_C_FLAGS_INIT "-march=armv5te -mtune=arm926ej-s -mfloat-abi=soft -ffunction-sections -fdata-sections")
 set(CMAKE_CXX_FLAGS_INIT "-march=armv5te -mtune=arm926ej-s -mfloat-abi=soft -Wno-psabi -ffunction-sections -fdata-sections")
-set(CMAKE_EXE_LINKER_FLAGS_INIT "-static -Wl,--gc-sections")
+# --discard-all: no local (file-static) symbols in the symbol table (120 KB of names, most of them
+# glibc's and libsodium's); the global and template ones stay, for nm and for backtraces.
+set(CMAKE_EXE_LINKER_FLAGS_INIT "-static -Wl,--gc-sections -Wl,--discard-all")
 set(CMAKE_FIND_ROOT_PATH /usr/arm-linux-gnueabi)
+# Debian's multiarch name: where the armel packages of libraries (libsodium-dev:armel) install.
+set(EV3_MULTIARCH arm-linux-gnueabi)
 set(CMAKE_FIND_ROOT_PATH_MODE_PROGRAM NEVER)
 set(CMAKE_FIND_ROOT_PATH_MODE_LIBRARY ONLY)
 set(CMAKE_FIND_ROOT_PATH_MODE_INCLUDE ONLY)

@@ -125,6 +125,8 @@ std::vector<OptionSpec> common_specs() {
       {"log-level", "0..4", "0 none, 1 error, 2 info (default), 3 debug, 4 verbose", false},
       {"log-file", "PATH", "log to PATH (appending) instead of stderr", false},
       {"trace", "FILE", "NDJSON trace of the spec actions taken", false},
+      {"key-file", "FILE", "signed mode: sign every datagram with the key in FILE (64 hex digits, mode 0600) "
+                           "and take only datagrams signed with it", false},
       {"fault-loss", "PCT", "tests: drop PCT % of outgoing copies", false},
       {"fault-dup", "PCT", "tests: duplicate PCT % of outgoing copies", false},
       {"fault-reorder", "PCT", "tests: hold back PCT % of copies so later ones overtake", false},
@@ -174,6 +176,8 @@ std::string read_common(const ParsedArgs& a, CommonOptions& o) {
   if (a.has("log-file") && o.log_file.empty()) return "bad value for --log-file: empty path";
   o.trace_file = a.get("trace");
   if (a.has("trace") && o.trace_file.empty()) return "bad value for --trace: empty path";
+  o.key_file = a.get("key-file");
+  if (a.has("key-file") && o.key_file.empty()) return "bad value for --key-file: empty path";
   const char* pct[] = {"fault-loss", "fault-dup", "fault-reorder"};
   double* dst[] = {&o.faults.loss, &o.faults.dup, &o.faults.reorder};
   for (int i = 0; i < 3; ++i) {

@@ -114,8 +114,14 @@ void UdpTransport::send_now(const Out& o) {
   sa.sin_family = AF_INET;
   sa.sin_addr.s_addr = o.to.addr;
   sa.sin_port = htons(o.to.port);
-  const ssize_t n = sendto(fd_, o.bytes.data(), o.bytes.size(), 0, reinterpret_cast<const sockaddr*>(&sa),
-                           sizeof sa);
+  std::string_view out = o.bytes;
+  if (signer_ != nullptr) {
+    sealed_.assign(o.bytes);
+    sealed_.resize(o.bytes.size() + ev3proto::auth::kTrailer);
+    signer_->seal(o.bytes, sealed_.data() + o.bytes.size());
+    out = sealed_;
+  }
+  const ssize_t n = sendto(fd_, out.data(), out.size(), 0, reinterpret_cast<const sockaddr*>(&sa), sizeof sa);
   if (n < 0)
     ++stats_.send_errors;
   else

@@ -4,9 +4,53 @@
 #include <cassert>
 #include <cerrno>
 
+#include <ctime>
+
+#include "ev3io/key_file.hpp"
 #include "ev3io/state_file.hpp"
 
 namespace ev3prog {
+
+template <std::size_t Senders>
+struct Shell::OpenerOf final : Shell::Opener {
+  explicit OpenerOf(const ev3proto::auth::Key& k) : v(k) {}
+  ev3proto::auth::Verdict open(std::string_view bytes, std::string_view& datagram) override {
+    return v.open(bytes, datagram);
+  }
+  ev3proto::auth::Verifier<Senders> v;
+};
+
+int Shell::open_signing(const std::string& path) {
+  key_ = std::make_unique<ev3proto::auth::Key>();
+  const std::string err = ev3io::load_key_file(path, *key_);
+  if (!err.empty()) {
+    std::fprintf(stderr, "%s: bad value for --key-file: %s\n", program_, err.c_str());
+    return 2;
+  }
+  timespec ts{};
+  clock_gettime(CLOCK_REALTIME, &ts);
+  const auto now_ms = static_cast<std::uint64_t>(ts.tv_sec) * 1000u + static_cast<std::uint64_t>(ts.tv_nsec) / 1000000u;
+  signer_ = std::make_unique<ev3proto::auth::Signer>(*key_, ev3proto::auth::choose_boot(now_ms));
+  if (senders_ <= 1024)
+    opener_ = std::make_unique<OpenerOf<1024>>(*key_);
+  else
+    opener_ = std::make_unique<OpenerOf<65536>>(*key_);
+  net.sign_with(signer_.get());
+  log.log(ev3io::kInfo, "signed mode: key id %.*s, boot %llu", static_cast<int>(key_->id().size()),
+          key_->id().data(), static_cast<unsigned long long>(signer_->boot()));
+  return 0;
+}
+
+bool Shell::authentic() {
+  std::string_view d;
+  const ev3proto::auth::Verdict v = opener_->open(bytes_, d);
+  if (v == ev3proto::auth::Verdict::ok) {
+    bytes_.resize(d.size());
+    return true;
+  }
+  drop(std::string("auth:") + ev3proto::auth::verdict_name(v), bytes_, &from_);
+  return false;
+}
 
 int Shell::open(const char* log_name, const ev3io::CommonOptions& o) {
   log.set_name(log_name);
@@ -22,6 +66,10 @@ int Shell::open(const char* log_name, const ev3io::CommonOptions& o) {
       std::fprintf(stderr, "%s: bad value for --trace: %s\n", program_, err.c_str());
       return 2;
     }
+  }
+  if (!o.key_file.empty()) {
+    const int rc = open_signing(o.key_file);
+    if (rc != 0) return rc;
   }
   std::string err;
   if (!net.open(o.bind_addr, o.port, err)) {

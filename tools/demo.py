@@ -24,6 +24,9 @@ Phases (each a function):
   6. handover   the PC master comes back with its --state-file: it stands in a newer epoch (score 0),
                 the agent-master steps down (on the PC's ELECT; it hands the fleet over, HANDOVER,
                 only when the PC's LEADER reaches it first: tests/python/blackbox/test_election.py)
+With --signed (`make demo SIGNED=1`) every node runs in signed mode (docs/protocol.md "Signed
+datagrams") with a fresh key in build/demo/fleet.key, and the summary gives their drops of unsigned,
+forged or replayed datagrams (none in a run without an attacker).
 Then a summary: the timeline with times, the picture of the robots' paths (ev3-sim's --snapshot,
 written when it stops: build/demo/paths.svg), and the NDJSON traces validated by TLC against the spec: the
 three agents' (`ev3-conformance validate`: AgentLogic composed with Election.tla's per-agent rules,
@@ -43,6 +46,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import re
 import shutil
 import signal
 import socket
@@ -89,8 +93,9 @@ class DemoFailed(Exception):
 
 
 class Demo:
-    def __init__(self, bindir: Path, workdir: Path) -> None:
+    def __init__(self, bindir: Path, workdir: Path, signed: bool = False) -> None:
         self.bin = bindir
+        self.signed = signed
         self.dir = workdir
         self.t0 = time.monotonic()
         self.timeline: list[tuple[float, str]] = []
@@ -186,6 +191,14 @@ class Demo:
                 f.unlink()
         ports = free_ports(4)
         self.mport, self.aports = ports[0], ports[1:]
+        self.key: list[str] = []
+        if self.signed:
+            kf = self.dir / "fleet.key"
+            fd = os.open(kf, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+            os.write(fd, os.urandom(32).hex().encode() + b"\n")
+            os.close(fd)
+            self.key = ["--key-file", str(kf)]
+            self.event(f"signed mode: a fresh key in {kf} (mode 0600), given to every node with --key-file")
         self.start_sim()
         self.start_master("master.out")
         self.event(f"started ev3-master --election --state-file on 127.0.0.1:{self.mport} (pid {self.master.pid})")
@@ -200,7 +213,8 @@ class Demo:
                  "--election", "--score", str(SCORES[i]), "--state-dir", str(self.dir / f"state{i + 1}"),
                  "--master-script", str(self.dir / "master-script.txt"),
                  "--sysfs-root", str(self.dir / f"robot{i + 1}"),
-                 "--trace", str(self.dir / f"agent{i + 1}.ndjson"), "--log-file", str(self.dir / f"agent{i + 1}.log")],
+                 "--trace", str(self.dir / f"agent{i + 1}.ndjson"), "--log-file", str(self.dir / f"agent{i + 1}.log"),
+                 *self.key],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             self.agents.append(a)
             hears = ", ".join(f"#{j + 1}" for j in HEARS[i])
@@ -241,7 +255,7 @@ class Demo:
              "--agent-timeout-ms", "5000", "--status-json", str(self.dir / "status.json"),
              "--election", "--state-file", str(self.dir / "master.state"),
              "--trace", str(self.dir / out.replace(".out", ".ndjson")),
-             "--log-file", str(self.dir / out.replace(".out", ".log"))],
+             "--log-file", str(self.dir / out.replace(".out", ".log")), *self.key],
             stdin=subprocess.PIPE, stdout=open(self.dir / out, "wb"), stderr=subprocess.STDOUT)
 
     def cmd(self, line: str, expect: str = "acknowledged") -> None:
@@ -557,6 +571,15 @@ class Demo:
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
         svg = self.dir / "paths.svg"
         print(f"  the robots' paths (ev3-sim --snapshot): {svg}" if svg.exists() else "  no snapshot (ev3-sim did not stop cleanly)")
+        if self.signed:
+            said = []
+            for log in sorted(self.dir.glob("*.log")):
+                stops = re.findall(r"stopping \(.*?\); drops: (.*)", log.read_text(errors="replace"))
+                if not stops:
+                    continue  # a run killed with SIGKILL says nothing
+                auth = [x for x in stops[-1].split() if x.startswith("auth:")]
+                said.append(f"{log.stem} {' '.join(auth) or 'none'}")
+            print(f"  signed mode: datagrams refused (unsigned, wrong key, bad MAC, replay): {'; '.join(said)}")
 
 
 def master_consts(state: dict[str, str]) -> dict:
@@ -633,12 +656,13 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", type=Path, default=Path(__file__).resolve().parents[1] / "build" / "bin")
     ap.add_argument("--dir", type=Path, default=Path(__file__).resolve().parents[1] / "build" / "demo")
+    ap.add_argument("--signed", action="store_true", help="every node in signed mode, with a fresh key")
     args = ap.parse_args()
     for exe in ("ev3-agent", "ev3-master", "ev3-sim"):
         if not (args.bin / exe).is_file():
             print(f"demo: {args.bin / exe} is missing (run make build)", file=sys.stderr)
             return 1
-    d = Demo(args.bin, args.dir)
+    d = Demo(args.bin, args.dir, signed=args.signed)
     ok = True
     try:
         d.start()

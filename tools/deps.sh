@@ -25,6 +25,7 @@ apt_pkgs=(
   "libfuse3-dev:/usr/include/fuse3/fuse_lowlevel.h"
   "pkgconf:/usr/bin/pkg-config"
   "tao-pegtl-dev:/usr/include/tao/pegtl.hpp"
+  "libsodium-dev:/usr/include/sodium.h"
 )
 missing=()
 for entry in "${apt_pkgs[@]}"; do
@@ -44,6 +45,23 @@ if [ ${#missing[@]} -gt 0 ]; then
     pkg=${entry%%:*}; file=${entry#*:}
     [ -e "$file" ] || { echo "deps: error: $pkg installed but $file is missing" >&2; exit 1; }
   done
+fi
+
+# libsodium for the EV3 build (static, armel): a package of a foreign architecture, so dpkg must
+# know armel first.
+arm_sodium=/usr/lib/arm-linux-gnueabi/libsodium.a
+if [ ! -e "$arm_sodium" ]; then
+  echo "deps: installing libsodium-dev:armel (the EV3 build's MAC library)"
+  if [ "$(id -u)" -ne 0 ]; then
+    echo "deps: error: need root to install libsodium-dev:armel (run 'make deps' as root)" >&2; exit 1
+  fi
+  export DEBIAN_FRONTEND=noninteractive
+  dpkg --print-foreign-architectures | grep -qx armel || dpkg --add-architecture armel \
+    || { echo "deps: error: dpkg --add-architecture armel failed" >&2; exit 1; }
+  apt-get update -qq || { echo "deps: error: apt-get update failed" >&2; exit 1; }
+  apt-get install -y -qq --no-install-recommends libsodium-dev:armel >/dev/null \
+    || { echo "deps: error: apt-get could not install: libsodium-dev:armel" >&2; exit 1; }
+  [ -e "$arm_sodium" ] || { echo "deps: error: libsodium-dev:armel installed but $arm_sodium is missing" >&2; exit 1; }
 fi
 
 # --- TLC (TLA+ tools), pinned by Maven coordinates and sha256 ---------------------------------

@@ -2,7 +2,7 @@
 /// @brief Command-line parsing shared by ev3-agent and ev3-master: `--flag VALUE`, `--flag=VALUE`
 ///        and the thesis' form `key=value` (`ev3-agent port=12233 model=A loglevel=2`), typed value
 ///        checks, usage text, and the flags both programs take (port, bind, broadcast, logging,
-///        trace, fault injection).
+///        trace, fault injection, signed mode's key file).
 #pragma once
 
 #include <cstdint>
@@ -61,6 +61,7 @@ struct CommonOptions {
   int log_level = 2;
   std::string log_file;
   std::string trace_file;
+  std::string key_file;  ///< Signed mode's key file; "" = unsigned.
   FaultConfig faults;
 };
 

@@ -2,7 +2,8 @@
 /// @brief UDP transport of the programs: one non-blocking IPv4 socket with SO_BROADCAST; every
 ///        datagram goes out 3 times a few ms apart (copies share the msgid: they are the same
 ///        bytes), scheduled as deadlines of the event loop, never by sleeping. Optional seeded
-///        fault injection (fault.hpp) applies to every copy.
+///        fault injection (fault.hpp) applies to every copy. In signed mode each copy is signed as
+///        it goes out (each its own counter: a receiver takes each copy once).
 #pragma once
 
 #include <cstddef>
@@ -12,6 +13,7 @@
 #include <string_view>
 #include <vector>
 
+#include <ev3proto/auth.hpp>
 #include <ev3proto/core.hpp>
 
 #include "ev3io/fault.hpp"
@@ -78,6 +80,9 @@ class UdpTransport {
   void flush_all();
   /// When the next copy is due (kNever when none).
   Millis next_send() const noexcept;
+  /// Signed mode: every copy sent from now on is signed by @p s (its own counter each), kept by the
+  /// caller; nullptr: unsigned.
+  void sign_with(ev3proto::auth::Signer* s) noexcept { signer_ = s; }
   /// Takes one received datagram; false when none is waiting.
   bool receive(std::string& out, Endpoint& from);
 
@@ -98,6 +103,8 @@ class UdpTransport {
   std::vector<Endpoint> by_handle_;
   std::vector<Millis> times_;
   std::vector<char> rxbuf_ = std::vector<char>(65536);
+  ev3proto::auth::Signer* signer_ = nullptr;
+  std::string sealed_;
   UdpStats stats_;
 };
 

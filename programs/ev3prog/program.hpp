@@ -12,6 +12,7 @@
 #include <cstdio>
 #include <cstring>
 #include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -77,12 +78,16 @@ class Shell {
   static constexpr std::size_t kBatch = 64;
 
   /// The shell of program @p program ("ev3-agent": the prefix of its messages on stderr), its socket
-  /// injecting @p faults.
-  Shell(const char* program, const ev3io::FaultConfig& faults) : net(faults), program_(program) {}
+  /// injecting @p faults; in signed mode it tells apart up to @p senders sender ids (a master any
+  /// id: 65536; an agent hears its masters and peers).
+  Shell(const char* program, const ev3io::FaultConfig& faults, std::size_t senders = 65536)
+      : net(faults), program_(program), senders_(senders) {}
 
   /// Opens the log (named @p log_name, at --log-level, into --log-file or stderr) and the --trace
-  /// file, then binds the socket. 0 when all are open; otherwise the exit status after saying on
-  /// stderr what failed: 2 for an option's bad value, 1 when the socket cannot be bound.
+  /// file, reads --key-file (signed mode: from then on every copy sent is signed and only datagrams
+  /// signed with that key reach the program; the others are counted as drops "auth:<reason>"),
+  /// then binds the socket. 0 when all are open; otherwise the exit status after saying on stderr
+  /// what failed: 2 for an option's bad value, 1 when the socket cannot be bound.
   int open(const char* log_name, const ev3io::CommonOptions& o);
 
   /// Loads the console script @p path (given with @p flag, "--script"); nothing when @p path is
@@ -109,6 +114,7 @@ class Shell {
   bool receive(On&& on) {
     for (std::size_t n = 0; n < kBatch; ++n) {
       if (!net.receive(bytes_, from_)) return false;
+      if (opener_ != nullptr && !authentic()) continue;
       on(bytes_, from_, ev3io::monotonic_ms());
     }
     return true;
@@ -144,9 +150,25 @@ class Shell {
   bool state_failed = false;  ///< A state write failed: the program sends nothing more and exits.
 
  private:
+  /// The check of received datagrams, of a capacity chosen at start.
+  struct Opener {
+    virtual ~Opener() = default;
+    virtual ev3proto::auth::Verdict open(std::string_view bytes, std::string_view& datagram) = 0;
+  };
+  template <std::size_t Senders>
+  struct OpenerOf;
+  /// Signed mode: checks the datagram just received; true, with its trailer taken off, when it is
+  /// signed with our key and new; otherwise counts the drop ("auth:replay") and false.
+  bool authentic();
+  int open_signing(const std::string& path);
+
   const char* program_;
+  std::size_t senders_;
   std::string bytes_;
   ev3io::Endpoint from_;
+  std::unique_ptr<ev3proto::auth::Key> key_;
+  std::unique_ptr<ev3proto::auth::Signer> signer_;
+  std::unique_ptr<Opener> opener_;
 };
 
 /// The drop counter of a datagram that does not decode, for the codec's reason @p r:

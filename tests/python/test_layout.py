@@ -120,7 +120,7 @@ LIB = Path("libev3proto/include/ev3proto")
 # of a layer by their paths under libev3proto/include/ev3proto/ (a folder: every header in it).
 LIBRARY_LAYERS = [
     ("vocabulary", ["timers.hpp", "messages.hpp", "msgids.hpp", "json.hpp", "decimal.hpp", "ring.hpp", "dedupe.hpp",
-                    "deadline_list.hpp", "wire.hpp", "core.hpp"]),
+                    "deadline_list.hpp", "wire.hpp", "auth.hpp", "core.hpp"]),
     ("robot", ["robot/"]),
     ("behaviour", ["behaviour/"]),
     ("cores", ["election/", "durable.hpp", "agent_types.hpp", "agent_outbox.hpp", "agent.hpp", "master_registry.hpp",

@@ -23,6 +23,7 @@ import threading
 import time
 from pathlib import Path
 
+from ev3conformance.signing import unseal
 from ev3conformance.wire import DecodeError, Message, decode, encode
 
 T = dict(AGENT=1, MASTER=2, ACK=3, NOT=4, PING=5, PONG=6, BEHAVIOUR=7, START=8, STOP=9, PAUSE=10,
@@ -58,6 +59,14 @@ def wait_until(pred, timeout: float, what: str, interval: float = 0.01):
         if time.monotonic() > end:
             raise AssertionError(f"timed out after {timeout:g} s waiting for {what}")
         time.sleep(interval)
+
+
+def unsigned(data: bytes) -> bytes:
+    """@p data without its signature trailer, when it has one (docs/protocol.md "Signed datagrams")."""
+    try:
+        return unseal(data)[0]
+    except ValueError:
+        return data
 
 
 def show(m: Message) -> str:
@@ -252,7 +261,9 @@ class Links:
     """Program X's links to @p n peers through the test, on loopback: peer k sends to X at
     to_x(k's port) and X sends to k at to_peer(k's port); each datagram is passed on unchanged from
     the link's other face, so either end answers through the link. While `drop` names message types
-    (wire names), datagrams of those types on their way to X are lost, counted by type in `dropped`.
+    (wire names), datagrams of those types on their way to X are lost, counted by type in `dropped`
+    and kept in `withheld` (signed ones too: their type is read under the trailer).
+    Every datagram passed on is kept in `passed` (towards X?, bytes): what a man in the middle captures.
     The faces are bound at once (before the programs' ports are picked); connect() starts the links."""
 
     def __init__(self, n: int) -> None:
@@ -264,6 +275,8 @@ class Links:
             self.faces.append(pair)
         self.drop: set[str] = set()
         self.dropped: dict[str, int] = {}
+        self.passed: list[tuple[bool, bytes]] = []
+        self.withheld: list[bytes] = []
         self._stop = False
         self._thread: threading.Thread | None = None
 
@@ -301,15 +314,17 @@ class Links:
                     continue
                 if towards_x:
                     try:
-                        t = decode(data).type_name or "?"
+                        t = decode(unsigned(data)).type_name or "?"
                     except DecodeError:
                         t = "?"
                     if t in self.drop:
                         self.dropped[t] = self.dropped.get(t, 0) + 1
+                        self.withheld.append(data)
                         continue
                     out, to = self.faces[k][1], self.x
                 else:
                     out, to = self.faces[k][0], self.peers[k]
+                self.passed.append((towards_x, data))
                 try:
                     out.sendto(data, ("127.0.0.1", to))
                 except OSError:
