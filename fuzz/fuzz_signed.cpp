@@ -12,26 +12,14 @@
 #include <string_view>
 
 #include "ev3proto/auth.hpp"
+#include "fuzz_input.hpp"
 
 namespace auth = ev3proto::auth;
 
 namespace {
 
-[[noreturn]] void violation() { __builtin_trap(); }
-
-struct Reader {
-  const std::uint8_t* p;
-  std::size_t n;
-  std::uint8_t byte() {
-    if (n == 0) return 0;
-    --n;
-    return *p++;
-  }
-  std::uint16_t u16() {
-    const std::uint8_t lo = byte();
-    return static_cast<std::uint16_t>(lo | (byte() << 8));
-  }
-};
+using fuzzin::Reader;
+using fuzzin::violation;
 
 struct SenderModel {
   std::uint64_t boot = 0;

@@ -1,0 +1,81 @@
+// libFuzzer target: the master core (ev3proto/master.hpp), with or without the election, fed any
+// sequence of inputs the input spells: datagrams from agents and strangers (mostly well-formed, from
+// the protocol's words; some raw bytes), the operator's commands (to one agent, to all, to ids it
+// does not know) and time passing. After every step the C++ forms of Master.tla's invariants must
+// hold and every datagram the core sends must decode canonically; anything else traps.
+// Also linked with replay_main.cpp to run the committed corpus under gcc and armel.
+#include <cstddef>
+#include <cstdint>
+#include <map>
+#include <string>
+
+#include "ev3proto/master.hpp"
+#include "fuzz_input.hpp"
+
+namespace {
+
+using namespace ev3proto;
+using fuzzin::violation;
+
+constexpr std::uint16_t kIds[] = {0, 1, 2, 3, 4, 50001, 50002, 50003};
+constexpr MsgType kCommands[] = {MsgType::BEHAVIOUR, MsgType::START,   MsgType::STOP,     MsgType::PAUSE,
+                                 MsgType::RESUME,    MsgType::STANDBY, MsgType::CONTINUE, MsgType::RESTART};
+
+/// Master.tla's invariants on the core's registry. One entry per endpoint (RegistryInv) only without
+/// the election: with it, agents relayed by one peer are reached at that peer's endpoint, and an
+/// entry follows its agent to wherever its datagrams come from (Election.tla reads the route).
+void check(const Master<>& m, bool election) {
+  std::map<Peer, std::uint16_t> peers;
+  for (const auto& [id, x] : m.registry()) {
+    if (x.id != id) violation("an entry under another id");
+    if (!election && !peers.emplace(x.peer, id).second) violation("RegistryInv");
+    if (id >= m.next_id()) violation("IdsInv");
+    if (x.pending && !msgid_newer(m.next_msgid(), x.mid)) violation("MidInv");
+    if (x.pending && x.synced && x.queue.empty()) violation("PendingInv");
+  }
+}
+
+}  // namespace
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  fuzzin::Reader in{data, size};
+  MasterConfig c;
+  c.election = (in.byte() & 1) != 0;
+  c.drop_copies = (in.byte() & 1) != 0;
+  Master<> m(c, 0);
+  Millis now = 0;
+  std::uint32_t base = 1;
+  while (in.n > 0) {
+    const std::uint8_t op = in.byte() % 8;
+    const Peer from = 1 + in.byte() % 4;
+    switch (op) {
+      case 0: case 1: case 2: case 3:
+        m.handle_datagram(fuzzin::datagram(in, kIds, sizeof kIds / sizeof kIds[0], base), from, now);
+        break;
+      case 4:
+        m.handle_datagram(in.bytes(80), from, now);
+        break;
+      case 5:
+        now += in.u16() % 12000u;
+        m.advance(now);
+        break;
+      default: {
+        const MsgType t = kCommands[in.byte() % 8];
+        const Command cmd = t == MsgType::BEHAVIOUR ? Command::assign(in.byte() & 1 ? "wait" : "explore", {"seconds=1"})
+                                                    : Command::simple(t);
+        m.command(kIds[in.byte() % 5], cmd, now);
+        break;
+      }
+    }
+    MasterTransmit t;
+    while (m.poll_transmit(t)) {
+      fuzzin::check_output(t.bytes);
+      if (t.dest == Dest::peer && t.peer == 0) violation("OutInv: a datagram to no endpoint");
+    }
+    OperatorEvent e;
+    while (m.poll_event(e)) {
+    }
+    check(m, c.election);
+  }
+  return 0;
+}
