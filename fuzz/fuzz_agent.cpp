@@ -45,29 +45,15 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Millis now = 0;
   std::uint32_t base = 1;
   while (in.n > 0) {
-    const std::uint8_t op = in.byte() % 8;
-    const Peer from = 1 + in.byte() % 4;
-    switch (op) {
-      case 0: case 1: case 2: case 3:
-        a->handle_datagram(fuzzin::datagram(in, kIds, sizeof kIds / sizeof kIds[0], base), from, now);
-        break;
-      case 4:
-        a->handle_datagram(in.bytes(80), from, now);
-        break;
-      case 5:
-        now += in.u16() % 6000u;
-        a->advance(now);
-        break;
-      default:
-        switch (in.byte() % 6) {
-          case 0: a->action_ok(now); break;
-          case 1: a->action_interrupted(Warning::OBSTACLE_DETECTED, now); break;
-          case 2: a->action_failed("stalled", now); break;
-          case 3: a->device_unplugged(1u, "in1", now); break;
-          case 4: a->device_plugged(1u, "in1", now); break;
-          default: a->battery_low(now); break;
-        }
-        break;
+    if (!fuzzin::shared_step(in.byte() % 8, in, *a, kIds, base, now, 6000)) {
+      switch (in.byte() % 6) {  // the robot's inputs
+        case 0: a->action_ok(now); break;
+        case 1: a->action_interrupted(Warning::OBSTACLE_DETECTED, now); break;
+        case 2: a->action_failed("stalled", now); break;
+        case 3: a->device_unplugged(1u, "in1", now); break;
+        case 4: a->device_plugged(1u, "in1", now); break;
+        default: a->battery_low(now); break;
+      }
     }
     Transmit t;
     while (a->poll_transmit(t)) fuzzin::check_output(t.bytes);

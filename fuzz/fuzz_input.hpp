@@ -59,6 +59,26 @@ inline std::string datagram(Reader& in, const std::uint16_t* ids, std::size_t n_
   return d;
 }
 
+/// The steps a core target shares, of the eight a step byte picks: 0-3 a datagram from the
+/// vocabulary, 4 raw bytes, each from peer 1..4 to @p core at @p now; 5 time passing (up to
+/// @p max_gap ms; @p now moves). False for 6 and 7, the target's own steps.
+template <typename Core, std::size_t N>
+bool shared_step(std::uint8_t op, Reader& in, Core& core, const std::uint16_t (&ids)[N], std::uint32_t& base,
+                 std::uint64_t& now, unsigned max_gap) {
+  const std::uint32_t from = 1u + in.byte() % 4u;
+  if (op <= 3) {
+    core.handle_datagram(datagram(in, ids, N, base), from, now);
+  } else if (op == 4) {
+    core.handle_datagram(in.bytes(80), from, now);
+  } else if (op == 5) {
+    now += in.u16() % max_gap;
+    core.advance(now);
+  } else {
+    return false;
+  }
+  return true;
+}
+
 /// Every datagram a core sends must be one the codec takes, spelled canonically.
 inline void check_output(std::string_view bytes) {
   static ev3proto::Message m;

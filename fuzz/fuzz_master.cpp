@@ -46,26 +46,11 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   Millis now = 0;
   std::uint32_t base = 1;
   while (in.n > 0) {
-    const std::uint8_t op = in.byte() % 8;
-    const Peer from = 1 + in.byte() % 4;
-    switch (op) {
-      case 0: case 1: case 2: case 3:
-        m.handle_datagram(fuzzin::datagram(in, kIds, sizeof kIds / sizeof kIds[0], base), from, now);
-        break;
-      case 4:
-        m.handle_datagram(in.bytes(80), from, now);
-        break;
-      case 5:
-        now += in.u16() % 12000u;
-        m.advance(now);
-        break;
-      default: {
-        const MsgType t = kCommands[in.byte() % 8];
-        const Command cmd = t == MsgType::BEHAVIOUR ? Command::assign(in.byte() & 1 ? "wait" : "explore", {"seconds=1"})
-                                                    : Command::simple(t);
-        m.command(kIds[in.byte() % 5], cmd, now);
-        break;
-      }
+    if (!fuzzin::shared_step(in.byte() % 8, in, m, kIds, base, now, 12000)) {  // the operator's commands
+      const MsgType t = kCommands[in.byte() % 8];
+      const Command cmd = t == MsgType::BEHAVIOUR ? Command::assign(in.byte() & 1 ? "wait" : "explore", {"seconds=1"})
+                                                  : Command::simple(t);
+      m.command(kIds[in.byte() % 5], cmd, now);
     }
     MasterTransmit t;
     while (m.poll_transmit(t)) {
