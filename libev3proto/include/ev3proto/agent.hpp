@@ -430,11 +430,11 @@ class Agent {
   }
 
   /// Spec ApplyCommand's enabling condition, on the outer EPOCH_CMD(e, inner): the inner datagram
-  /// decodes and is the sender's; e older than ours: stale. The master of epoch e syncs a
+  /// decodes and is the sender's, e is an epoch (1 or more); e older than ours: stale. The master of epoch e syncs a
   /// masterless agent (MASTER inside), or commands the agent that follows it in e (Election Obeys).
   Verdict ApplyCommandOk(const Message& m, const Message* inner) const noexcept {
     const auto e = m.param_u32(0);
-    if (!e || inner == nullptr || inner->sender != m.sender || inner->type == MsgType::EPOCH_CMD ||
+    if (!e || *e == 0 || inner == nullptr || inner->sender != m.sender || inner->type == MsgType::EPOCH_CMD ||
         inner->type == MsgType::RELAY)
       return Verdict{Action::Ignore, Ignored::ignored_in_state};
     Verdict v{Action::ApplyCommand};

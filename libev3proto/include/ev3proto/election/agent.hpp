@@ -206,8 +206,10 @@ class AgentElection {
   /// included), an epoch left.
   bool StartElectionOk(const LifecycleView& me) const noexcept {
     return enabled && me.state == State::PANIC && role != ElectionRole::master && is_assigned_id(me.id) &&
-           epoch < 0xFFFFFFFFu && MembershipCurrent() && PreVoteQuorum(me.id);
+           EpochLeft() && MembershipCurrent() && PreVoteQuorum(me.id);
   }
+  /// An epoch above this one exists to stand in (epochs are 32-bit on the wire; Election's MaxEpoch).
+  bool EpochLeft() const noexcept { return epoch < 0xFFFFFFFFu; }
   /// Election's `mepoch >= floor`: the membership known is not older than one this agent voted to
   /// replace (it may stand and count against it).
   bool MembershipCurrent() const noexcept { return mepoch >= floor; }
@@ -271,6 +273,10 @@ class AgentElection {
   /// older epoch is answered EPOCH_STALE, a newer one is adopted.
   Verdict Choose(const Message& m, const Message* inner, const LifecycleView& me) const noexcept {
     const std::uint32_t e = m.param_u32(0).value_or(0);
+    // Every type here but RELAY carries an epoch first, and epochs start at 1 (the PC's before any
+    // election): one of 0 is in no rule's guard (Election's epochs are 1..MaxEpoch), and a
+    // handler that took it would follow, or learn the membership of, an epoch older than all.
+    if (e == 0 && m.type != MsgType::RELAY) return Verdict{Action::Ignore, Ignored::ignored_in_state};
     switch (m.type) {
       case MsgType::RELAY_REQ:  // ShareMembers may follow the first two (a record of its own)
         if (OfferRelayOk(m, me)) return Take(Action::OfferRelay);
@@ -317,11 +323,11 @@ class AgentElection {
 
   // ------------------------------------------------------------ the deadlines
 
-  /// The back-off's end once it may be acted on: the pre-votes make a quorum and the membership
-  /// known is not older than the floor (without them the next event is a relay request's retry, a
+  /// The back-off's end once it may be acted on: an epoch is left to stand in, the pre-votes make a
+  /// quorum and the membership known is not older than the floor (without them the next event is a relay request's retry, a
   /// PREVOTE_OK arriving, or learning a newer membership, not the back-off's end).
   Millis StandDeadline(std::uint16_t me) const noexcept {
-    return PreVoteQuorum(me) && MembershipCurrent() ? stand_at : kNever;
+    return EpochLeft() && PreVoteQuorum(me) && MembershipCurrent() ? stand_at : kNever;
   }
   /// The earliest of the election's deadlines (relay request, standing) of agent @p me.
   Millis Deadline(std::uint16_t me) const noexcept {
