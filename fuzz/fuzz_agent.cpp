@@ -10,25 +10,15 @@
 
 #include "ev3proto/agent.hpp"
 #include "fuzz_input.hpp"
+#include "invariants.hpp"
 
 namespace {
 
 using namespace ev3proto;
-using fuzzin::violation;
 
 constexpr BehaviourSpec kBehaviours[] = {{"explore", 1u}, {"wait", 0u}};
 constexpr std::uint16_t kTemp = 50001;
 constexpr std::uint16_t kIds[] = {0, 1, 2, 3, 7, kTemp, 50002};
-
-/// Agent.tla's invariants on the core's state at @p now.
-void check(const Agent<>& a, Millis now, const Timers& t) {
-  if (a.led() != led_of(a.state())) violation("LedInv");
-  if (a.motors() && a.state() != State::WORKING) violation("BehaviourOnlyInWorkingInv");
-  if (a.motors() && a.wait() != Wait::NONE) violation("MotorsOnlyWhileRunningInv");
-  if (a.state() == State::WORKING && now - a.last_heard() > t[Timer::loss]) violation("NoUnsupervisedMotionInv");
-  if (a.state() == State::WORKING && a.behaviour().name.empty()) violation("WorkingLoadedInv");
-  if (a.next_deadline() < now) violation("a deadline left behind");
-}
 
 }  // namespace
 
@@ -60,7 +50,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     AgentEvent e;
     while (a->poll_event(e)) {
     }
-    check(*a, now, c.timers);
+    fuzzin::check_agent(*a, now, c.timers);
   }
   return 0;
 }

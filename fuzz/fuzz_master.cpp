@@ -6,11 +6,11 @@
 // Also linked with replay_main.cpp to run the committed corpus under gcc and armel.
 #include <cstddef>
 #include <cstdint>
-#include <map>
 #include <string>
 
 #include "ev3proto/master.hpp"
 #include "fuzz_input.hpp"
+#include "invariants.hpp"
 
 namespace {
 
@@ -20,20 +20,6 @@ using fuzzin::violation;
 constexpr std::uint16_t kIds[] = {0, 1, 2, 3, 4, 50001, 50002, 50003};
 constexpr MsgType kCommands[] = {MsgType::BEHAVIOUR, MsgType::START,   MsgType::STOP,     MsgType::PAUSE,
                                  MsgType::RESUME,    MsgType::STANDBY, MsgType::CONTINUE, MsgType::RESTART};
-
-/// Master.tla's invariants on the core's registry. One entry per endpoint (RegistryInv) only without
-/// the election: with it, agents relayed by one peer are reached at that peer's endpoint, and an
-/// entry follows its agent to wherever its datagrams come from (Election.tla reads the route).
-void check(const Master<>& m, bool election) {
-  std::map<Peer, std::uint16_t> peers;
-  for (const auto& [id, x] : m.registry()) {
-    if (x.id != id) violation("an entry under another id");
-    if (!election && !peers.emplace(x.peer, id).second) violation("RegistryInv");
-    if (id >= m.next_id()) violation("IdsInv");
-    if (x.pending && !msgid_newer(m.next_msgid(), x.mid)) violation("MidInv");
-    if (x.pending && x.synced && x.queue.empty()) violation("PendingInv");
-  }
-}
 
 }  // namespace
 
@@ -60,7 +46,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     OperatorEvent e;
     while (m.poll_event(e)) {
     }
-    check(m, c.election);
+    fuzzin::check_master(m, c.election);
   }
   return 0;
 }

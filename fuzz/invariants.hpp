@@ -1,0 +1,42 @@
+// The C++ forms of the spec's invariants the core fuzz targets check after every step: Agent.tla's on
+// an agent core, Master.tla's on a master core (fuzz_agent, fuzz_master, fuzz_node).
+#pragma once
+
+#include <map>
+
+#include "ev3proto/agent.hpp"
+#include "ev3proto/master.hpp"
+#include "fuzz_input.hpp"
+
+namespace fuzzin {
+
+/// Agent.tla's invariants on agent core @p a at @p now, with timers @p t.
+template <typename Core>
+void check_agent(const Core& a, ev3proto::Millis now, const ev3proto::Timers& t) {
+  using ev3proto::State;
+  if (a.led() != ev3proto::led_of(a.state())) violation("LedInv");
+  if (a.motors() && a.state() != State::WORKING) violation("BehaviourOnlyInWorkingInv");
+  if (a.motors() && a.wait() != ev3proto::Wait::NONE) violation("MotorsOnlyWhileRunningInv");
+  if (a.state() == State::WORKING && now - a.last_heard() > t[ev3proto::Timer::loss])
+    violation("NoUnsupervisedMotionInv");
+  if (a.state() == State::WORKING && a.behaviour().name.empty()) violation("WorkingLoadedInv");
+  if (a.next_deadline() < now) violation("a deadline left behind");
+}
+
+/// Master.tla's invariants on master core @p m's registry. One entry per endpoint (RegistryInv)
+/// only without the election: with it, agents relayed by one peer are reached at that peer's
+/// endpoint, and an entry follows its agent to wherever its datagrams come from (Election.tla reads
+/// the route).
+template <typename Core>
+void check_master(const Core& m, bool election) {
+  std::map<ev3proto::Peer, std::uint16_t> peers;
+  for (const auto& [id, x] : m.registry()) {
+    if (x.id != id) violation("an entry under another id");
+    if (!election && !peers.emplace(x.peer, id).second) violation("RegistryInv");
+    if (id >= m.next_id()) violation("IdsInv");
+    if (x.pending && !ev3proto::msgid_newer(m.next_msgid(), x.mid)) violation("MidInv");
+    if (x.pending && x.synced && x.queue.empty()) violation("PendingInv");
+  }
+}
+
+}  // namespace fuzzin
