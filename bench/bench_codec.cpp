@@ -4,7 +4,8 @@
 // plain memcpy of the finished datagram). Heap allocations per operation are counted by replacing
 // the global operator new in this binary. And, to put the decode into proportion, the receive
 // system call that comes before it in the master: recvfrom() of a PING queued on a loopback UDP
-// socket. docs/benchmarks.md records the figures (`make bench`).
+// socket; and what signed mode adds: checking and sealing a signed PING. docs/benchmarks.md records
+// the figures (`make bench`).
 #include <benchmark/benchmark.h>
 
 #include <arpa/inet.h>
@@ -22,6 +23,7 @@
 #include <string>
 #include <vector>
 
+#include "ev3proto/auth.hpp"
 #include "ev3proto/wire.hpp"
 
 // ---- allocation counter ---------------------------------------------------------------------------
@@ -337,6 +339,48 @@ void BM_Recvfrom_Loopback(benchmark::State& state) {
 
 }  // namespace
 
+// ---- signed mode ---------------------------------------------------------------------------------
+// What signed mode adds per datagram (docs/protocol.md "Signed datagrams"): the receiver's check of
+// a signed PING (its tag computed and compared; the window: the first run takes the counter, every
+// later one is a replay, found after the same tag check), and the sender's trailer.
+const ev3proto::auth::Key& bench_key() {
+  static const ev3proto::auth::Key k = [] {
+    ev3proto::auth::Key key;
+    if (sodium_init() < 0 || ev3proto::auth::Key::parse(std::string(64, 'A'), key) != nullptr) std::abort();
+    return key;
+  }();
+  return k;
+}
+
+void BM_Auth_Open(benchmark::State& state) {
+  const std::string& d = datagram(0);
+  state.SetLabel("ping, signed");
+  ev3proto::auth::Signer s(bench_key(), 1);
+  char t[ev3proto::auth::kTrailer];
+  s.seal(d, t);
+  const std::string signed_ping = d + std::string(t, sizeof t);
+  static ev3proto::auth::Verifier<16> v(bench_key());
+  for (auto _ : state) {
+    std::string_view out;
+    benchmark::DoNotOptimize(v.open(signed_ping, out));
+    benchmark::ClobberMemory();
+  }
+  set_counters(state, 0, signed_ping.size());
+}
+
+void BM_Auth_Seal(benchmark::State& state) {
+  const std::string& d = datagram(0);
+  state.SetLabel("ping");
+  ev3proto::auth::Signer s(bench_key(), 1);
+  char t[ev3proto::auth::kTrailer];
+  for (auto _ : state) {
+    s.seal(d, t);
+    benchmark::DoNotOptimize(t);
+    benchmark::ClobberMemory();
+  }
+  set_counters(state, 0, d.size());
+}
+
 BENCHMARK(BM_Decode_Ours)->DenseRange(0, 2);
 BENCHMARK(BM_Decode_Thesis)->DenseRange(0, 2);
 BENCHMARK(BM_Decode_MemchrFloor)->DenseRange(0, 2);
@@ -346,5 +390,7 @@ BENCHMARK(BM_Encode_Ours)->DenseRange(0, 2);
 BENCHMARK(BM_Encode_Thesis)->DenseRange(0, 2);
 BENCHMARK(BM_Encode_MemcpyFloor)->DenseRange(0, 2);
 BENCHMARK(BM_Recvfrom_Loopback);
+BENCHMARK(BM_Auth_Open);
+BENCHMARK(BM_Auth_Seal);
 
 BENCHMARK_MAIN();

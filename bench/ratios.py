@@ -117,6 +117,11 @@ def main():
     print("| recvfrom() on loopback | %s | %s | %s |" % (
         med(recv), med([PINGS_PER_SECOND * t / 1e7 for t in recv], " %"),
         med([r[("BM_Recvfrom_Loopback", 0)][0] / r[("BM_Decode_Ours", 0)][0] for r in runs], "x")))
+    for name, label in (("BM_Auth_Open", "check of a signed PING (signed mode)"), ("BM_Auth_Seal", "its trailer, sealed")):
+        if (name, 0) in runs[0]:
+            t = [r[(name, 0)][0] for r in runs]
+            print("| %s | %s | %s | %s |" % (label, med(t), med([PINGS_PER_SECOND * x / 1e7 for x in t], " %"),
+                                            med([r[(name, 0)][0] / r[("BM_Decode_Ours", 0)][0] for r in runs], "x")))
 
 
 if __name__ == "__main__":
