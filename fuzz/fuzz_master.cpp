@@ -2,7 +2,8 @@
 // sequence of inputs the input spells: datagrams from agents and strangers (mostly well-formed, from
 // the protocol's words; some raw bytes), the operator's commands (to one agent, to all, to ids it
 // does not know) and time passing. After every step the C++ forms of Master.tla's invariants must
-// hold and every datagram the core sends must decode canonically; anything else traps.
+// hold, its epoch never goes back and its state file reads back, and every datagram the core sends
+// must decode canonically; anything else traps.
 // Also linked with replay_main.cpp to run the committed corpus under gcc and armel.
 #include <cstddef>
 #include <cstdint>
@@ -26,11 +27,14 @@ constexpr MsgType kCommands[] = {MsgType::BEHAVIOUR, MsgType::START,   MsgType::
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   fuzzin::Reader in{data, size};
   MasterConfig c;
-  c.election = (in.byte() & 1) != 0;
+  const std::uint8_t config = in.byte();
+  c.election = (config & 1) != 0;
+  if (c.election && (config & 2) != 0) c.members = {2, 3, 4};  // the PC with a membership
   c.drop_copies = (in.byte() & 1) != 0;
   Master<> m(c, 0);
   Millis now = 0;
   std::uint32_t base = 1;
+  MasterDurable durable = m.durable();
   while (in.n > 0) {
     if (!fuzzin::shared_step(in.byte() % 8, in, m, kIds, base, now, 12000)) {  // the operator's commands
       const MsgType t = kCommands[in.byte() % 8];
@@ -47,6 +51,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     while (m.poll_event(e)) {
     }
     fuzzin::check_master(m, c.election);
+    fuzzin::check_master_durable(durable, m.durable());
+    durable = m.durable();
   }
   return 0;
 }

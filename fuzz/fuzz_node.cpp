@@ -5,7 +5,8 @@
 // output goes through ready(), as the programs do. After every step: Agent.tla's invariants on the
 // agent core, Master.tla's on a running Master core, which runs exactly while the agent is master
 // of that epoch; the durable state only moves forward (epoch, one vote per epoch, membership epoch,
-// floor) and is written before any datagram goes out; every datagram decodes canonically.
+// floor), reads back as a state file and is written before any datagram goes out; the Master
+// core's state file reads back; every datagram decodes canonically.
 // Also linked with replay_main.cpp to run the committed corpus under gcc and armel.
 #include <cstddef>
 #include <cstdint>
@@ -70,6 +71,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     const bool ok = n->ready(
         [&](const Durable& d) {
           check_durable(written, d);
+          fuzzin::check_agent_durable_text(d);
           written = d;
           return true;
         },
@@ -86,7 +88,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (el.role == ElectionRole::master &&
         (n->master() == nullptr || n->master()->epoch() != el.master_epoch))
       violation("master of an epoch without its Master core");
-    if (n->master() != nullptr) fuzzin::check_master(*n->master(), true);
+    if (n->master() != nullptr) {
+      fuzzin::check_master(*n->master(), true);
+      fuzzin::check_master_durable(n->master()->durable(), n->master()->durable());
+    }
   }
   return 0;
 }

@@ -5,6 +5,7 @@
 #include <map>
 
 #include "ev3proto/agent.hpp"
+#include "ev3proto/durable.hpp"
 #include "ev3proto/master.hpp"
 #include "fuzz_input.hpp"
 
@@ -37,6 +38,24 @@ void check_master(const Core& m, bool election) {
     if (x.pending && !ev3proto::msgid_newer(m.next_msgid(), x.mid)) violation("MidInv");
     if (x.pending && x.synced && x.queue.empty()) violation("PendingInv");
   }
+}
+
+/// A master's durable state between two steps: the epoch never goes back, and what it would write
+/// reads back (the state file a restart reads: durable.hpp's own check).
+inline void check_master_durable(const ev3proto::MasterDurable& before, const ev3proto::MasterDurable& now) {
+  if (now.epoch < before.epoch) violation("the master's epoch went back");
+  ev3proto::MasterDurable back;
+  ev3proto::DurableError err;
+  if (!ev3proto::parse_master_durable(ev3proto::durable_text(now).view(), back, err))
+    violation("a master state file that does not read back");
+}
+
+/// The same of an agent's durable state (its state file).
+inline void check_agent_durable_text(const ev3proto::Durable& d) {
+  ev3proto::Durable back;
+  ev3proto::DurableError err;
+  if (!ev3proto::parse_durable(ev3proto::durable_text(d).view(), back, err))
+    violation("an agent state file that does not read back");
 }
 
 }  // namespace fuzzin

@@ -177,7 +177,7 @@ class Master {
   /// earliest of the LEADER heartbeat, the candidate's next election and (as MASTER) the entries'
   /// deadlines, the fronts of two DeadlineLists (O(1) here, no walk of the registry).
   Millis next_deadline() const noexcept {
-    Millis t = el_.hb_at < el_.cand_at ? el_.hb_at : el_.cand_at;
+    Millis t = el_.hb_at < el_.StandDeadline() ? el_.hb_at : el_.StandDeadline();
     if (el_.role != MasterRole::master) return t;
     const Millis e = entries_due();
     return e < t ? e : t;

@@ -148,8 +148,14 @@ class MasterElection {
     n.broadcast(MsgType::LEADER, leader_params(epoch, self));
   }
 
-  /// StartElection is due at @p now (CANDIDATE).
-  bool StartElectionOk(Millis now) const noexcept { return role == MasterRole::candidate && cand_at <= now; }
+  /// StartElection is due at @p now (CANDIDATE, an epoch left to stand in: Election's epoch < MaxEpoch).
+  bool StartElectionOk(Millis now) const noexcept {
+    return role == MasterRole::candidate && EpochLeft() && cand_at <= now;
+  }
+  /// An epoch above this one exists (epochs are 32-bit on the wire).
+  bool EpochLeft() const noexcept { return epoch < 0xFFFFFFFFu; }
+  /// When StartElection is next due: never without an epoch left (no deadline the core cannot act on).
+  Millis StandDeadline() const noexcept { return EpochLeft() ? cand_at : kNever; }
   /// Spec StartElection (the PC, CANDIDATE): epoch + 1, ELECT(epoch, 0, epoch of its membership)
   /// broadcast (a voter's floor rises to it); again after the candidate timeout without a majority.
   /// With a membership, a copy of it goes first (Election Teach): LEADER(mepoch, 0, members...)
