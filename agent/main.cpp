@@ -86,14 +86,10 @@ std::string role_name(ev3proto::ElectionRole r) {
   return "?";
 }
 
-// Signed mode: the sender ids an agent tells apart (its masters, its peers, the temporary ids they
-// announce with): 1024, a fleet of up to 500 robots; 24 KiB.
-constexpr std::size_t kAgentSenders = 1024;
-
 class Program {
  public:
   explicit Program(const ev3agent::AgentOptions& o)
-      : opt_(o), sh_("ev3-agent", o.common.faults, kAgentSenders), devices_(o.sysfs_root), rio_(devices_) {}
+      : opt_(o), sh_("ev3-agent", o.common.faults), devices_(o.sysfs_root), rio_(devices_) {}
 
   int run() {
     if (const int rc = sh_.open("agent", opt_.common)) return rc;

@@ -11,15 +11,6 @@
 
 namespace ev3prog {
 
-template <std::size_t Senders>
-struct Shell::OpenerOf final : Shell::Opener {
-  explicit OpenerOf(const ev3proto::auth::Key& k) : v(k) {}
-  ev3proto::auth::Verdict open(std::string_view bytes, std::string_view& datagram) override {
-    return v.open(bytes, datagram);
-  }
-  ev3proto::auth::Verifier<Senders> v;
-};
-
 int Shell::open_signing(const std::string& path) {
   key_ = std::make_unique<ev3proto::auth::Key>();
   const std::string err = ev3io::load_key_file(path, *key_);
@@ -31,10 +22,7 @@ int Shell::open_signing(const std::string& path) {
   clock_gettime(CLOCK_REALTIME, &ts);
   const auto now_ms = static_cast<std::uint64_t>(ts.tv_sec) * 1000u + static_cast<std::uint64_t>(ts.tv_nsec) / 1000000u;
   signer_ = std::make_unique<ev3proto::auth::Signer>(*key_, ev3proto::auth::choose_boot(now_ms));
-  if (senders_ <= 1024)
-    opener_ = std::make_unique<OpenerOf<1024>>(*key_);
-  else
-    opener_ = std::make_unique<OpenerOf<65536>>(*key_);
+  opener_ = std::make_unique<ev3proto::auth::Verifier<65536>>(*key_);
   net.sign_with(signer_.get());
   log.log(ev3io::kInfo, "signed mode: key id %.*s, boot %llu", static_cast<int>(key_->id().size()),
           key_->id().data(), static_cast<unsigned long long>(signer_->boot()));

@@ -78,10 +78,8 @@ class Shell {
   static constexpr std::size_t kBatch = 64;
 
   /// The shell of program @p program ("ev3-agent": the prefix of its messages on stderr), its socket
-  /// injecting @p faults; in signed mode it tells apart up to @p senders sender ids (a master any
-  /// id: 65536; an agent hears its masters and peers).
-  Shell(const char* program, const ev3io::FaultConfig& faults, std::size_t senders = 65536)
-      : net(faults), program_(program), senders_(senders) {}
+  /// injecting @p faults.
+  Shell(const char* program, const ev3io::FaultConfig& faults) : net(faults), program_(program) {}
 
   /// Opens the log (named @p log_name, at --log-level, into --log-file or stderr) and the --trace
   /// file, reads --key-file (signed mode: from then on every copy sent is signed and only datagrams
@@ -150,25 +148,19 @@ class Shell {
   bool state_failed = false;  ///< A state write failed: the program sends nothing more and exits.
 
  private:
-  /// The check of received datagrams, of a capacity chosen at start.
-  struct Opener {
-    virtual ~Opener() = default;
-    virtual ev3proto::auth::Verdict open(std::string_view bytes, std::string_view& datagram) = 0;
-  };
-  template <std::size_t Senders>
-  struct OpenerOf;
   /// Signed mode: checks the datagram just received; true, with its trailer taken off, when it is
   /// signed with our key and new; otherwise counts the drop ("auth:replay") and false.
   bool authentic();
   int open_signing(const std::string& path);
 
   const char* program_;
-  std::size_t senders_;
   std::string bytes_;
   ev3io::Endpoint from_;
   std::unique_ptr<ev3proto::auth::Key> key_;
   std::unique_ptr<ev3proto::auth::Signer> signer_;
-  std::unique_ptr<Opener> opener_;
+  /// Signed mode's check of what arrives: a slot for every sender id (1.5 MiB), so that no replay
+  /// of old traffic from many ids can fill it.
+  std::unique_ptr<ev3proto::auth::Verifier<65536>> opener_;
 };
 
 /// The drop counter of a datagram that does not decode, for the codec's reason @p r:

@@ -8,8 +8,8 @@
 /// tells a signed datagram from an unsigned one by its tail alone. The counter is `boot * 2^22 +
 /// seq`: boot is the sender's start time in milliseconds (its clock, or one past the boot it last
 /// used, whichever is later), seq counts the copies it signed since; a receiver keeps, per sender id,
-/// the newest boot and a window of the last 64 seqs, and refuses a counter it has taken or that is
-/// older than the window or of an older boot.
+/// the newest boot and a window of 64 seqs (the newest and 63 below), and refuses a counter it has
+/// taken or that is older than the window or of an older boot.
 ///
 /// Needs libsodium (`sodium_init()` once, before any Key is made; link -lsodium).
 #pragma once
@@ -32,7 +32,9 @@ constexpr std::size_t kTrailer = 1 + kIdHex + kCounterHex + 2 * kTagBytes;
 constexpr unsigned kSeqBits = 22;       ///< Low bits of the counter: copies signed since boot.
 constexpr std::uint64_t kSeqMask = (std::uint64_t{1} << kSeqBits) - 1;
 constexpr std::uint64_t kMaxBoot = (std::uint64_t{1} << (64 - kSeqBits)) - 1;
-constexpr unsigned kWindow = 64;        ///< Seqs a receiver remembers below the newest of a boot.
+constexpr unsigned kWindow = 64;        ///< Seqs a receiver remembers: the newest of a boot and 63 below.
+/// The longest signed datagram: the longest datagram (docs/protocol.md) and its trailer.
+constexpr std::size_t kMaxSigned = 4096 + kTrailer;
 
 /// Why a datagram is refused (its drop counter: "auth:<name>").
 enum class Verdict : std::uint8_t {
@@ -185,8 +187,9 @@ class Signer {
 };
 
 /// A receiver's check of signed datagrams: the key, and per sender id the newest boot and a window
-/// of its last kWindow seqs, for up to @p Capacity senders (inline storage, no heap; a master
-/// hearing every possible id needs 65536).
+/// of its last kWindow seqs, for up to @p Capacity senders (inline storage, no heap). With 65536,
+/// every id has its slot (1.5 MiB) and the table is never full: the programs use that, so that no
+/// replay of old traffic from many ids can fill it.
 template <std::size_t Capacity>
 class Verifier {
   static_assert(Capacity >= 1 && Capacity <= 65536, "Verifier capacity: 1..65536 senders");
@@ -198,6 +201,9 @@ class Verifier {
   /// taken (a second time it is a replay). Nothing is taken unless the tag matches.
   Verdict open(std::string_view bytes, std::string_view& datagram) noexcept {
     if (bytes.size() < kTrailer || bytes[bytes.size() - kTrailer] != '\n') return Verdict::unsigned_;
+    // Longer than the longest signed datagram: refused before its tag is computed (a stranger's
+    // 64 KB datagrams would otherwise cost 16 times the hashing of the longest real one).
+    if (bytes.size() > kMaxSigned) return Verdict::malformed;
     const char* t = bytes.data() + bytes.size() - kTrailer + 1;
     unsigned char counter_bytes[kCounterHex / 2];
     unsigned char got[kTagBytes];
@@ -230,7 +236,11 @@ class Verifier {
     std::uint16_t id = 0;
     bool used = false;
   };
+  /// Every id has its own slot when the table can hold them all (65536: no probing, and never
+  /// full); otherwise open addressing over twice the capacity, rounded up to a power of two.
+  static constexpr bool kDirect = Capacity == 65536;
   static constexpr std::size_t kSlots = [] {
+    if (kDirect) return std::size_t{65536};
     std::size_t n = 1;
     while (n < 2 * Capacity) n *= 2;
     return n;
@@ -245,8 +255,8 @@ class Verifier {
   }
 
   Verdict take(std::uint16_t id, std::uint64_t counter) noexcept {
-    std::size_t s = (static_cast<std::size_t>(id) * 40503u) & (kSlots - 1);
-    while (slots_[s].used && slots_[s].id != id) s = (s + 1) & (kSlots - 1);
+    std::size_t s = kDirect ? id : (static_cast<std::size_t>(id) * 40503u) & (kSlots - 1);
+    while (!kDirect && slots_[s].used && slots_[s].id != id) s = (s + 1) & (kSlots - 1);
     Entry& e = slots_[s];
     const std::uint64_t boot = counter >> kSeqBits;
     const std::uint32_t seq = static_cast<std::uint32_t>(counter & kSeqMask);

@@ -124,6 +124,22 @@ TEST(Auth, EveryBitFlipIsRefused) {
   EXPECT_EQ(v.senders(), 1u);
 }
 
+// Longer than any signed datagram (4096 + 57 bytes): refused as malformed before its tag is
+// computed, even when the tag is right; the longest one is taken.
+TEST(Auth, OverLongIsRefusedBeforeTheTag) {
+  const auth::Key k = key_of('3');
+  auth::Signer s(k, 5);
+  auth::Verifier<4> v(k);
+  char t[auth::kTrailer];
+  const std::string longest = "1:7:9:7:" + std::string(4096 - 8, 'a');
+  s.seal(longest, t);
+  std::string_view out;
+  EXPECT_EQ(v.open(longest + std::string(t, auth::kTrailer), out), auth::Verdict::ok);
+  const std::string over = longest + "a";
+  s.seal(over, t);
+  EXPECT_EQ(v.open(over + std::string(t, auth::kTrailer), out), auth::Verdict::malformed);
+}
+
 TEST(Auth, SequenceOverflowGoesOnInTheNextBoot) {
   const auth::Key k = key_of('1');
   auth::Signer s(k, 10, auth::kSeqMask);

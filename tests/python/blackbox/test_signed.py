@@ -116,12 +116,15 @@ def test_only_the_keyholder_commands_a_signed_fleet(agent_argv, master_exe, prog
         wait_until(lambda: agent_state() == "PAUSED", 5, "the agent PAUSED by the master")
         m.write(f"resume {aid}")
         wait_until(lambda: agent_state() == "WORKING", 5, "the agent WORKING again")
-        # The withheld copies replayed now: none is obeyed (a replay, or a command older than one
-        # taken since).
+        resumed = len(a.stderr())
+        # The withheld copies replayed now: none is obeyed. The window refuses those 64 or more
+        # copies behind the master's newest (auth:replay); the rest are copies of a PAUSE the agent
+        # took, answered again and not acted on.
         for c in links.withheld:
             stranger.sendto(c, ("127.0.0.1", aport))
-        time.sleep(0.6)
+        time.sleep(1.2)  # the agent's PINGs (100 ms) and the status file (500 ms) catch up
         assert agent_state() == "WORKING"
+        assert "state PAUSED" not in a.stderr()[resumed:], "a withheld PAUSE was obeyed"
         # The master is still in command.
         m.write(f"pause {aid}")
         wait_until(lambda: agent_state() == "PAUSED", 5, "the agent PAUSED by the master after the attacks")
@@ -133,6 +136,9 @@ def test_only_the_keyholder_commands_a_signed_fleet(agent_argv, master_exe, prog
     got = drops_of(a.stderr())
     want = {k: v for k, v in sent.items() if v and k != "auth:unsigned"}
     want["auth:unsigned"] = sent["auth:unsigned"] - 1  # one went to the master
+    # Replays: every captured copy sent again, and those of the withheld copies the window refuses.
+    assert want["auth:replay"] <= got.get("auth:replay", 0) <= want["auth:replay"] + len(links.withheld), (got, want)
+    want.pop("auth:replay")
     assert {k: got.get(k, 0) for k in want} == want, (got, want)
     # Nothing of the stranger's reached the agent's core (it logs every datagram it takes).
     assert "4000000000" not in a.stderr() and "4000000001" not in a.stderr()

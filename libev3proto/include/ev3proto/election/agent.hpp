@@ -276,7 +276,8 @@ class AgentElection {
     // Every type here but RELAY carries an epoch first, and epochs start at 1 (the PC's before any
     // election): one of 0 is in no rule's guard (Election's epochs are 1..MaxEpoch), and a
     // handler that took it would follow, or learn the membership of, an epoch older than all.
-    if (e == 0 && m.type != MsgType::RELAY) return Verdict{Action::Ignore, Ignored::ignored_in_state};
+    if (e == 0 && m.type != MsgType::RELAY && m.type != MsgType::RELAY_ROUTE && m.type != MsgType::HANDOVER)
+      return Verdict{Action::Ignore, Ignored::ignored_in_state};  // (a master's own types: below)
     switch (m.type) {
       case MsgType::RELAY_REQ:  // ShareMembers may follow the first two (a record of its own)
         if (OfferRelayOk(m, me)) return Take(Action::OfferRelay);
