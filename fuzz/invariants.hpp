@@ -40,14 +40,19 @@ void check_master(const Core& m, bool election) {
   }
 }
 
-/// A master's durable state between two steps: the epoch never goes back, and what it would write
-/// reads back (the state file a restart reads: durable.hpp's own check).
-inline void check_master_durable(const ev3proto::MasterDurable& before, const ev3proto::MasterDurable& now) {
-  if (now.epoch < before.epoch) violation("the master's epoch went back");
+/// What a master would write to its state file reads back (the file a restart reads: durable.hpp's
+/// own check).
+inline void check_master_durable_text(const ev3proto::MasterDurable& d) {
   ev3proto::MasterDurable back;
   ev3proto::DurableError err;
-  if (!ev3proto::parse_master_durable(ev3proto::durable_text(now).view(), back, err))
+  if (!ev3proto::parse_master_durable(ev3proto::durable_text(d).view(), back, err))
     violation("a master state file that does not read back");
+}
+
+/// A master's durable state between two steps: the epoch never goes back, and it reads back.
+inline void check_master_durable(const ev3proto::MasterDurable& before, const ev3proto::MasterDurable& now) {
+  if (now.epoch < before.epoch) violation("the master's epoch went back");
+  check_master_durable_text(now);
 }
 
 /// The same of an agent's durable state (its state file).
