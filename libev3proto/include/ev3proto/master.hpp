@@ -607,6 +607,9 @@ class Master {
     e.via = via;
   }
   RegistryEntry& adopt(std::uint16_t id, Peer from) {
+    // As MasterSync for an assigned id: never hand this id out again (IdsInv; fuzz_master found
+    // a member adopted on its PING below next_id, which a new agent would then have been given).
+    if (is_assigned_id(id) && next_id_ <= id) next_id_ = static_cast<std::uint16_t>(id + 1);
     RegistryEntry e;
     e.ann = id;
     e.id = id;

@@ -113,6 +113,8 @@ Leads(m) == m.x = m.src
 Adopted(i, from) == [ann |-> i, id |-> i, ep |-> from, synced |-> TRUE, pending |-> FALSE, mid |-> 0,
                      resends |-> 0, queue |-> <<>>, desired |-> M!UnknownDesired, beh |-> M!NoBehaviour,
                      quiet |-> 0, hi |-> 0]
+\* An adopted id is never handed out again (as MasterSync's for an assigned id): nextId above it.
+AdoptedNextId(n, i) == IF n <= i THEN i + 1 ELSE n
 \* Where a fleet datagram came from (the core's note_route, before MasterLogic's handler).
 Route(ms, m, from, mem) ==
     IF m.src \in Ids(ms) THEN
@@ -122,12 +124,13 @@ Route(ms, m, from, mem) ==
           THEN LET r == M!StartNext(ms, [y EXCEPT !.synced = TRUE, !.pending = FALSE])
                IN M!Replace(r.ms, x, r.x)
           ELSE M!Replace(ms, x, y)
-    ELSE IF m.type = "PING" /\ m.src \in mem THEN [ms EXCEPT !.reg = @ \cup {Adopted(m.src, from)}]
+    ELSE IF m.type = "PING" /\ m.src \in mem
+         THEN [ms EXCEPT !.reg = @ \cup {Adopted(m.src, from)}, !.nextId = AdoptedNextId(@, m.src)]
     ELSE ms
 \* RELAY_ROUTE(e, a) from a relay heard at endpoint from: a is reached there.
 RouteTo(ms, a, from) ==
     IF a \in Ids(ms) THEN M!Replace(ms, EntryOf(ms, a), [EntryOf(ms, a) EXCEPT !.ep = from])
-    ELSE [ms EXCEPT !.reg = @ \cup {Adopted(a, from)}]
+    ELSE [ms EXCEPT !.reg = @ \cup {Adopted(a, from)}, !.nextId = AdoptedNextId(@, a)]
 \* Election's BecomeMasterOk (a majority of the membership voted) over the membership mem.
 QuorumOk(el, mem) == \E F \in {mem} : E(F)!BecomeMasterOk(el)
 \* Election want: the PC's membership and the ids handed over but those declared lost
