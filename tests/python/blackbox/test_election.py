@@ -226,8 +226,10 @@ def test_agents_that_never_heard_the_pc_learn_the_membership_from_peers(master_e
     sender. The PC's --broadcast list (LEADER, ELECT) names only #3, #4 and #5, which hear #1, #2 and
     the PC but not each other; #1 and #2 (the lowest scores) hear everyone, and the PC only by unicast
     (MASTER, PONG). #3-#5 sync first, so they are the PC's first three members and vote for each
-    later step; #1 and #2 join last (epochs 5 and 6: list of five). The PC is killed as soon as its
-    trace holds its BecomeMaster with the five members. Then #3-#5 know the list but cannot gather a
+    later step; #1 and #2 join last (epochs 5 and 6: list of five). The PC is killed as soon as the
+    traces of #3-#5 hold its list of five (its LEADER of epoch 6: killed between its ELECT and that
+    LEADER, #3-#5 would sit in epoch 6 with the list of four and #2 in epoch 5, and no agent here could
+    gather pre-votes: docs/election.md, "a peer of a newer epoch"). Then #3-#5 know the list but cannot gather a
     majority of pre-votes (each hears only #1 and #2, which grant none to a weaker asker); #1 and #2
     have heard no LEADER at all: only a peer can tell them the list. With it, #1 (score 10) stands
     after its back-off and wins epoch 7: asserted within 10 s of the kill (4.7-5.4 s in 11 runs).
@@ -275,6 +277,10 @@ def test_agents_that_never_heard_the_pc_learn_the_membership_from_peers(master_e
     # (The trace is flushed every 0.2 s; killed before that record is flushed, the PC's last election
     # would be missing from its trace and the merged check could not tell who leads that epoch.)
     wait_until(lambda: pc_master_of(n), 20, f"the PC master of the {n} agents", interval=0.005)
+    # The PC writes a step's record before it sends the step's datagrams: its BecomeMaster in the trace
+    # does not say that its LEADER left. The voters' traces do.
+    wait_until(lambda: all(any(len(r.get("changed", {}).get("members", [])) == n for r in trace(tmp_path, f"agent{i + 1}"))
+                           for i in near), 20, f"#3-#5 to hold the PC's list of {n}", interval=0.005)
     master.stop(signal.SIGKILL)
     master.close()
     t0 = time.monotonic()
