@@ -54,6 +54,8 @@ struct Model {
 };
 
 /// The sender field as docs/protocol.md defines a number: canonical decimal 0..65535, then ':'.
+/// (This file's helpers are written from the doc on purpose, not taken from the codec or auth.hpp:
+/// the model must not share the code it checks.)
 bool sender_of(std::string_view d, std::uint32_t& id) {
   const std::size_t colon = d.find(':');
   if (colon == std::string_view::npos || colon == 0 || colon > 5 || (colon > 1 && d[0] == '0')) return false;

@@ -386,6 +386,13 @@ class Program:
         self._err.close()
 
 
+def drop_counters(log: str) -> dict[str, int]:
+    """The drop counters of a program's last stop line in @p log ("...; drops: a=1 b=2")."""
+    lines = [l for l in log.splitlines() if "; drops: " in l]
+    assert lines, "no stop line with drop counters in the log"
+    return {k: int(v) for k, v in (x.split("=") for x in lines[-1].split("; drops: ", 1)[1].split() if "=" in x)}
+
+
 def assert_static_armel(exe: Path) -> None:
     """@p exe is a static ARM executable (the EV3 build), when `file` is there to say."""
     if shutil.which("file"):

@@ -5,14 +5,13 @@ counts come from the reference codec)."""
 from __future__ import annotations
 
 import random
-import re
 import subprocess
 import time
 from collections import Counter
 
 from ev3conformance.wire import DecodeError, Message, decode, encode
 
-from ev3net import T, FakeAgent, Program, free_ports, read_status, wait_until
+from ev3net import T, FakeAgent, Program, drop_counters, free_ports, read_status, wait_until
 
 N = 3000
 
@@ -101,10 +100,6 @@ def blast(sock_node, datagrams: list[bytes], port: int) -> None:
             time.sleep(0.01)  # pace: loopback drops datagrams when the receive buffer overflows
 
 
-def parse_drops(line: str) -> Counter:
-    return Counter({k: int(v) for k, v in re.findall(r"(\S+)=(\d+)", line)})
-
-
 def test_agent_survives_barrage_and_counts_by_reason(start_agent, tm, tmp_path):
     p = start_agent()
     tm.sync(2)
@@ -116,7 +111,7 @@ def test_agent_survives_barrage_and_counts_by_reason(start_agent, tm, tmp_path):
     tm.ack(2, "BEHAVIOUR", "wait", "seconds=1")
     assert p.stop() == 0
     log = (tmp_path / "agent.log").read_text()
-    drops = parse_drops([l for l in log.splitlines() if " drops: " in l][-1])
+    drops = Counter(drop_counters(log))
     want = expected(data, 2, master=False)
     assert sum(want.values()) == len(data) and len(data) > 2500
     for k, v in want.items():
