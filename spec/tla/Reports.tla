@@ -53,15 +53,18 @@ VARIABLES
     imrec,    \* imrec[a]: the numbers the interim master took from a
     pcup,     \* the PC runs
     net,      \* REP datagrams in flight
-    acks,     \* acks[a][f]: the highest ACK in flight from master f to agent a (-1: none); a
-              \*   lower one in flight too would change nothing (acknowledgements are cumulative)
+    acks,     \* acks[a][f]: the highest ACK in flight from master f to agent a (-1: none).  A
+              \*   lower ACK delivered first is a TakeAck before the later PCAck: the same
+              \*   reachable states as a set of ACKs each delivered or lost (checked)
     budget,   \* [loss, dup, crash, switch]: what the environment may still do
-    dropped   \* history: dropped[a]: the numbers whose reports a's bound dropped
+    dropped,  \* history: dropped[a]: the numbers whose reports a's bound dropped
+    sentrep   \* history: sentrep[a]: the numbers a has sent as reports (not as a marker's)
 
-vars == <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, net, acks, budget, dropped>>
+vars == <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, net, acks, budget, dropped, sentrep>>
 
-Rep(a, to, s, k) == [agent |-> a, to |-> to, seq |-> s, kind |-> k]
-Datagrams == {Rep(a, "pc", s, k) : a \in Agents, s \in Seqs, k \in Kinds}
+\* A report (or a marker's number) on its way to the PC.
+Rep(a, s, k) == [agent |-> a, seq |-> s, kind |-> k]
+Datagrams == {Rep(a, s, k) : a \in Agents, s \in Seqs, k \in Kinds}
 
 \* What a holds as a report (not dropped): mk[a] + 1 .. made[a].
 Held(a) == made[a] - mk[a]
@@ -72,7 +75,6 @@ TypeOK ==
     /\ made \in [Agents -> 0..MaxReports]
     /\ lo \in [Agents -> 1..MaxReports + 1]
     /\ mk \in [Agents -> 0..MaxReports]
-    /\ \A a \in Agents : lo[a] - 1 <= mk[a] /\ mk[a] <= made[a] /\ Held(a) <= Cap
     /\ cur \in [Agents -> Masters]
     /\ rec \in [Agents -> Seq([seq : Seqs, kind : Kinds])]
     /\ nx \in [Agents -> 0..MaxReports + 1]
@@ -83,6 +85,7 @@ TypeOK ==
     /\ acks \in [Agents -> [Masters -> -1..MaxReports]]
     /\ budget \in [loss : 0..MaxLoss, dup : 0..MaxDup, crash : 0..MaxCrash, switch : 0..MaxSwitch]
     /\ dropped \in [Agents -> SUBSET Seqs]
+    /\ sentrep \in [Agents -> SUBSET Seqs]
 
 Init ==
     /\ made = [a \in Agents |-> 0]
@@ -98,6 +101,7 @@ Init ==
     /\ acks = [a \in Agents |-> [f \in Masters |-> -1]]
     /\ budget = [loss |-> MaxLoss, dup |-> MaxDup, crash |-> MaxCrash, switch |-> MaxSwitch]
     /\ dropped = [a \in Agents |-> {}]
+    /\ sentrep = [a \in Agents |-> {}]
 
 \* The datagram leaves the network when taken, unless the network delivers it twice (dup budget).
 Taken(m) == \/ net' = net \ {m} /\ UNCHANGED budget
@@ -119,25 +123,23 @@ Make(a) ==
        THEN /\ mk' = [mk EXCEPT ![a] = @ + 1]
             /\ dropped' = [dropped EXCEPT ![a] = @ \cup {mk[a] + 1}]
        ELSE UNCHANGED <<mk, dropped>>
-    /\ UNCHANGED <<lo, cur, rec, nx, inbox, imrec, pcup, net, acks, budget>>
+    /\ UNCHANGED <<lo, cur, rec, nx, inbox, imrec, pcup, net, acks, budget, sentrep>>
 
 \* Send: a sends everything it holds, each number as a report or as the drop marker's part,
 \* to the master it reports to (a round of its retries, at any time; SilentDrop: the marker is
-\* kept but never sent, so the PC never learns of the drop).  To the PC: into the network.  The interim master takes them at once (to show and act on them) and acknowledges
-\* what it took, from the lowest up to the first gap (its part of the network is not modelled:
-\* its record matters only to HandoverLoses).
+\* kept but never sent, so the PC never learns of the drop).  To the PC: into the network.  The
+\* interim master takes them at once (to show and act on them) and acknowledges all it took (its
+\* part of the network is not modelled: its record matters only to HandoverLoses).
 Sent(a) == IF BUG = "SilentDrop" THEN mk[a] + 1..made[a] ELSE lo[a]..made[a]
 Send(a) ==
     /\ Sent(a) # {}
     /\ IF cur[a] = "pc"
-       THEN /\ net' = net \cup {Rep(a, "pc", s, KindOf(a, s)) : s \in Sent(a)}
+       THEN /\ net' = net \cup {Rep(a, s, KindOf(a, s)) : s \in Sent(a)}
             /\ UNCHANGED <<imrec, acks>>
-       ELSE LET took == imrec[a] \cup lo[a]..made[a]
-                low == CHOOSE s \in took : \A t \in took : s <= t
-                top == CHOOSE s \in took : (low..s) \subseteq took /\ s + 1 \notin took
-            IN /\ imrec' = [imrec EXCEPT ![a] = took]
-               /\ SendAck("im", a, top)
-               /\ UNCHANGED net
+       ELSE /\ imrec' = [imrec EXCEPT ![a] = @ \cup Sent(a)]
+            /\ SendAck("im", a, made[a])
+            /\ UNCHANGED net
+    /\ sentrep' = [sentrep EXCEPT ![a] = @ \cup {s \in Sent(a) : s \notin dropped[a]}]
     /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, pcup, budget, dropped>>
 
 \* TakeAck: a takes the acknowledgement in flight from f of its first n numbers.  The PC's frees
@@ -150,20 +152,20 @@ TakeAck(a, f) ==
        IN /\ lo' = [lo EXCEPT ![a] = l]
           /\ mk' = [mk EXCEPT ![a] = IF l - 1 > @ THEN l - 1 ELSE @]
     /\ acks' = [acks EXCEPT ![a][f] = -1]
-    /\ UNCHANGED <<made, cur, rec, nx, inbox, imrec, pcup, net, budget, dropped>>
+    /\ UNCHANGED <<made, cur, rec, nx, inbox, imrec, pcup, net, budget, dropped, sentrep>>
 
 \* Switch: the PC is lost to a and a elects (or follows) an interim master.
 Switch(a) ==
     /\ cur[a] = "pc" /\ budget.switch > 0
     /\ cur' = [cur EXCEPT ![a] = "im"]
     /\ budget' = [budget EXCEPT !.switch = @ - 1]
-    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, imrec, pcup, net, acks, dropped>>
+    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, imrec, pcup, net, acks, dropped, sentrep>>
 
 \* Takeover: the PC, running, takes a back (HANDOVER, or a follows the PC again).
 Takeover(a) ==
     /\ cur[a] = "im" /\ pcup
     /\ cur' = [cur EXCEPT ![a] = "pc"]
-    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, imrec, pcup, net, acks, budget, dropped>>
+    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, imrec, pcup, net, acks, budget, dropped, sentrep>>
 
 (***************************************************************************)
 (* PC steps.                                                               *)
@@ -176,7 +178,7 @@ Takeover(a) ==
 \* takes whatever number comes first as the next.  GapAsDrop: a number ahead of the next makes the
 \* PC record the ones between as dropped (they were lost or are late, not dropped).
 PCTake(m) ==
-    /\ pcup /\ m \in net /\ m.to = "pc"
+    /\ pcup /\ m \in net
     /\ LET a == m.agent
            next == IF nx[a] = 0 THEN m.seq ELSE nx[a]
        IN IF m.seq = next + Len(inbox[a])
@@ -195,7 +197,7 @@ PCTake(m) ==
                /\ UNCHANGED <<inbox, acks>>
           ELSE UNCHANGED <<rec, nx, inbox, acks>>
     /\ Taken(m)
-    /\ UNCHANGED <<made, lo, mk, cur, imrec, pcup, dropped>>
+    /\ UNCHANGED <<made, lo, mk, cur, imrec, pcup, dropped, sentrep>>
 
 \* PCStore: (AckBeforeStore) the PC stores the oldest number it took and acknowledged.
 PCStore(a) ==
@@ -203,14 +205,14 @@ PCStore(a) ==
     /\ rec' = [rec EXCEPT ![a] = Append(@, Head(inbox[a]))]
     /\ nx' = [nx EXCEPT ![a] = Head(inbox[a]).seq + 1]
     /\ inbox' = [inbox EXCEPT ![a] = Tail(@)]
-    /\ UNCHANGED <<made, lo, mk, cur, imrec, pcup, net, acks, budget, dropped>>
+    /\ UNCHANGED <<made, lo, mk, cur, imrec, pcup, net, acks, budget, dropped, sentrep>>
 
 \* PCAck: the PC acknowledges the first numbers of a up to the last it stored (cumulative), any
 \* time.
 PCAck(a) ==
     /\ pcup
     /\ SendAck("pc", a, Stored(a))
-    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, net, budget, dropped>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, net, budget, dropped, sentrep>>
 
 \* PCCrash: the PC stops; its record stays (durable), what it had not stored is gone
 \* (ForgetfulWindow: where each record ends is forgotten too).
@@ -221,13 +223,13 @@ PCCrash ==
     /\ nx' = IF BUG = "ForgetfulWindow" THEN [a \in Agents |-> 0]
              ELSE [a \in Agents |-> Stored(a) + 1]
     /\ budget' = [budget EXCEPT !.crash = @ - 1]
-    /\ UNCHANGED <<made, lo, mk, cur, rec, imrec, net, acks, dropped>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, imrec, net, acks, dropped, sentrep>>
 
 \* PCRestart: the PC runs again, with its record.
 PCRestart ==
     /\ ~pcup
     /\ pcup' = TRUE
-    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, net, acks, budget, dropped>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, net, acks, budget, dropped, sentrep>>
 
 (***************************************************************************)
 (* The network.                                                            *)
@@ -240,7 +242,7 @@ Lose ==
     /\ \/ \E m \in net : net' = net \ {m} /\ UNCHANGED acks
        \/ \E a \in Agents, f \in Masters : acks[a][f] >= 0 /\ acks' = [acks EXCEPT ![a][f] = -1]
                                            /\ UNCHANGED net
-    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, dropped>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, dropped, sentrep>>
 
 Next ==
     \/ \E a \in Agents : Make(a) \/ Send(a) \/ Switch(a) \/ Takeover(a) \/ PCStore(a) \/ PCAck(a)
@@ -270,7 +272,7 @@ FairSpec == Spec /\ Fairness
 AckedRecordedInv ==
     \A a \in Agents : lo[a] - 1 <= Stored(a) /\ acks[a]["pc"] <= Stored(a)
 
-\* No number is recorded twice.
+\* No number is recorded twice (InOrderInv implies it; checked alone, it names the failure).
 NoDuplicateInv ==
     \A a \in Agents : \A i, j \in 1..Stored(a) : i # j => rec[a][i].seq # rec[a][j].seq
 
@@ -278,13 +280,29 @@ NoDuplicateInv ==
 InOrderInv ==
     \A a \in Agents : \A i \in 1..Stored(a) : rec[a][i].seq = i
 
+\* The buffer: the marker lies below the reports, and at most Cap reports are held.
+BufferInv ==
+    \A a \in Agents : lo[a] - 1 <= mk[a] /\ mk[a] <= made[a] /\ Held(a) <= Cap
+
+\* A report is dropped only from a full buffer: Cap newer ones were made after it.
+DropOnlyWhenFullInv ==
+    \A a \in Agents : \A s \in dropped[a] : s + Cap <= made[a]
+
+\* A number is recorded as a report only if the agent sent it as one (a drop is never silent:
+\* its number is not recorded as a report the PC never had).
+ReportsRecordedInv ==
+    \A a \in Agents : \A i \in 1..Stored(a) :
+        rec[a][i].kind = "report" => rec[a][i].seq \in sentrep[a]
+
 \* A number is recorded as dropped only if the agent's bound dropped its report (a report sent
 \* before its drop and taken is recorded as the report).
 DropsRecordedInv ==
     \A a \in Agents : \A i \in 1..Stored(a) :
         rec[a][i].kind = "dropped" => rec[a][i].seq \in dropped[a]
 
-\* Once the faults are spent and the PC runs, every report made is recorded, or its drop is.
+\* Eventually (the faults are bounded) every number is recorded, as a report or as dropped, and
+\* freed.  It rests on the PC taking each agent back (Takeover is weakly fair: the election ends
+\* with the PC in command again).
 EverythingRecorded ==
     <>[](\A a \in Agents : Stored(a) = MaxReports /\ lo[a] = MaxReports + 1)
 
