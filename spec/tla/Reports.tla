@@ -16,7 +16,7 @@
 (* The election and the relay are abstracted to the master an agent       *)
 (* reports to (`cur`), which changes within a budget, and the PC's return *)
 (* (Takeover).  The network loses (a budget), duplicates (a budget) and    *)
-(* reorders (a set) datagrams; the agent may send any report it holds at   *)
+(* reorders (a set) datagrams; the agent may send everything it holds at   *)
 (* any time, and the PC its acknowledgement, which stand for their         *)
 (* retries.  The PC may crash and restart: its record is durable (a crash *)
 (* keeps it), what it has not stored is lost.                             *)
