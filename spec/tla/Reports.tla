@@ -50,17 +50,16 @@ VARIABLES
     rec,      \* rec[a]: the PC's record of agent a: a sequence of [seq, kind] (durable)
     nx,       \* nx[a]: the number the PC takes next from a (Len(rec[a]) + 1; 0: not known)
     inbox,    \* inbox[a]: taken by the PC, not stored yet (AckBeforeStore only; volatile)
-    imrec,    \* imrec[a]: the numbers the interim master took from a
     pcup,     \* the PC runs
     net,      \* REP datagrams in flight
     acks,     \* acks[a][f]: the highest ACK in flight from master f to agent a (-1: none).  A
-              \*   lower ACK delivered first is a TakeAck before the later PCAck: the same
+              \*   lower ACK delivered first amounts to a TakeAck, then the later PCAck: the same
               \*   reachable states as a set of ACKs each delivered or lost (checked)
     budget,   \* [loss, dup, crash, switch]: what the environment may still do
     dropped,  \* history: dropped[a]: the numbers whose reports a's bound dropped
     sentrep   \* history: sentrep[a]: the numbers a has sent as reports (not as a marker's)
 
-vars == <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, net, acks, budget, dropped, sentrep>>
+vars == <<made, lo, mk, cur, rec, nx, inbox, pcup, net, acks, budget, dropped, sentrep>>
 
 \* A report (or a marker's number) on its way to the PC.
 Rep(a, s, k) == [agent |-> a, seq |-> s, kind |-> k]
@@ -79,7 +78,6 @@ TypeOK ==
     /\ rec \in [Agents -> Seq([seq : Seqs, kind : Kinds])]
     /\ nx \in [Agents -> 0..MaxReports + 1]
     /\ inbox \in [Agents -> Seq([seq : Seqs, kind : Kinds])]
-    /\ imrec \in [Agents -> SUBSET Seqs]
     /\ pcup \in BOOLEAN
     /\ net \subseteq Datagrams
     /\ acks \in [Agents -> [Masters -> -1..MaxReports]]
@@ -95,7 +93,6 @@ Init ==
     /\ rec = [a \in Agents |-> <<>>]
     /\ nx = [a \in Agents |-> 1]
     /\ inbox = [a \in Agents |-> <<>>]
-    /\ imrec = [a \in Agents |-> {}]
     /\ pcup = TRUE
     /\ net = {}
     /\ acks = [a \in Agents |-> [f \in Masters |-> -1]]
@@ -123,21 +120,20 @@ Make(a) ==
        THEN /\ mk' = [mk EXCEPT ![a] = @ + 1]
             /\ dropped' = [dropped EXCEPT ![a] = @ \cup {mk[a] + 1}]
        ELSE UNCHANGED <<mk, dropped>>
-    /\ UNCHANGED <<lo, cur, rec, nx, inbox, imrec, pcup, net, acks, budget, sentrep>>
+    /\ UNCHANGED <<lo, cur, rec, nx, inbox, pcup, net, acks, budget, sentrep>>
 
 \* Send: a sends everything it holds, each number as a report or as the drop marker's part,
 \* to the master it reports to (a round of its retries, at any time; SilentDrop: the marker is
 \* kept but never sent, so the PC never learns of the drop).  To the PC: into the network.  The
-\* interim master takes them at once (to show and act on them) and acknowledges all it took (its
-\* part of the network is not modelled: its record matters only to HandoverLoses).
+\* interim master takes them at once (to show and act on them) and acknowledges them all (its
+\* part of the network and its record are not modelled: they matter only to HandoverLoses).
 Sent(a) == IF BUG = "SilentDrop" THEN mk[a] + 1..made[a] ELSE lo[a]..made[a]
 Send(a) ==
     /\ Sent(a) # {}
     /\ IF cur[a] = "pc"
        THEN /\ net' = net \cup {Rep(a, s, KindOf(a, s)) : s \in Sent(a)}
-            /\ UNCHANGED <<imrec, acks>>
-       ELSE /\ imrec' = [imrec EXCEPT ![a] = @ \cup Sent(a)]
-            /\ SendAck("im", a, made[a])
+            /\ UNCHANGED acks
+       ELSE /\ SendAck("im", a, made[a])
             /\ UNCHANGED net
     /\ sentrep' = [sentrep EXCEPT ![a] = @ \cup {s \in Sent(a) : s \notin dropped[a]}]
     /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, pcup, budget, dropped>>
@@ -152,20 +148,20 @@ TakeAck(a, f) ==
        IN /\ lo' = [lo EXCEPT ![a] = l]
           /\ mk' = [mk EXCEPT ![a] = IF l - 1 > @ THEN l - 1 ELSE @]
     /\ acks' = [acks EXCEPT ![a][f] = -1]
-    /\ UNCHANGED <<made, cur, rec, nx, inbox, imrec, pcup, net, budget, dropped, sentrep>>
+    /\ UNCHANGED <<made, cur, rec, nx, inbox, pcup, net, budget, dropped, sentrep>>
 
 \* Switch: the PC is lost to a and a elects (or follows) an interim master.
 Switch(a) ==
     /\ cur[a] = "pc" /\ budget.switch > 0
     /\ cur' = [cur EXCEPT ![a] = "im"]
     /\ budget' = [budget EXCEPT !.switch = @ - 1]
-    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, imrec, pcup, net, acks, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, pcup, net, acks, dropped, sentrep>>
 
 \* Takeover: the PC, running, takes a back (HANDOVER, or a follows the PC again).
 Takeover(a) ==
     /\ cur[a] = "im" /\ pcup
     /\ cur' = [cur EXCEPT ![a] = "pc"]
-    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, imrec, pcup, net, acks, budget, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, rec, nx, inbox, pcup, net, acks, budget, dropped, sentrep>>
 
 (***************************************************************************)
 (* PC steps.                                                               *)
@@ -197,7 +193,7 @@ PCTake(m) ==
                /\ UNCHANGED <<inbox, acks>>
           ELSE UNCHANGED <<rec, nx, inbox, acks>>
     /\ Taken(m)
-    /\ UNCHANGED <<made, lo, mk, cur, imrec, pcup, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, cur, pcup, dropped, sentrep>>
 
 \* PCStore: (AckBeforeStore) the PC stores the oldest number it took and acknowledged.
 PCStore(a) ==
@@ -205,14 +201,14 @@ PCStore(a) ==
     /\ rec' = [rec EXCEPT ![a] = Append(@, Head(inbox[a]))]
     /\ nx' = [nx EXCEPT ![a] = Head(inbox[a]).seq + 1]
     /\ inbox' = [inbox EXCEPT ![a] = Tail(@)]
-    /\ UNCHANGED <<made, lo, mk, cur, imrec, pcup, net, acks, budget, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, cur, pcup, net, acks, budget, dropped, sentrep>>
 
 \* PCAck: the PC acknowledges the first numbers of a up to the last it stored (cumulative), any
 \* time.
 PCAck(a) ==
     /\ pcup
     /\ SendAck("pc", a, Stored(a))
-    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, net, budget, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, pcup, net, budget, dropped, sentrep>>
 
 \* PCCrash: the PC stops; its record stays (durable), what it had not stored is gone
 \* (ForgetfulWindow: where each record ends is forgotten too).
@@ -223,13 +219,13 @@ PCCrash ==
     /\ nx' = IF BUG = "ForgetfulWindow" THEN [a \in Agents |-> 0]
              ELSE [a \in Agents |-> Stored(a) + 1]
     /\ budget' = [budget EXCEPT !.crash = @ - 1]
-    /\ UNCHANGED <<made, lo, mk, cur, rec, imrec, net, acks, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, net, acks, dropped, sentrep>>
 
 \* PCRestart: the PC runs again, with its record.
 PCRestart ==
     /\ ~pcup
     /\ pcup' = TRUE
-    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, net, acks, budget, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, net, acks, budget, dropped, sentrep>>
 
 (***************************************************************************)
 (* The network.                                                            *)
@@ -242,7 +238,7 @@ Lose ==
     /\ \/ \E m \in net : net' = net \ {m} /\ UNCHANGED acks
        \/ \E a \in Agents, f \in Masters : acks[a][f] >= 0 /\ acks' = [acks EXCEPT ![a][f] = -1]
                                            /\ UNCHANGED net
-    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, imrec, pcup, dropped, sentrep>>
+    /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, pcup, dropped, sentrep>>
 
 Next ==
     \/ \E a \in Agents : Make(a) \/ Send(a) \/ Switch(a) \/ Takeover(a) \/ PCStore(a) \/ PCAck(a)
@@ -294,8 +290,8 @@ ReportsRecordedInv ==
     \A a \in Agents : \A i \in 1..Stored(a) :
         rec[a][i].kind = "report" => rec[a][i].seq \in sentrep[a]
 
-\* A number is recorded as dropped only if the agent's bound dropped its report (a report sent
-\* before its drop and taken is recorded as the report).
+\* A number is recorded as dropped only if the agent's bound dropped its report (a report sent,
+\* then dropped, and taken is recorded as the report).
 DropsRecordedInv ==
     \A a \in Agents : \A i \in 1..Stored(a) :
         rec[a][i].kind = "dropped" => rec[a][i].seq \in dropped[a]
