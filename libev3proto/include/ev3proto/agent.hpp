@@ -125,7 +125,7 @@ class Agent {
       h.why = Ignored::undecodable;
       return h;
     }
-    return Step(rx_, bytes, from);
+    return StepThenDue(rx_, bytes, from);
   }
 
   /// The decoded datagram @p m (its bytes @p bytes, for the trace) arrived from @p from at @p now:
@@ -133,7 +133,16 @@ class Agent {
   /// why). For a caller that decoded it already (Node): each datagram is decoded once.
   Handled handle_message(const Message& m, std::string_view bytes, Peer from, Millis now) noexcept {
     advance(now);
-    return Step(m, bytes, from);
+    return StepThenDue(m, bytes, from);
+  }
+
+  /// Step, then StartElection if the step made it due: a PREVOTE_OK or a membership learned can
+  /// complete a quorum whose back-off is over, and the agent stands now (its next deadline is
+  /// never left in the past).
+  Handled StepThenDue(const Message& m, std::string_view bytes, Peer from) noexcept {
+    const Handled h = Step(m, bytes, from);
+    if (StartElectionOk()) advance(now_);
+    return h;
   }
 
   /// The running action finished (spec ActionOk). Returns false (nothing done) unless Running.
