@@ -437,7 +437,7 @@ class Program {
       } else if (c.kind == K::rule) {
         sh_.log.log(kInfo, "master script: %s", view_.set_rule(c).c_str());
       } else if (c.kind == K::list) {
-        for (const std::string& l : view_.table(node_->master()->registry(), sh_.drops, now))
+        for (const std::string& l : view_.table(node_->master()->registry(), sh_.drops, now, node_->master()->report_records()))
           sh_.log.log(kInfo, "master: %s", l.c_str());
       }
     }

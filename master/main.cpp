@@ -3,10 +3,12 @@
 // datagram, command line or deadline (core resends and drops, copy sends, script waits, status JSON,
 // table refresh). On a terminal: a live table refreshed in place and a prompt; otherwise answers
 // and events are log lines on stdout. docs/programs.md describes it.
+#include <fcntl.h>
 #include <sys/ioctl.h>
 #include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cstdio>
 #include <cstring>
 #include <map>
@@ -16,6 +18,7 @@
 
 #include <ev3proto/durable.hpp>
 #include <ev3proto/master.hpp>
+#include <ev3proto/record.hpp>
 #include <ev3proto/trace.hpp>
 
 #include "ev3prog/console.hpp"
@@ -68,8 +71,9 @@ class Program {
     // Without a state file to continue from, msgids start from the wall clock, above what an earlier
     // run sent (agents ignore a command below one they remember: ev3proto/msgids.hpp).
     cfg.next_msgid = ev3proto::master_msgid_seed(ev3io::wall_ms());
-    std::string restored;
+    std::string restored, recorded;
     if (!load_state(cfg, restored)) return 2;
+    if (!load_record(cfg, recorded)) return 2;
     master_.emplace(cfg, start_, sh_.trace_file.is_open() ? &trace_ : nullptr);
     ready(start_);  // the state file written at once (nothing is queued yet)
     if (sh_.state_failed) return 1;
@@ -79,6 +83,7 @@ class Program {
     if (tty_) setup_screen();
     else say("listening on " + listening_);
     if (!restored.empty()) say(restored);
+    if (!recorded.empty()) say(recorded);
     election_changes();
     loop();
     shutdown();
@@ -138,6 +143,7 @@ class Program {
   void ready(Millis now) {
     if (sh_.state_failed) return;
     sh_.state_failed = !master_->ready([this](const ev3proto::MasterDurable& d) { return save_state(d); },
+                   [this](const std::vector<ev3proto::OperatorEvent>& r) { return append_record(r); },
                    [this, now](const ev3proto::MasterTransmit& t) {
                      if (t.dest == ev3proto::Dest::broadcast) {  // ELECT, LEADER
                        sh_.log.log(kDebug, "send %s to everyone", t.bytes.c_str());
@@ -211,7 +217,7 @@ class Program {
       case K::none: return;
       case K::help: say(ev3prog::console_help()); return;
       case K::list:
-        for (const std::string& l : view_.table(master_->registry(), sh_.drops, now)) say(l);
+        for (const std::string& l : view_.table(master_->registry(), sh_.drops, now, master_->report_records())) say(l);
         return;
       case K::quit: say("quit"); quit_ = true; return;
       case K::rule: say(view_.set_rule(c)); return;
@@ -255,7 +261,7 @@ class Program {
   }
 
   void redraw(Millis now) {
-    std::vector<std::string> t = view_.table(master_->registry(), sh_.drops, now);
+    std::vector<std::string> t = view_.table(master_->registry(), sh_.drops, now, master_->report_records());
     std::string s = "\0337";
     char head[96];
     std::snprintf(head, sizeof head, "ev3-master %s  up %.0fs  agents %zu", listening_.c_str(),
@@ -273,7 +279,8 @@ class Program {
   }
 
   void write_status(Millis now) {
-    const std::string doc = view_.status_json(master_->registry(), sh_.drops, listening_, master_->next_id(), now, start_);
+    const std::string doc = view_.status_json(master_->registry(), sh_.drops, listening_, master_->next_id(), now, start_,
+                                              master_->report_records());
     const std::string tmp = opt_.status_json + ".tmp";
     std::FILE* f = std::fopen(tmp.c_str(), "w");
     if (f == nullptr) {
@@ -297,6 +304,7 @@ class Program {
     } else {
       say("stopped");
     }
+    if (record_fd_ >= 0) ::close(record_fd_);
     sh_.close();
   }
 
@@ -323,6 +331,80 @@ class Program {
     note = "restarted from " + opt_.state_file + ": next id " + std::to_string(d.next_id) + ", msgid " +
            std::to_string(d.next_msgid) + ", epoch " + std::to_string(d.epoch) + ", members " +
            (members.empty() ? "none" : members) + (cfg.election ? "; standing to take the fleet back" : "");
+    return true;
+  }
+
+  /// --record: reads the record of reports back (record.hpp's rule) so that each agent's record
+  /// continues where it ends, keeps ids of the record from being handed out again, and opens the
+  /// file for appending. A line that is not an entry, or does not follow the agent's previous one,
+  /// is refused naming its number; a last line cut by a crash (no newline) is cut off the file.
+  bool load_record(ev3proto::MasterConfig& cfg, std::string& note) {
+    if (opt_.record.empty()) return true;
+    cfg.keep_record = true;
+    std::string text;
+    if (std::FILE* f = std::fopen(opt_.record.c_str(), "rb")) {
+      char buf[65536];
+      for (std::size_t n; (n = std::fread(buf, 1, sizeof buf, f)) > 0;) text.append(buf, n);
+      std::fclose(f);
+    } else if (errno != ENOENT) {
+      std::fprintf(stderr, "ev3-master: --record %s: cannot read it: %s\n", opt_.record.c_str(), std::strerror(errno));
+      return false;
+    }
+    std::size_t lines = 0, entries = 0, pos = 0;
+    for (; pos < text.size();) {
+      const std::size_t nl = text.find('\n', pos);
+      if (nl == std::string::npos) break;  // cut by a crash: cut off below
+      ++lines;
+      std::string why;
+      const std::string_view line(text.data() + pos, nl - pos);
+      if (!ev3proto::apply_record_line(line, cfg.records, why)) {
+        std::fprintf(stderr, "ev3-master: --record %s: line %zu: %s\n", opt_.record.c_str(), lines, why.c_str());
+        return false;
+      }
+      if (!line.empty() && line[0] != '#') ++entries;
+      pos = nl + 1;
+    }
+    record_fd_ = ::open(opt_.record.c_str(), O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (record_fd_ < 0 || (pos < text.size() && ::ftruncate(record_fd_, static_cast<off_t>(pos)) != 0)) {
+      std::fprintf(stderr, "ev3-master: --record %s: cannot write it: %s\n", opt_.record.c_str(), std::strerror(errno));
+      return false;
+    }
+    if (text.empty()) {
+      const std::string head = std::string(ev3proto::kRecordHeader) + "\n";
+      if (::write(record_fd_, head.data(), head.size()) != static_cast<ssize_t>(head.size())) {
+        std::fprintf(stderr, "ev3-master: --record %s: cannot write it: %s\n", opt_.record.c_str(), std::strerror(errno));
+        return false;
+      }
+    }
+    for (const auto& kv : cfg.records)
+      if (cfg.next_id <= kv.first) cfg.next_id = static_cast<std::uint16_t>(kv.first + 1);  // never handed out again
+    if (entries != 0)
+      note = "record " + opt_.record + ": " + std::to_string(entries) + " entries of " +
+             std::to_string(cfg.records.size()) + " agents" +
+             (pos < text.size() ? "; a last line cut by a crash was cut off" : "");
+    return true;
+  }
+
+  /// Appends the record's new entries (--record) and flushes them to the disk; false when they
+  /// are not on it (then the master sends nothing more, no acknowledgement among it, and exits
+  /// with status 1).
+  bool append_record(const std::vector<ev3proto::OperatorEvent>& entries) {
+    if (record_fd_ < 0) return true;
+    std::string text;
+    for (const ev3proto::OperatorEvent& e : entries) text += ev3proto::record_line(e);
+    for (std::size_t done = 0; done < text.size();) {
+      const ssize_t n = ::write(record_fd_, text.data() + done, text.size() - done);
+      if (n < 0 && errno == EINTR) continue;
+      if (n <= 0) {
+        sh_.log.log(kError, "cannot append to the record %s: %s", opt_.record.c_str(), std::strerror(errno));
+        return false;
+      }
+      done += static_cast<std::size_t>(n);
+    }
+    if (::fdatasync(record_fd_) != 0) {
+      sh_.log.log(kError, "cannot flush the record %s: %s", opt_.record.c_str(), std::strerror(errno));
+      return false;
+    }
     return true;
   }
 
@@ -364,6 +446,7 @@ class Program {
   std::uint32_t handovers_ = 0, seen_handovers_ = 0;  // HANDOVERs taken, and said
   ev3proto::MasterRole seen_role_ = ev3proto::MasterRole::master;
   std::uint32_t seen_epoch_ = 0;
+  int record_fd_ = -1;  // --record, open for appending
 };
 
 }  // namespace

@@ -15,6 +15,8 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
       {"election", "", "relay and election on: LEADER heartbeats, epochs; agents may elect a new master", false},
       {"state-file", "FILE", "keep next id, msgids, epoch and members in FILE; restarted with it, the master "
                              "continues them and (with --election) stands to take the fleet back (default: none)", false},
+      {"record", "FILE", "append every report the agents number to FILE before acknowledging it; restarted "
+                         "with it, the master continues each agent's record (default: none)", false},
   });
   ev3io::ParsedArgs a;
   message = ev3io::parse_args(argc, argv, sp, "master", a);
@@ -56,6 +58,11 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
   out.state_file = a.get("state-file");
   if (a.has("state-file") && out.state_file.empty()) {
     message = "bad value for --state-file: empty path";
+    return ParseOutcome::error;
+  }
+  out.record = a.get("record");
+  if (a.has("record") && out.record.empty()) {
+    message = "bad value for --record: empty path";
     return ParseOutcome::error;
   }
   return ParseOutcome::run;

@@ -18,6 +18,7 @@ struct MasterOptions {
   std::string script;            ///< --script FILE
   bool election = false;         ///< --election: LEADER heartbeats, epochs, relay routes (MasterConfig::election)
   std::string state_file;        ///< --state-file FILE: next id, msgid, epoch, members across restarts
+  std::string record;            ///< --record FILE: the record of reports, appended, read back at a restart
 };
 
 using ParseOutcome = ev3io::ParseOutcome;

@@ -174,6 +174,12 @@ std::string FleetView::on_event(const ev3proto::OperatorEvent& e, const std::str
       info_.erase(e.agent);
       return who + " lost (not heard for the agent timeout)";
     case Kind::state: return who + ": state " + e.text;
+    case Kind::reports_dropped:
+      return who + ": reports " + std::to_string(e.seq) + "-" + std::to_string(e.last) +
+             " dropped by the robot's bound (REPORT_DROPPED)";
+    case Kind::reports_skipped:
+      return who + ": reports " + std::to_string(e.seq) + "-" + std::to_string(e.last) +
+             " not here: the robot no longer held them when it reported here";
     case Kind::report: {
       std::string t = e.text;
       for (char& c : t)
@@ -197,11 +203,31 @@ std::string FleetView::on_event(const ev3proto::OperatorEvent& e, const std::str
   return who;
 }
 
+std::string report_summary(const ev3proto::ReportRecord& r) {
+  if (r.next == 0) return "-";
+  std::string s = r.stored() < r.first ? "none from " + std::to_string(r.first)
+                                       : std::to_string(r.first) + "-" + std::to_string(r.stored());
+  std::vector<std::string> notes;
+  if (r.dropped) notes.push_back(std::to_string(r.dropped) + " dropped");
+  if (r.skipped) notes.push_back(std::to_string(r.skipped) + " skipped");
+  if (r.ahead) notes.push_back("gap " + std::to_string(r.next) + "-" + std::to_string(r.ahead - 1));
+  for (std::size_t i = 0; i < notes.size(); ++i) s += (i ? ", " : " (") + notes[i];
+  return notes.empty() ? s : s + ")";
+}
+
+std::string report_json(const ev3proto::ReportRecord& r) {
+  return "{\"first\":" + std::to_string(r.first) + ",\"last\":" + std::to_string(r.stored()) +
+         ",\"recorded\":" + std::to_string(r.reports) + ",\"dropped\":" + std::to_string(r.dropped) +
+         ",\"skipped\":" + std::to_string(r.skipped) + ",\"gap\":" +
+         (r.ahead ? "[" + std::to_string(r.next) + "," + std::to_string(r.ahead - 1) + "]" : std::string("null")) + "}";
+}
+
 std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg,
-                                          const Counters& drops, Millis now) const {
+                                          const Counters& drops, Millis now,
+                                          const std::map<std::uint16_t, ev3proto::ReportRecord>& records) const {
   std::vector<std::string> t;
   t.push_back(pad("ID", 6) + pad("ADDRESS", 22) + pad("STATE", 9) + pad("HEARD", 10) + pad("BEHAVIOUR", 11) +
-              pad("STEP", 12) + pad("LAST REPORT", 46) + pad("COMMAND", 20) + "BATTERY");
+              pad("STEP", 12) + pad("LAST REPORT", 46) + pad("COMMAND", 20) + pad("BATTERY", 9) + "REPORTS");
   for (const auto& kv : reg) {
     const ev3proto::RegistryEntry& e = kv.second;
     auto it = info_.find(kv.first);
@@ -211,7 +237,8 @@ std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto
                 pad(fmt_age(now > e.heard ? now - e.heard : 0), 10) +
                 pad(e.behaviour.empty() ? "-" : e.behaviour, 11) + pad(i.step, 12) +
                 pad(i.report == "-" ? "-" : i.report + " (" + fmt_age(now - i.report_at) + ")", 46) +
-                pad(i.answer, 20) + i.battery);
+                pad(i.answer, 20) + pad(i.battery, 9) +
+                (records.count(kv.first) ? report_summary(records.at(kv.first)) : std::string("-")));
   }
   if (reg.empty()) t.push_back("(no agents yet)");
   std::string d = "drops:";
@@ -228,7 +255,8 @@ std::vector<std::string> FleetView::table(const std::map<std::uint16_t, ev3proto
 
 std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg,
                                    const Counters& drops, const std::string& listening, std::uint16_t next_id,
-                                   Millis now, Millis start) const {
+                                   Millis now, Millis start,
+                                   const std::map<std::uint16_t, ev3proto::ReportRecord>& records) const {
   std::string s = "{\"uptime_ms\":" + std::to_string(now - start) + ",\"listening\":" + ev3proto::json_quote(listening) +
                   ",\"next_id\":" + std::to_string(next_id) + ",\"agents\":[";
   bool first = true;
@@ -258,7 +286,14 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
     s += "{\"id\":" + std::to_string(a.id) + ",\"address\":" + ev3proto::json_quote(a.address) +
          ",\"lost_ms_ago\":" + std::to_string(now - a.at) + "}";
   }
-  s += "],\"drops\":{";
+  s += "],\"reports\":{";
+  first = true;
+  for (const auto& kv : records) {
+    if (!first) s += ',';
+    first = false;
+    s += "\"" + std::to_string(kv.first) + "\":" + report_json(kv.second);
+  }
+  s += "},\"drops\":{";
   first = true;
   for (const auto& kv : drops) {
     if (!first) s += ',';

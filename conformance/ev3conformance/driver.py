@@ -185,5 +185,35 @@ def msgid_of(data: bytes) -> int:
     return wire.decode(data).msgid
 
 
+def beyond_reports(data: bytes) -> bytes | None:
+    """A datagram as the specs without Reports.tla see it (AgentLogic, Fleet, Election: a report is
+    sent once, and never acknowledged). A REPORT's first sending (its msgid that of the report
+    inside: Agent::Make) is the report inside; a later sending, REPORT_DROPPED and REPORT_ACK are
+    Reports.tla's alone (None); every other datagram is itself. Reports.tla's own models check those."""
+    try:
+        msg = wire.decode(data)
+    except wire.DecodeError:
+        return data
+    if msg.type_name in ("REPORT_DROPPED", "REPORT_ACK"):
+        return None
+    if msg.type_name != "REPORT":
+        return data
+    try:
+        inner = wire.decode(msg.params[2])
+    except wire.DecodeError:
+        return data
+    return msg.params[2] if inner.msgid == msg.msgid else None
+
+
+def sent_beyond_reports(sent: list[dict]) -> list[dict]:
+    """The driver's `sent` records as beyond_reports() sees them (hex replaced or left out)."""
+    out = []
+    for s in sent:
+        d = beyond_reports(bytes.fromhex(s["hex"]))
+        if d is not None:
+            out.append({**s, "hex": d.hex()})
+    return out
+
+
 def spec_out(m: dict) -> tuple:
     return (m["src"], m["dst"], m["type"], m["ref"], tuple(m["args"]))

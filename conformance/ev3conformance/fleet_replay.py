@@ -383,6 +383,7 @@ class _Trace(SimTrace):
         spec's emitted datagrams; binds msgids; the bytes go in flight."""
         left = set(spec_out)
         extra = []
+        sent = [(node, x) for node, s in sent for x in drv.sent_beyond_reports([s])]
         for node, s in sent:
             cand, real, data = self._as_spec(node, s)
             hits = [e for e in left if e["from"] == cand["from"] and e["to"] == cand["to"]

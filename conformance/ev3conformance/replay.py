@@ -143,7 +143,7 @@ def split_sent(out: dict) -> list[list[dict]]:
 
 def sent_as_spec(sent: list[dict], steps: int | None = None) -> list[tuple]:
     res = []
-    for s in sent:
+    for s in drv.sent_beyond_reports(sent):
         t = drv.wire_to_spec(bytes.fromhex(s["hex"]))
         if steps and t[2] in ("ACTION_OK", "ACTION_INTERR", "ACTION_ERR"):
             t = (t[0], t[1], t[2], t[3] % steps, t[4])  # action ids count up in the core

@@ -281,7 +281,7 @@ class _Trace(SimTrace):
         stateful = []
         for i, a in enumerate(acts):
             name = a["action"]
-            data = [bytes.fromhex(s["hex"]) for s in (per[i] if i < len(per) else [])]
+            data = [bytes.fromhex(s["hex"]) for s in drv.sent_beyond_reports(per[i] if i < len(per) else [])]
             if name in FREE and name != want:
                 if name == "Tick":
                     emitted += [(node, x) for x in data]
@@ -294,7 +294,7 @@ class _Trace(SimTrace):
             stateful.append(name)
             emitted += [(node, x) for x in data]
         if not acts:
-            emitted += [(node, bytes.fromhex(s["hex"])) for s in out.get("sent", [])]
+            emitted += [(node, bytes.fromhex(s["hex"])) for s in drv.sent_beyond_reports(out.get("sent", []))]
         return stateful
 
     def _from_pool(self, node, name: str, want) -> list | None:

@@ -22,6 +22,12 @@ A record of an action the spec abstracts as a step of no node (BEYOND_SPEC: an a
 as its program exits, Agent::leaving) is checked here and left out of what TLC walks: it must be
 that node's last record and change nothing but its msgid. The datagram it sent is then one no
 record of the walk sent (merged counts it as such).
+
+Records of Reports.tla's actions (REPORTS_ACTIONS: an agent's TakeAck, a master's PCTake) change
+none of the variables the walks read, and are left out of them too; they are checked here against
+Reports.tla's rules instead (check_reports_record): a TakeAck changes nothing but the msgid, and a
+PCTake records the number offered exactly when it is the next of the sender's record (a report) or
+the marker covers the next (a drop), after the numbers below the offer's `first` it lacked.
 """
 
 from __future__ import annotations
@@ -46,6 +52,8 @@ AGENT_VARS = ["state", "led", "id", "beh", "step", "wait", "motors", "devOk", "s
 REF_TYPES = {"MASTER", "ACK", "NOT", "PONG", "ACTION_OK", "ACTION_INTERR", "ACTION_ERR"}
 # Actions of the cores no spec step stands for (docs/core.md "Trace"): left out of the walk.
 BEYOND_SPEC = {"Leave"}
+# Reports.tla's actions: checked by check_reports_record, left out of the walks.
+REPORTS_ACTIONS = {"TakeAck", "PCTake"}
 
 
 
@@ -85,6 +93,7 @@ class TraceFile:
     cut: int = 0                      # bytes of a last line cut by a kill (left out), or 0
     nodes: Counter = field(default_factory=Counter)   # records per node
     beyond: Counter = field(default_factory=Counter)  # BEYOND_SPEC records left out, per node
+    reports: Counter = field(default_factory=Counter)  # REPORTS_ACTIONS records checked and left out, per node
 
 
 def read_trace(path: Path) -> TraceFile:
@@ -119,6 +128,12 @@ def read_trace(path: Path) -> TraceFile:
         if out.beyond[node]:
             raise TraceError(f"line {i + 1}: a record of node {node} after its {'/'.join(sorted(BEYOND_SPEC))} "
                              f"record (that one is a node's last)")
+        if r["action"] in REPORTS_ACTIONS:
+            why = check_reports_record(r)
+            if why:
+                raise TraceError(f"line {i + 1}: {why}: {line[:160]!r}")
+            out.reports[node] += 1
+            continue
         if r["action"] in BEYOND_SPEC:
             if set(r.get("changed", {})) - {"msgid"}:
                 raise TraceError(f"line {i + 1}: a {r['action']} record changes more than the msgid: {line[:120]!r}")
@@ -127,6 +142,40 @@ def read_trace(path: Path) -> TraceFile:
         out.records.append(r)
         out.nodes[node] += 1
     return out
+
+
+def check_reports_record(r: dict) -> str | None:
+    """Why record @p r of a Reports.tla action breaks its rules (None: it keeps them). TakeAck: it
+    changes nothing but the msgid (the window's sendings). PCTake: args.stored is the sender's last
+    number recorded before; changed.rec.stored after (absent: unchanged). From base = the larger of
+    stored and first - 1 (the numbers below `first` the agent no longer holds are recorded as
+    skipped), a report seq is recorded iff seq = base + 1, a marker first..last iff it covers base + 1;
+    otherwise nothing is."""
+    ch = r.get("changed", {})
+    if r["action"] == "TakeAck":
+        return "a TakeAck record changes more than the msgid" if set(ch) - {"msgid"} else None
+    if set(ch) - {"rec"}:
+        return "a PCTake record changes more than the record of reports"
+    args = r.get("args", {})
+    try:
+        m = wire.decode(args["msg"].encode("latin-1"))
+        before = int(args["stored"])
+        p = [int(x) for x in m.params[:2]]
+    except (KeyError, ValueError, TypeError, wire.DecodeError) as e:
+        return f"a PCTake record without a REPORT / REPORT_DROPPED and its stored number ({e})"
+    after = int(ch["rec"]["stored"]) if "rec" in ch else before
+    if m.type_name == "REPORT":
+        seq, first, last = p[0], p[1], p[0]
+    elif m.type_name == "REPORT_DROPPED":
+        seq, first, last = p[0], p[0], p[1]
+    else:
+        return f"a PCTake record of a {m.type_name}"
+    base = max(before, first - 1)
+    want = last if seq <= base + 1 <= last else base
+    if after != want:
+        return (f"PCTake of {m.type_name} {seq}..{last} (first held {first}) with {before} recorded: "
+                f"{after} recorded after, Reports.tla records {want}")
+    return None
 
 
 def load(path: Path, node: str | None = None) -> list[dict]:

@@ -188,6 +188,10 @@ _TABLE: tuple[MessageType, ...] = (
     _type(31, "EPOCH_CMD", "master->agent", 2, 2, "u32:epoch", "text:datagram"),
     _type(32, "HANDOVER", "master->master", 2, 32, "u32:epoch", "text:registry..."),
     _type(33, "PREVOTE_OK", "agent->agent", 1, 1, "u32:epoch"),
+    # Reliable reports (spec/tla/Reports.tla, docs/reports.md).
+    _type(40, "REPORT", "agent->master", 3, 3, "u32:seq", "u32:first", "text:datagram"),
+    _type(41, "REPORT_DROPPED", "agent->master", 2, 2, "u32:first", "u32:last"),
+    _type(42, "REPORT_ACK", "master->agent", 1, 1, "u32:stored"),
 )
 
 MESSAGE_TYPES: dict[int, MessageType] = {t.number: t for t in _TABLE}

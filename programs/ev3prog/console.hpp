@@ -77,13 +77,16 @@ class FleetView {
   /// Text for an operator event (one line), and updates the view. @p address: the agent's address.
   std::string on_event(const ev3proto::OperatorEvent& e, const std::string& address, Millis now);
 
-  /// The table: a header line, one line per agent, a footer with the drop counters.
+  /// The table: a header line, one line per agent (with what @p records holds of its reports), a
+  /// footer with the drop counters.
   std::vector<std::string> table(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg,
-                                 const Counters& drops, Millis now) const;
+                                 const Counters& drops, Millis now,
+                                 const std::map<std::uint16_t, ev3proto::ReportRecord>& records = {}) const;
 
-  /// The status JSON document.
+  /// The status JSON document; `reports` holds @p records, per agent.
   std::string status_json(const std::map<std::uint16_t, ev3proto::RegistryEntry>& reg, const Counters& drops,
-                          const std::string& listening, std::uint16_t next_id, Millis now, Millis start) const;
+                          const std::string& listening, std::uint16_t next_id, Millis now, Millis start,
+                          const std::map<std::uint16_t, ev3proto::ReportRecord>& records = {}) const;
 
   std::map<std::uint16_t, AgentInfo>& info() { return info_; }
   const std::vector<LostAgent>& lost() const { return lost_; }
@@ -106,6 +109,11 @@ class FleetView {
   std::vector<LostAgent> lost_;
   ev3proto::ExploreExploit explore_exploit_;
 };
+
+/// A record of reports in a few words: "1-57 (2 dropped, gap 58-60)", "-" when it is empty.
+std::string report_summary(const ev3proto::ReportRecord& r);
+/// The same as a JSON object: first, last, recorded, dropped, skipped, gap ([from, to] or null).
+std::string report_json(const ev3proto::ReportRecord& r);
 
 /// The state column of an entry: SYNCING until it ACKs MASTER, then the state of its last PING
 /// (SYNCED before the first one).

@@ -27,7 +27,9 @@ TypeNum == [ AGENT |-> 1, MASTER |-> 2, ACK |-> 3, NOT |-> 4, PING |-> 5,
              RELAY_REQ |-> 21, RELAY_OFFER |-> 22, RELAY_ACCEPT |-> 23,
              RELAY_ROUTE |-> 24, RELAY |-> 25, RELAY_DROP |-> 26, ELECT |-> 27,
              VOTE |-> 28, LEADER |-> 29, EPOCH_STALE |-> 30, EPOCH_CMD |-> 31,
-             HANDOVER |-> 32, PREVOTE_OK |-> 33 ]
+             HANDOVER |-> 32, PREVOTE_OK |-> 33,
+             \* reliable reports (Reports.tla, docs/reports.md)
+             REPORT |-> 40, REPORT_DROPPED |-> 41, REPORT_ACK |-> 42 ]
 
 TypeNames == DOMAIN TypeNum
 

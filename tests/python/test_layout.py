@@ -123,8 +123,8 @@ LIBRARY_LAYERS = [
                     "deadline_list.hpp", "wire.hpp", "auth.hpp", "core.hpp"]),
     ("robot", ["robot/"]),
     ("behaviour", ["behaviour/"]),
-    ("cores", ["election/", "durable.hpp", "agent_types.hpp", "agent_outbox.hpp", "agent.hpp", "master_registry.hpp",
-               "master_types.hpp", "master.hpp", "node.hpp"]),
+    ("cores", ["election/", "durable.hpp", "reports.hpp", "agent_types.hpp", "agent_outbox.hpp", "agent.hpp", "master_registry.hpp",
+               "master_types.hpp", "record.hpp", "master.hpp", "node.hpp"]),
     ("joins", ["robot_runtime.hpp", "robot_link.hpp", "rules.hpp", "trace.hpp"]),
 ]
 

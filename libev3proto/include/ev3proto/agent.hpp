@@ -25,6 +25,7 @@
 #include "election/agent.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
+#include "reports.hpp"
 #include "ring.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
@@ -43,9 +44,12 @@ namespace ev3proto {
 ///         carries, so that any `custom` definition that travels can be kept (explore's is 679
 ///         bytes in compact form; with 512 it was refused as "unknown behaviour").
 /// @tparam RelaySlots agents one relay serves at once (and pending offers); Election relays.
+/// @tparam ReportSlots reports kept until the PC acknowledges them (reports.hpp; the oldest are
+///         dropped into the drop marker beyond it).
+/// @tparam ReportBytes bytes for those reports (docs/reports.md sizes both for the EV3).
 template <typename Trace = NoTrace, std::size_t Window = 50, std::size_t TxSlots = 8,
           std::size_t TxBytes = 512, std::size_t EventSlots = 16, std::size_t ArgBytes = kMaxDatagram,
-          std::size_t RelaySlots = 4>
+          std::size_t RelaySlots = 4, std::size_t ReportSlots = kReportSlots, std::size_t ReportBytes = kReportBytes>
 class Agent {
  public:
   /// Longest behaviour name the agent stores.
@@ -62,6 +66,8 @@ class Agent {
   using ElectionType = AgentElection<RelaySlots, kMaxMembership>;  // fleet members kept: kMaxMembership
   /// The loaded behaviour's storage.
   using BehaviourStore = LoadedBehaviour<kMaxNameLen, ArgBytes, kMaxArgs>;
+  /// The reports not yet in the PC's record (Reports.tla).
+  using ReportsType = ReportBuffer<ReportSlots, ReportBytes>;
 
   /// A fresh agent in IDLE at time @p now (spec Init with id = temp id).
   Agent(const AgentConfig& config, Millis now, Trace* trace = nullptr) noexcept
@@ -253,7 +259,7 @@ class Agent {
     if (!is_synced(state_)) return false;
     const AgentVars before = vars();
     const std::string_view p[1] = {"LEAVING"};
-    emit(Dest::master, master_id(), MsgType::EVENT, p, 1);
+    emit_from(id_, Dest::master, master_id(), MsgType::EVENT, p, 1);  // a goodbye, not a numbered report
     record(Action::Leave, before, {}, "LEAVING", 0);
     return true;
   }
@@ -300,6 +306,8 @@ class Agent {
   const WindowType& window() const noexcept { return win_; }
   /// Datagrams that did not decode.
   std::uint32_t rejected() const noexcept { return rejected_; }
+  /// The reports not yet in the PC's record (made, lo, mk, held, dropped: reports.hpp).
+  const ReportsType& reports() const noexcept { return reports_; }
   /// msgid the next datagram will carry.
   std::uint32_t next_msgid() const noexcept { return tx_.next_msgid(); }
   /// Datagrams or events dropped because the caller did not drain the queues.
@@ -392,6 +400,7 @@ class Agent {
     } else {
       if (v.epoch > el_.epoch) NewerEpoch(v.epoch, v.action);
       Run(v, m, inner, from);
+      Send();  // a master found, or an acknowledgement that opens the window
     }
     record(v.action, before, bytes, {}, 0, v.inner);
     refused_now_ = false;
@@ -412,6 +421,7 @@ class Agent {
   /// does not decode): relay / election types by Election's rules, EPOCH_CMD through the fence,
   /// a bare command after an election (epoch > 1) is stale, the rest by AgentLogic's Handler.
   Verdict Choose(const Message& m, const Message* inner) const noexcept {
+    if (m.type == MsgType::REPORT_ACK) return TakeAckOk(m);
     if (m.type >= MsgType::RELAY_REQ && m.type <= MsgType::PREVOTE_OK) {
       if (!el_.enabled) return Verdict{Action::Ignore, Ignored::election_off};
       if (m.sender == id_) return Verdict{Action::Ignore, Ignored::own_broadcast};
@@ -465,6 +475,7 @@ class Agent {
   /// Runs the handler @p v chose.
   void Run(const Verdict& v, const Message& m, const Message* inner, Peer from) noexcept {
     switch (v.action) {
+      case Action::TakeAck: TakeAck(m); break;
       case Action::OfferRelay: el_.OfferRelay(m, from, *this); break;
       case Action::GrantPreVote: el_.GrantPreVote(m, from, *this); break;
       case Action::HandlePreVote: el_.HandlePreVote(m); break;
@@ -559,6 +570,7 @@ class Agent {
     el_.become_follower(leader, e, via);
     master_peer_ = peer;
     hear();
+    reports_.new_master();  // it has acknowledged nothing: everything held goes to it (Step's Send)
   }
   /// The lifecycle enters PANIC by action @p by (SyncTimeout, HeartbeatLost, RelayDropped): the
   /// behaviour stops, PANIC is broadcast at once (spec !.clk = 0), then the election's part
@@ -882,6 +894,8 @@ class Agent {
     } else {
       const std::string_view p[1] = {to_string(wire_state(state_))};
       emit(Dest::master, master_id(), MsgType::PING, p, 1);
+      reports_.retry();  // what the master has not acknowledged in a heartbeat goes again
+      Send();
     }
   }
 
@@ -1104,7 +1118,81 @@ class Agent {
 
   bool emit(Dest dest, std::uint16_t to, MsgType type, const std::string_view* params,
             std::size_t count) noexcept {
+    if (dest == Dest::master && is_report(type)) return Make(to, type, params, count);
     return emit_from(id_, dest, to, type, params, count);
+  }
+
+  // ------------------------------------------------------ reliable reports (Reports.tla)
+
+  /// Spec Make: the report is made as the datagram it would be (to @p to, with the next msgid),
+  /// kept under the next number and, while the agent follows a master, sent to it at once in
+  /// REPORT (with that msgid: its first sending); what the master has not acknowledged goes again
+  /// through Send's window. False (nothing kept) when it does not fit: the datagram, or REPORT
+  /// around it inside a RELAY, longer than TxBytes.
+  bool Make(std::uint16_t to, MsgType type, const std::string_view* params, std::size_t count) noexcept {
+    char buf[TxBytes];
+    const EncodeResult r = encode_parts(id_, to, tx_.next_msgid(), static_cast<std::uint8_t>(type), params, count,
+                                        buf, TxBytes);
+    if (!r.ok() || !ReportTravels(std::string_view(buf, r.size))) return false;
+    const std::uint32_t seq = reports_.Make(std::string_view(buf, r.size));
+    if (seq == 0) return false;
+    if (CanSend() && SendReport(seq, std::string_view(buf, r.size))) reports_.sent_at_once(seq);
+    return true;
+  }
+  /// REPORT(@p seq, lo, @p d) to the master followed.
+  bool SendReport(std::uint32_t seq, std::string_view d) noexcept {
+    char a[10], b[10];
+    const std::string_view p[3] = {decimal(seq, a), decimal(reports_.lo(), b), d};
+    return emit_from(id_, Dest::master, master_id(), MsgType::REPORT, p, 3);
+  }
+  /// Reports go out while the agent follows a master that is not itself (an elected agent's own
+  /// reports wait for the PC).
+  bool CanSend() const noexcept { return is_synced(state_) && el_.role != ElectionRole::master; }
+  /// REPORT(seq, first, @p d) with the largest numbers, relayed, fits a datagram of TxBytes.
+  bool ReportTravels(std::string_view d) const noexcept {
+    char rep[TxBytes], rel[TxBytes];
+    const std::string_view p[3] = {"4294967295", "4294967295", d};
+    const EncodeResult r = encode_parts(65535, 65535, 0xFFFFFFFFu, static_cast<std::uint8_t>(MsgType::REPORT), p, 3,
+                                        rep, TxBytes);
+    if (!r.ok()) return false;
+    return encode_envelope(65535, 65535, 0xFFFFFFFFu, MsgType::RELAY, 65535, std::string_view(rep, r.size), rel,
+                           TxBytes)
+        .ok();
+  }
+  /// Spec Send: what the window allows of the held numbers goes to the master followed, the drop
+  /// marker as REPORT_DROPPED(lo, mk), each report as REPORT(seq, lo, datagram). Nothing while the
+  /// agent follows no master, or is the master itself (its own reports wait for the PC).
+  void Send() noexcept {
+    if (!CanSend()) return;
+    bool marker = false;
+    std::uint32_t seq = 0;
+    std::string_view d;
+    while (reports_.next(marker, seq, d)) {
+      bool ok;
+      if (marker) {
+        char a[10], b[10];
+        const std::string_view p[2] = {decimal(reports_.lo(), a), decimal(seq, b)};
+        ok = emit_from(id_, Dest::master, master_id(), MsgType::REPORT_DROPPED, p, 2);
+      } else {
+        ok = SendReport(seq, d);
+      }
+      if (!ok) return;  // not reached: Make kept only what travels
+      reports_.sent(seq);
+    }
+  }
+  /// Spec TakeAck's enabling condition: REPORT_ACK to this agent's id from the PC or the master
+  /// followed, of a number it made.
+  Verdict TakeAckOk(const Message& m) const noexcept {
+    if (m.receiver != id_) return Verdict{Action::Ignore, Ignored::misaddressed};
+    if (m.sender != kMasterId && m.sender != master_id()) return Verdict{Action::Ignore, Ignored::foreign_sender};
+    const auto n = m.param_u32(0);
+    if (!n || *n > reports_.made()) return Verdict{Action::Ignore, Ignored::ignored_in_state};
+    return Verdict{Action::TakeAck};
+  }
+  /// Spec TakeAck: the PC's acknowledgement frees what it covers; the master followed's stops its
+  /// resending (an interim master's frees nothing: the PC's record is the mission's).
+  void TakeAck(const Message& m) noexcept {
+    reports_.TakeAck(*m.param_u32(0), m.sender == kMasterId, m.sender == master_id() && is_synced(state_));
   }
   /// A datagram to one peer (relay and election answers).
   bool emit_to(Peer peer, std::uint16_t to, MsgType type, const std::string_view* params,
@@ -1170,6 +1258,7 @@ class Agent {
   bool refused_now_ = false;      // ... (for its trace record; reset after it)
   Message rx_;                    // the datagram handle_datagram() decoded
   Message inner_;                 // the datagram inside a RELAY / EPOCH_CMD
+  ReportsType reports_;           // Reports.tla: the reports not yet in the PC's record
 };
 
 }  // namespace ev3proto

@@ -132,10 +132,13 @@ enum class Action : std::uint8_t {
   ShareMembers, LearnMembers, Reconfigure,
   // Agent-side extension the spec abstracts: the program's EVENT(LEAVING) as it exits (Agent::leaving).
   Leave,
+  // Reliable reports (spec/tla/Reports.tla): the agent takes REPORT_ACK; a master takes REPORT or
+  // REPORT_DROPPED and acknowledges in the same step (PCTake, then PCAck).
+  TakeAck, PCTake,
 };
 
 /// Number of actions.
-inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::Leave) + 1;
+inline constexpr std::size_t kActionCount = static_cast<std::size_t>(Action::PCTake) + 1;
 
 /// The spec's name of an action ("RecvStart").
 constexpr std::string_view to_string(Action a) noexcept {
@@ -148,7 +151,7 @@ constexpr std::string_view to_string(Action a) noexcept {
       "RequestRelay", "OfferRelay", "HandleAccept", "AcceptRelay", "RelayDropped", "StartElection",
       "HandleElect", "HandleVote", "BecomeMaster", "Heartbeat", "HandleHeartbeat", "HandleStale",
       "Forward", "ApplyCommand", "GrantPreVote", "HandlePreVote", "MasterRoute", "MasterHandover",
-      "ShareMembers", "LearnMembers", "Reconfigure", "Leave"};
+      "ShareMembers", "LearnMembers", "Reconfigure", "Leave", "TakeAck", "PCTake"};
   const auto i = static_cast<std::size_t>(a);
   return i < kActionCount ? kNames[i] : std::string_view{};
 }

@@ -56,6 +56,8 @@ class Master {
       : cfg_(config), trace_(trace), next_id_(config.next_id), msgid_(config.next_msgid), now_(now),
         drops_(config.timers[Timer::drop]), resends_(config.timers[Timer::resend]), copies_(config.drop_copies),
         el_(config.election, config.epoch, config.self_id, config.members, config.members_epoch, config.timers) {
+    records_ = cfg_.records;
+    cfg_.records.clear();  // kept once, in records_
     if (!cfg_.election) return;  // Fleet.tla's master: MASTER for good, no LEADER
     if (config.candidate) {
       el_.become_candidate(now_);  // Restart(PC): stands at once
@@ -138,6 +140,15 @@ class Master {
   /// sent and false is returned: the datagrams stay queued and the next ready() writes again first.
   template <typename Write, typename Send>
   bool ready(Write&& write, Send&& send) {
+    record_.clear();  // no record kept by this caller: the operator events carry it
+    return ready(write, [](const std::vector<OperatorEvent>&) { return true; }, send);
+  }
+  /// ready() for a PC that keeps the record of reports (MasterConfig::keep_record): after the
+  /// durable state and before any datagram, @p append gets the record's new entries
+  /// (`bool append(const std::vector<OperatorEvent>&)`: true once they are on stable storage);
+  /// when it fails, nothing is sent and false is returned (the entries are offered again).
+  template <typename Write, typename Append, typename Send>
+  bool ready(Write&& write, Append&& append, Send&& send) {
     if (durable_due()) {
       MasterDurable d = durable();
       d.next_msgid = MsgidReservation(reserved_).reserve(msgid_);
@@ -150,6 +161,10 @@ class Master {
       written_rev_ = el_.members_rev;
       written_ = true;
     }
+    if (!record_.empty()) {
+      if (!append(static_cast<const std::vector<OperatorEvent>&>(record_))) return false;
+      record_.clear();
+    }
     MasterTransmit t;
     while (poll_transmit(t)) send(static_cast<const MasterTransmit&>(t));
     return true;
@@ -159,7 +174,7 @@ class Master {
   /// MasterConfig::durable_first while ready() has a durable state to write first. Programs call
   /// ready(); this is the step below it.
   bool poll_transmit(MasterTransmit& out) {
-    if (tx_.empty() || (cfg_.durable_first && durable_due())) return false;
+    if (tx_.empty() || (cfg_.durable_first && durable_due()) || !record_.empty()) return false;
     out = std::move(tx_.front());
     tx_.pop_front();
     return true;
@@ -187,6 +202,8 @@ class Master {
 
   /// The registry, by assigned id.
   const std::map<std::uint16_t, RegistryEntry>& registry() const noexcept { return reg_.map(); }
+  /// What this master recorded of each agent's reports (Reports.tla rec, nx), by id.
+  const std::map<std::uint16_t, ReportRecord>& report_records() const noexcept { return records_; }
   /// The next id to assign (persist it).
   std::uint16_t next_id() const noexcept { return next_id_; }
   /// The next msgid (persist it).
@@ -301,6 +318,7 @@ class Master {
         return Dispatch(inner, from, m.sender);
       }
       if (el_.role != MasterRole::master) return ignored(MasterIgnored::not_master);
+      if (Handler(m) == Action::PCTake) return TakeReport(m, from);  // Reports.tla: no registry change
       note_route(m, from, via);
     }
     switch (Handler(m)) {
@@ -327,6 +345,7 @@ class Master {
         MasterReport(m);
         return taken(Action::MasterReport, why);
       }
+      case Action::PCTake: return TakeReport(m, from);
       default: return ignored(MasterIgnored::unexpected_type);
     }
   }
@@ -345,6 +364,8 @@ class Master {
       case MsgType::ACTION_ERR:
       case MsgType::SENSOR_VALUE:
       case MsgType::EVENT: return Action::MasterReport;
+      case MsgType::REPORT:
+      case MsgType::REPORT_DROPPED: return Action::PCTake;
       default: return Action::Ignore;
     }
   }
@@ -505,12 +526,77 @@ class Master {
   /// Reports are consumed (Fleet.tla); the operator sees each once (copies are deduplicated).
   void MasterReport(const Message& m) {
     reports_.insert(m.sender, m.msgid, NoPayload{});
+    push(OperatorEvent::Kind::report, m.sender, m.type, report_text(m));
+  }
+
+  // ------------------------------------------------ Reports.tla
+
+  /// REPORT / REPORT_DROPPED: PCTake, then PCAck in the same step. Reports.tla's actions touch
+  /// none of MasterLogic's or Election's variables (REPORT_ACK draws no msgid: it is cumulative
+  /// and idempotent, no receiver tells it from its copies).
+  MasterReceipt TakeReport(const Message& m, Peer from) {
+    if (!PCTakeOk(m)) return ignored(MasterIgnored::bad_report);
+    rec_traced_ = m.sender;
+    rec_before_ = records_[m.sender].stored();
+    PCTake(m, from);
+    PCAck(m.sender, from);
+    return taken(Action::PCTake);
+  }
+
+  /// PCTake has a number to offer: from an assigned id, REPORT(seq, first, datagram) with a
+  /// report of that agent inside, or REPORT_DROPPED(first, last); numbers valid (reports.hpp).
+  bool PCTakeOk(const Message& m) {
+    if (!is_assigned_id(m.sender)) return false;
+    const auto a = m.param_u32(0), b = m.param_u32(1);
+    if (!a || !b) return false;
+    if (m.type == MsgType::REPORT_DROPPED) return *a != 0 && *a <= *b;
+    return *a != 0 && *b != 0 && *b <= *a && decode(m.param(2), report_).ok() && report_.sender == m.sender &&
+           is_report(report_.type);
+  }
+  /// Spec PCTake: the number is recorded if it is the next of the sender's record (reports.hpp
+  /// PCTake); a report recorded goes to the operator numbered, a marker as reports_dropped,
+  /// numbers the agent no longer held as reports_skipped; each into the record (keep_record).
+  void PCTake(const Message& m, Peer) {
+    const bool marker = m.type == MsgType::REPORT_DROPPED;
+    const std::uint32_t seq = *m.param_u32(0), first = marker ? seq : *m.param_u32(1);
+    const std::uint32_t last = marker ? *m.param_u32(1) : 0;
+    ReportRecord& r = records_[m.sender];
+    const std::uint32_t before = r.next;
+    std::uint32_t skipped = 0;
+    const ReportTaken t = ev3proto::PCTake(r, seq, last, first, skipped);
+    if (skipped != 0) note_record(OperatorEvent::Kind::reports_skipped, m.sender, MsgType::REPORT, {}, first - skipped, first - 1);
+    if (t == ReportTaken::stored) note_record(OperatorEvent::Kind::report, m.sender, report_.type, report_text(report_), seq, 0);
+    if (t == ReportTaken::dropped) note_record(OperatorEvent::Kind::reports_dropped, m.sender, MsgType::REPORT_DROPPED, {}, before > seq ? before : seq, last);
+  }
+  /// Spec PCAck: REPORT_ACK(the last number recorded) to the sender, cumulative, with msgid 0.
+  void PCAck(std::uint16_t agent, Peer from) {
+    const ReportRecord& r = records_[agent];
+    if (r.stored() == 0) return;
+    char num[10];
+    const std::string_view p[1] = {decimal(r.stored(), num)};
+    send_with(from, agent, 0, MsgType::REPORT_ACK, p, 1);
+  }
+  /// An entry of the record: an operator event, kept for ready()'s append (keep_record).
+  void note_record(OperatorEvent::Kind k, std::uint16_t agent, MsgType type, std::string text, std::uint32_t seq,
+                   std::uint32_t last) {
+    OperatorEvent e;
+    e.kind = k;
+    e.agent = agent;
+    e.command = type;
+    e.text = std::move(text);
+    e.seq = seq;
+    e.last = last;
+    if (cfg_.keep_record) record_.push_back(e);
+    ev_.push_back(std::move(e));
+  }
+  /// A report's params joined by ':' (OperatorEvent::text).
+  static std::string report_text(const Message& m) {
     std::string text;
     for (std::size_t i = 0; i < m.param_count(); ++i) {
       if (i) text += ':';
       text += std::string(m.param(i));
     }
-    push(OperatorEvent::Kind::report, m.sender, m.type, std::move(text));
+    return text;
   }
 
   /// MasterCommand has an entry to act on: @p agent is registered, or 0 (all).
@@ -829,6 +915,11 @@ class Master {
       r.members_after = ids_json(el_.members);
       r.mepoch_before = before.mepoch;
       r.mepoch_after = el_.mepoch;
+      if (a == Action::PCTake) {
+        r.rec_agent = rec_traced_;
+        r.rec_before = rec_before_;
+        r.rec_after = records_[rec_traced_].stored();
+      }
       trace_->record(r);
     } else {
       (void)a, (void)before, (void)msg;
@@ -848,6 +939,11 @@ class Master {
   DedupeWindow<256> reports_;
   std::deque<MasterTransmit> tx_;
   std::deque<OperatorEvent> ev_;
+  std::map<std::uint16_t, ReportRecord> records_;  // Reports.tla rec / nx, per agent
+  std::vector<OperatorEvent> record_;              // the record's entries not yet appended (keep_record)
+  Message report_;                                 // the report inside the REPORT PCTake takes
+  std::uint16_t rec_traced_ = 0;                   // PCTake's sender and its last number recorded
+  std::uint32_t rec_before_ = 0;                   // ... before the step (its trace record)
   std::uint32_t rejected_ = 0;
   Message rx_;
   MasterElection el_;  // Election.tla's variables of the master node, its rules (election/master.hpp)

@@ -6,6 +6,7 @@
 #pragma once
 
 #include <cstdint>
+#include <map>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -13,6 +14,7 @@
 #include "core.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
+#include "reports.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
 
@@ -40,6 +42,13 @@ struct MasterConfig {
   /// published, the msgid block) changed and ready() has not had it written. Off by default (the
   /// drivers and transcripts poll datagrams alone); programs with stable storage turn it on.
   bool durable_first = false;
+  /// Keep the record of reports for ready(write, append, send) (OperatorEvent::recorded), and
+  /// hold every datagram until it is appended: a REPORT_ACK never covers a report the program has
+  /// not stored. Off by default (the record is then the operator events and report_records()).
+  bool keep_record = false;
+  /// The record of reports restored from stable storage, per agent (a restarted PC continues each
+  /// agent's record where it ends).
+  std::map<std::uint16_t, ReportRecord> records;
 
   /// The configuration for an agent that won epoch @p epoch with membership @p members (see
   /// Agent::master_epoch()): no new ids (AGENT from a temporary id is ignored), msgids from
@@ -71,12 +80,22 @@ struct OperatorEvent {
     unknown_agent, ///< A command named an id that is not registered.
     dropped,       ///< @c agent was not heard for the drop timeout and left the registry.
     state,         ///< @c agent reported a new state in PING (@c text).
-    report,        ///< A report (ACTION_OK, ACTION_INTERR, ACTION_ERR, SENSOR_VALUE, EVENT): @c text.
+    report,        ///< A report (ACTION_OK, ACTION_INTERR, ACTION_ERR, SENSOR_VALUE, EVENT): @c text;
+                   ///< numbered (@c seq) when it came in REPORT and was recorded.
+    reports_dropped, ///< Numbers @c seq..@c last of @c agent recorded as dropped by its bound.
+    reports_skipped, ///< Numbers @c seq..@c last the agent no longer held when offered here.
   } kind = Kind::state;
   std::uint16_t agent = 0;             ///< The agent's id.
   MsgType command = MsgType::START;    ///< The command (acked, refused, timed_out, unknown_agent) or
                                        ///< the report's type.
   std::string text;                    ///< Reason, state, or the report's params joined by ':'.
+  std::uint32_t seq = 0;               ///< A recorded report's number (0: not numbered), or the
+                                       ///< first number of reports_dropped / reports_skipped.
+  std::uint32_t last = 0;              ///< The last number of reports_dropped / reports_skipped.
+  /// Part of the record of reports (a numbered report, a drop, a skip): what a PC master keeps.
+  bool recorded() const noexcept {
+    return (kind == Kind::report && seq != 0) || kind == Kind::reports_dropped || kind == Kind::reports_skipped;
+  }
 };
 
 /// Spelling of an operator event kind ("refused").
@@ -90,6 +109,8 @@ constexpr std::string_view to_string(OperatorEvent::Kind k) noexcept {
     case OperatorEvent::Kind::dropped: return "dropped";
     case OperatorEvent::Kind::state: return "state";
     case OperatorEvent::Kind::report: return "report";
+    case OperatorEvent::Kind::reports_dropped: return "reports_dropped";
+    case OperatorEvent::Kind::reports_skipped: return "reports_skipped";
   }
   return {};
 }
@@ -139,6 +160,8 @@ enum class MasterIgnored : std::uint8_t {
                    ///< to MASTER): only the highest msgid heard moves.
   ids_exhausted,   ///< MasterSync: a new agent, and no id left to give (or an elected agent's
                    ///< master, which gives none).
+  bad_report,      ///< REPORT / REPORT_DROPPED not from an assigned id, with invalid numbers, or
+                   ///< without a report of its sender inside.
 };
 
 /// The drop counter's spelling of @p i ("unknown_sender").
@@ -155,6 +178,7 @@ constexpr std::string_view to_string(MasterIgnored i) noexcept {
     case MasterIgnored::unknown_sender: return "unknown_sender";
     case MasterIgnored::stale_answer: return "stale_answer";
     case MasterIgnored::ids_exhausted: return "ids_exhausted";
+    case MasterIgnored::bad_report: return "bad_report";
   }
   return {};
 }
@@ -184,6 +208,8 @@ struct MasterTraceRecord {
   std::string votes_before, votes_after;                ///< Election votes ([ids])
   std::string members_before, members_after;            ///< Election members (of the epoch, [ids])
   std::uint32_t mepoch_before = 0, mepoch_after = 0;    ///< Election mepoch
+  std::uint16_t rec_agent = 0;                          ///< PCTake: the agent whose record it is (0: none)
+  std::uint32_t rec_before = 0, rec_after = 0;          ///< PCTake: its last number recorded (Reports.tla)
 };
 
 }  // namespace ev3proto

@@ -1,7 +1,7 @@
 /// @file messages.hpp
 /// @brief The message types of wire format v1 as a constexpr table (a copy of docs/messages.tsv).
 ///
-/// One row per type. Later protocol issues (relay and election, types 21..39) add rows to
+/// One row per type. New types add rows to
 /// kMessageTable and enumerators to MsgType; nothing else needs to change. A unit test compares this
 /// table with docs/messages.tsv row by row.
 #pragma once
@@ -51,6 +51,9 @@ enum class MsgType : std::uint8_t {
   EPOCH_CMD = 31,     ///< master -> agent: a command fenced by the master's epoch.
   HANDOVER = 32,      ///< master -> master: the registry handed to the new master.
   PREVOTE_OK = 33,    ///< agent -> agent: no master here; would vote for the RELAY_REQ's sender.
+  REPORT = 40,        ///< agent -> master: report number seq (a report datagram inside), the lowest held.
+  REPORT_DROPPED = 41, ///< agent -> master: reports first..last were dropped by the agent's bound.
+  REPORT_ACK = 42,    ///< master -> agent: every report up to this number is in the master's record.
 };
 
 /// Kind of a param value (column `params` of docs/messages.tsv).
@@ -176,6 +179,13 @@ inline constexpr MessageSpec kMessageTable[] = {
      {detail::P(ParamKind::u32, "epoch"), detail::P(ParamKind::text, "registry"), detail::kNoParam, detail::kNoParam}},
     {33, "PREVOTE_OK", Direction::agent_to_agent, 1, 1, 1, false,
      {detail::P(ParamKind::u32, "epoch"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
+    {40, "REPORT", Direction::agent_to_master, 3, 3, 3, false,
+     {detail::P(ParamKind::u32, "seq"), detail::P(ParamKind::u32, "first"), detail::P(ParamKind::text, "datagram"),
+      detail::kNoParam}},
+    {41, "REPORT_DROPPED", Direction::agent_to_master, 2, 2, 2, false,
+     {detail::P(ParamKind::u32, "first"), detail::P(ParamKind::u32, "last"), detail::kNoParam, detail::kNoParam}},
+    {42, "REPORT_ACK", Direction::master_to_agent, 1, 1, 1, false,
+     {detail::P(ParamKind::u32, "stored"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
 };
 
 /// Number of rows of kMessageTable.

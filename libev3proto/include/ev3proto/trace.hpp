@@ -189,10 +189,15 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
 }
 
 /// Formats a master trace record as one NDJSON line (no newline); "changed" holds the master's
-/// variables that changed: reg (master.reg), nextId, msgid.
+/// variables that changed: reg (master.reg), nextId, msgid (and the election's; a PCTake record:
+/// args.stored, and rec {agent, stored} when the sender's record grew).
 inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node = "master") {
   bool afirst = true;
   std::string s = trace_detail::record_head(node, r.action, r.msg, afirst);
+  if (r.rec_agent != 0) {  // PCTake: the sender's last number recorded, before
+    trace_detail::json_key(s, "stored", afirst);
+    s += std::to_string(r.rec_before);
+  }
   trace_detail::record_now(s, r.now);
   if (r.msgid_after != r.msgid_before) {
     // Where the msgids this record sent start (changed.msgid is where they end): a master's first
@@ -209,6 +214,8 @@ inline std::string to_ndjson(const MasterTraceRecord& r, std::string_view node =
   if (r.votes_after != r.votes_before) c.json("votes", r.votes_after);
   if (r.members_after != r.members_before) c.json("members", r.members_after);
   c.num("mepoch", r.mepoch_before, r.mepoch_after);
+  if (r.rec_agent != 0 && r.rec_after != r.rec_before)
+    c.json("rec", "{\"agent\":" + std::to_string(r.rec_agent) + ",\"stored\":" + std::to_string(r.rec_after) + "}");
   s += "}}";
   return s;
 }

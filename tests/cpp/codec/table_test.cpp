@@ -59,7 +59,8 @@ TEST(MessageTable, LookupByType) {
   EXPECT_EQ(find_spec(std::uint8_t{0}), nullptr);
   EXPECT_EQ(find_spec(std::uint8_t{34}), nullptr);
   EXPECT_EQ(find_spec(std::uint8_t{255}), nullptr);
-  EXPECT_EQ(kMessageTableSize, 33u);
+  EXPECT_EQ(find_spec(std::uint8_t{43}), nullptr);
+  EXPECT_EQ(kMessageTableSize, 36u);
 }
 
 TEST(MessageTable, EnumMatchesTable) {

@@ -59,6 +59,7 @@ inline std::string op_line(const OperatorEvent& e) {
   if (e.kind != OperatorEvent::Kind::dropped && e.kind != OperatorEvent::Kind::state)
     l += " " + std::string(to_string(e.command));
   if (!e.text.empty()) l += " " + e.text;
+  if (e.recorded()) l += " n=" + std::to_string(e.seq) + (e.last ? "-" + std::to_string(e.last) : "");
   return l;
 }
 

@@ -180,9 +180,9 @@ TEST(RobotLink, CustomBehaviourGivesOneActionOkPerFinishedAction) {
     if (s.find("ACTION_") != std::string::npos) oks.push_back(s);
   ASSERT_EQ(oks.size(), 2u) << ::testing::PrintToString(out);
   EXPECT_NE(oks[0].find("ACTION_OK"), std::string::npos);
-  EXPECT_EQ(oks[0].substr(oks[0].rfind(' ') + 1), "0") << oks[0];  // "7->1 ACTION_OK #4 0"
+  EXPECT_EQ(oks[0].substr(oks[0].rfind(' ') + 1), "0]") << oks[0];  // "7->1 REPORT #4 1 1 [7->1 ACTION_OK #4 0]"
   EXPECT_NE(oks[1].find("ACTION_OK"), std::string::npos);
-  EXPECT_EQ(oks[1].substr(oks[1].rfind(' ') + 1), "1") << oks[1];
+  EXPECT_EQ(oks[1].substr(oks[1].rfind(' ') + 1), "1]") << oks[1];
   // A definition that does not check: ACTION_ERR at START.
   node.handle_datagram("1:7:4:7:custom:behaviour bad;state a = trun 90 -> end", 1, 700);
   node.handle_datagram("1:7:5:8", 1, 710);

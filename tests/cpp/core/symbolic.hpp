@@ -1,6 +1,6 @@
 // Datagrams as transcripts write them: `7->1 PING #12 WORKING` (sender->receiver, type, msgid, params).
-// A param that is not a plain word is quoted ("wrong state"); the datagram inside a RELAY or an
-// EPOCH_CMD is written in brackets ([1->9 PONG #31 5]); bytes that do not decode are written
+// A param that is not a plain word is quoted ("wrong state"); the datagram inside a RELAY, an
+// EPOCH_CMD or a REPORT is written in brackets ([1->9 PONG #31 5]); bytes that do not decode are written
 // `!undecodable <reason> "<bytes>"`. parse_symbolic() reads the same form back (inputs of the
 // transcripts), so every datagram of a transcript reads as what it means.
 #pragma once
@@ -48,9 +48,10 @@ inline std::string quoted(std::string_view p) {
   return s + "\"";
 }
 
-/// True for the param that holds a whole datagram (RELAY's and EPOCH_CMD's second).
+/// True for the param that holds a whole datagram (RELAY's and EPOCH_CMD's second, REPORT's third).
 inline bool holds_datagram(ev3proto::MsgType t, std::size_t i) {
-  return i == 1 && (t == ev3proto::MsgType::RELAY || t == ev3proto::MsgType::EPOCH_CMD);
+  return (i == 1 && (t == ev3proto::MsgType::RELAY || t == ev3proto::MsgType::EPOCH_CMD)) ||
+         (i == 2 && t == ev3proto::MsgType::REPORT);
 }
 
 }  // namespace symbolic_detail

@@ -28,7 +28,7 @@ from ev3conformance.wire import DecodeError, Message, decode, encode
 
 T = dict(AGENT=1, MASTER=2, ACK=3, NOT=4, PING=5, PONG=6, BEHAVIOUR=7, START=8, STOP=9, PAUSE=10,
          RESUME=11, STANDBY=12, CONTINUE=13, RESTART=14, ACTION_OK=15, ACTION_INTERR=16,
-         ACTION_ERR=17, SENSOR_VALUE=18, PANIC=19, EVENT=20)
+         ACTION_ERR=17, SENSOR_VALUE=18, PANIC=19, EVENT=20, REPORT=40, REPORT_DROPPED=41, REPORT_ACK=42)
 NAME = {v: k for k, v in T.items()}
 
 # Short timers for the tests (ms).
@@ -149,6 +149,8 @@ class TestMaster(Node):
     def __init__(self, port: int = 0) -> None:
         self.msgid = 1000
         self.auto_pong = True
+        self.auto_report_ack = True  # record REPORTs and acknowledge them, as the PC does
+        self.records: dict[int, int] = {}  # agent -> its last report number recorded
         self.agent_port = 0
         super().__init__(port)
 
@@ -159,6 +161,19 @@ class TestMaster(Node):
     def on_message(self, m: Message, port: int) -> None:
         if m.type == T["PING"] and self.auto_pong:
             self.send(Message(1, m.sender, self.next_msgid(), T["PONG"], (str(m.msgid).encode(),)), port)
+        if m.type == T["REPORT"] and self.auto_report_ack:
+            self.take_report(m, port)
+
+    def take_report(self, m: Message, port: int) -> None:
+        """Reports.tla's PCTake and PCAck: a REPORT whose number is the next of the agent's record is
+        recorded (its report joins what was received, as the master shows it), then REPORT_ACK."""
+        seq, first = int(m.params[0]), int(m.params[1])
+        last = self.records.get(m.sender, first - 1)
+        if seq == max(last, first - 1) + 1:
+            self.records[m.sender] = last = seq
+            with self.lock:
+                self.got.append((time.monotonic(), decode(m.params[2]), port))
+        self.send(Message(1, m.sender, 0, T["REPORT_ACK"], (str(last).encode(),)), port, copies=1)
 
     def command(self, agent_id: int, type_name: str, *params: str, msgid: int | None = None) -> int:
         mid = self.next_msgid() if msgid is None else msgid

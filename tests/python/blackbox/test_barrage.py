@@ -48,7 +48,7 @@ def generate(seed: int, n: int, me: int, senders: list[int]) -> list[bytes]:
     return out
 
 
-MASTER_HANDLES = {T[n] for n in ("AGENT", "PANIC", "PING", "ACK", "NOT", "ACTION_OK", "ACTION_INTERR",
+MASTER_HANDLES = {T[n] for n in ("AGENT", "PANIC", "PING", "ACK", "NOT", "ACTION_OK", "ACTION_INTERR", "REPORT", "REPORT_DROPPED",
                                    "ACTION_ERR", "SENSOR_VALUE", "EVENT")}
 
 

@@ -181,3 +181,37 @@ def test_a_leave_record_is_checked_and_left_out_of_the_walk(tmp_path):
             assert why in str(e), e
         else:
             raise AssertionError(f"accepted: {why}")
+
+
+def _pctake(msg: str, stored: int, after: int | None = None) -> dict:
+    r = {"node": "master", "action": "PCTake", "args": {"msg": msg, "stored": stored}, "now": 5, "changed": {}}
+    if after is not None:
+        r["changed"]["rec"] = {"agent": 2, "stored": after}
+    return r
+
+
+def test_reports_records_are_checked_against_reports_tla_and_left_out_of_the_walk(tmp_path):
+    recs = sample("master.ndjson")
+    ok = [_pctake("2:1:9:40:1:1:2%3A1%3A9%3A15%3A0", 0, 1),        # the first report: recorded
+          _pctake("2:1:10:40:1:1:2%3A1%3A9%3A15%3A0", 1),          # a copy: nothing more
+          _pctake("2:1:11:40:3:1:2%3A1%3A11%3A15%3A1", 1),         # ahead of a lost 2: left
+          _pctake("2:1:12:41:2:6", 1, 6),                          # the marker 2..6: recorded dropped
+          _pctake("2:1:13:40:9:9:2%3A1%3A13%3A15%3A2", 6, 9)]      # 7, 8 skipped, then 9
+    tf = tracecheck.read_trace(write(tmp_path / "rep.ndjson", recs + ok))
+    assert tf.records == recs and tf.reports["master"] == len(ok)
+    take_ack = {"node": "agent", "action": "TakeAck", "args": {"msg": "1:2:0:42:1"}, "now": 3,
+                "changed": {"msgid": 12}}
+    assert tracecheck.read_trace(write(tmp_path / "ack.ndjson", [take_ack])).reports["agent"] == 1
+    bad = [(_pctake("2:1:9:40:2:1:2%3A1%3A9%3A15%3A0", 0, 2), "Reports.tla records 0"),   # 2 before 1
+           (_pctake("2:1:9:40:1:1:2%3A1%3A9%3A15%3A0", 0), "Reports.tla records 1"),      # the next, not taken
+           (_pctake("2:1:12:41:2:6", 1, 4), "Reports.tla records 6"),                     # part of a marker
+           (dict(_pctake("2:1:9:40:1:1:2%3A1%3A9%3A15%3A0", 0, 1), changed={"reg": []}),
+            "changes more than the record of reports"),
+           (dict(take_ack, changed={"state": "OFF"}), "a TakeAck record changes more than the msgid")]
+    for r, why in bad:
+        try:
+            tracecheck.read_trace(write(tmp_path / "bad.ndjson", [r]))
+        except tracecheck.TraceError as e:
+            assert why in str(e), e
+        else:
+            raise AssertionError(f"accepted: {why}")
