@@ -42,7 +42,8 @@ struct Reader {
 };
 
 /// A datagram "S:R:M:T:params" with each field picked by the input: the sender and receiver among
-/// @p ids, a msgid near a moving base (repeats, stale and fresh ones), any type 1..40, 0..4 params
+/// @p ids, a msgid near a moving base (repeats, stale and fresh ones), any type 1..42 (40-42: the
+/// reliable reports', with their numbers and a report of the sender inside REPORT), 0..4 params
 /// from the protocol's words.
 inline std::string datagram(Reader& in, const std::uint16_t* ids, std::size_t n_ids, std::uint32_t& msgid_base) {
   static constexpr const char* kWords[] = {
@@ -53,8 +54,20 @@ inline std::string datagram(Reader& in, const std::uint16_t* ids, std::size_t n_
   const std::uint8_t b = in.byte();
   if (b & 0x80) msgid_base += in.byte();
   const std::uint32_t msgid = msgid_base + (b & 7) - 3;
-  std::string d = std::to_string(ids[in.byte() % n_ids]) + ":" + std::to_string(ids[in.byte() % n_ids]) + ":" +
-                  std::to_string(msgid) + ":" + std::to_string(1 + in.byte() % 40);
+  const std::uint16_t sender = ids[in.byte() % n_ids];
+  const std::uint16_t receiver = ids[in.byte() % n_ids];
+  const unsigned type = 1 + in.byte() % 40;
+  std::string d = std::to_string(sender) + ":" + std::to_string(receiver) + ":" + std::to_string(msgid) + ":";
+  if (type == 40) {  // the reliable reports' types 40-42, numbers near the start, a report inside REPORT
+    static constexpr const char* kNums[] = {"0", "1", "2", "3", "4", "5", "9", "4294967295"};
+    const unsigned t = 40 + in.byte() % 3;
+    d += std::to_string(t) + ":" + kNums[in.byte() % 8];
+    if (t == 40) d += std::string(":") + kNums[in.byte() % 8] + ":" + std::to_string(sender) + "%3A1%3A" +
+                      std::to_string(msgid) + "%3A" + (in.byte() & 1 ? "15%3A0" : "20%3AOBSTACLE_DETECTED%3Ain1");
+    if (t == 41) d += std::string(":") + kNums[in.byte() % 8];
+    return d;
+  }
+  d += std::to_string(type);
   for (int i = in.byte() % 5; i > 0; --i) d += std::string(":") + kWords[in.byte() % kN];
   return d;
 }

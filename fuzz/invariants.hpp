@@ -22,6 +22,10 @@ void check_agent(const Core& a, ev3proto::Millis now, const ev3proto::Timers& t)
     violation("NoUnsupervisedMotionInv");
   if (a.state() == State::WORKING && a.behaviour().name.empty()) violation("WorkingLoadedInv");
   if (a.next_deadline() < now) violation("a deadline left behind");
+  // Reports.tla BufferInv: the marker lies below the reports held, at most the bound held.
+  const auto& r = a.reports();
+  if (!(r.lo() - 1 <= r.mk() && r.mk() <= r.made() && r.held() <= Core::ReportsType::kSlots))
+    violation("BufferInv (reports)");
 }
 
 /// Master.tla's invariants on master core @p m's registry. One entry per endpoint (RegistryInv)
@@ -37,6 +41,14 @@ void check_master(const Core& m, bool election) {
     if (id >= m.next_id()) violation("IdsInv");
     if (x.pending && !ev3proto::msgid_newer(m.next_msgid(), x.mid)) violation("MidInv");
     if (x.pending && x.synced && x.queue.empty()) violation("PendingInv");
+  }
+  // Reports.tla's record: each agent's numbers first..last are each a report, a drop or a skip
+  // (InOrderInv, NoDuplicateInv as counts), and a gap lies beyond the record.
+  for (const auto& [id, r] : m.report_records()) {
+    if (r.next == 0) continue;
+    if (r.first == 0 || r.next < r.first) violation("a record of reports without its start");
+    if (std::uint64_t{r.reports} + r.dropped + r.skipped != std::uint64_t{r.next} - r.first) violation("InOrderInv (reports)");
+    if (r.ahead != 0 && r.ahead <= r.next) violation("a gap inside the record of reports");
   }
 }
 

@@ -146,14 +146,14 @@ def read_trace(path: Path) -> TraceFile:
 
 def check_reports_record(r: dict) -> str | None:
     """Why record @p r of a Reports.tla action breaks its rules (None: it keeps them). TakeAck: it
-    changes nothing but the msgid (the window's sendings). PCTake: args.stored is the sender's last
+    changes nothing but the msgid (the window's sendings) and lo (what the PC's acknowledgement freed). PCTake: args.stored is the sender's last
     number recorded before; changed.rec.stored after (absent: unchanged). From base = the larger of
     stored and first - 1 (the numbers below `first` the agent no longer holds are recorded as
     skipped), a report seq is recorded iff seq = base + 1, a marker first..last iff it covers base + 1;
     otherwise nothing is."""
     ch = r.get("changed", {})
     if r["action"] == "TakeAck":
-        return "a TakeAck record changes more than the msgid" if set(ch) - {"msgid"} else None
+        return "a TakeAck record changes more than the msgid and lo" if set(ch) - {"msgid", "lo"} else None
     if set(ch) - {"rec"}:
         return "a PCTake record changes more than the record of reports"
     args = r.get("args", {})

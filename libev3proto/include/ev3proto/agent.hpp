@@ -368,6 +368,8 @@ class Agent {
     v.floor = el_.floor;
     v.members_rev = el_.members.rev();
     v.msgid = tx_.next_msgid();
+    v.made = reports_.made();
+    v.lo = reports_.lo();
     return v;
   }
 
@@ -1136,8 +1138,17 @@ class Agent {
     if (!r.ok() || !ReportTravels(std::string_view(buf, r.size))) return false;
     const std::uint32_t seq = reports_.Make(std::string_view(buf, r.size));
     if (seq == 0) return false;
-    if (CanSend() && SendReport(seq, std::string_view(buf, r.size))) reports_.sent_at_once(seq);
+    if (!CanSend()) return true;
+    ReportTo();
+    if (SendReport(seq, std::string_view(buf, r.size))) reports_.sent_at_once(seq);
     return true;
+  }
+  /// The master reports go to is master_id(): when it is another one than before (a sync, an
+  /// election, the PC back), that master has acknowledged nothing yet.
+  void ReportTo() noexcept {
+    if (master_id() == report_to_) return;
+    report_to_ = master_id();
+    reports_.new_master();
   }
   /// REPORT(@p seq, lo, @p d) to the master followed.
   bool SendReport(std::uint32_t seq, std::string_view d) noexcept {
@@ -1164,6 +1175,7 @@ class Agent {
   /// agent follows no master, or is the master itself (its own reports wait for the PC).
   void Send() noexcept {
     if (!CanSend()) return;
+    ReportTo();
     bool marker = false;
     std::uint32_t seq = 0;
     std::string_view d;
@@ -1259,6 +1271,7 @@ class Agent {
   Message rx_;                    // the datagram handle_datagram() decoded
   Message inner_;                 // the datagram inside a RELAY / EPOCH_CMD
   ReportsType reports_;           // Reports.tla: the reports not yet in the PC's record
+  std::uint16_t report_to_ = 0;   // the master the report window counts for (ReportTo)
 };
 
 }  // namespace ev3proto

@@ -241,6 +241,8 @@ struct AgentVars {
   /// The next msgid (not a spec variable): a record that sent datagrams moved it, so the trace
   /// names the msgids each record sent (the merge of a run's traces, docs/spec.md "Whole-run traces").
   std::uint32_t msgid = 0;
+  /// Reports.tla's made and lo (not AgentLogic's): the reports made, the lowest number still held.
+  std::uint32_t made = 0, lo = 1;
   /// The behaviour name.
   std::string_view beh_name() const noexcept { return std::string_view(beh, beh_len); }
 };

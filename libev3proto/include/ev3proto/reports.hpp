@@ -45,6 +45,8 @@ class ReportBuffer {
   static_assert(Slots >= 1 && Bytes >= 64 && Bytes <= 0xFFFFFFFFu, "a report buffer needs room");
 
  public:
+  /// Reports held at most.
+  static constexpr std::size_t kSlots = Slots;
   /// Longest report kept (a longer one is refused by Make).
   static constexpr std::size_t kMaxReport = Bytes / 4 < 65535 ? Bytes / 4 : 65535;
 
@@ -222,7 +224,7 @@ inline ReportTaken PCTake(ReportRecord& r, std::uint32_t seq, std::uint32_t last
   }
   const std::uint32_t top = marker ? last : seq;
   if (t == ReportTaken::ahead && top > r.ahead) r.ahead = top;
-  if (r.ahead < r.next) r.ahead = 0;
+  if (r.ahead <= r.next) r.ahead = 0;  // every number below the highest seen is recorded
   return t;
 }
 

@@ -155,6 +155,8 @@ std::string to_ndjson(const AgentTraceRecord& r, const A& agent, std::string_vie
   c.num("clk", b.clk, a.clk);
   if (a.win_rev != b.win_rev) c.json("win", window_json(agent.window()));
   c.num("msgid", b.msgid, a.msgid);  // the next msgid: this record sent [b.msgid, a.msgid)
+  c.num("made", b.made, a.made);     // Reports.tla: a report made (Make)
+  c.num("lo", b.lo, a.lo);           // Reports.tla: the PC's acknowledgement freed (TakeAck)
   if (a.election) {  // Election.tla's variables of this agent
     auto life = [](const AgentVars& v) {
       return v.role == ElectionRole::master ? std::string_view("MASTER")

@@ -5,6 +5,7 @@ stopped (SIGTERM, must exit 0) at the end of each test."""
 from __future__ import annotations
 
 import os
+import sys
 from pathlib import Path
 
 import pytest
@@ -12,6 +13,8 @@ import pytest
 from ev3net import HB, LOSS, PAUSED, SYNC, Program, TestMaster, free_ports
 
 REPO = Path(__file__).resolve().parents[3]
+sys.path.insert(0, str(REPO / "tests" / "python" / "sim"))
+from ev3sim_proc import Sims, cannot_run  # noqa: E402
 
 
 def _bin(name: str) -> Path:
@@ -29,6 +32,20 @@ def agent_exe() -> Path:
 @pytest.fixture
 def master_exe() -> Path:
     return _bin("ev3-master")
+
+
+@pytest.fixture
+def sim_factory(tmp_path):
+    """sim(world, args, robots) -> Sim on a fresh directory (robots: [(name, "x,y,heading")], default
+    one robot at the world's start); stopped at the end (SIGTERM, exit 0). ev3-sim needs /dev/fuse:
+    without it the test fails (never skips)."""
+    why = cannot_run()
+    if why:
+        pytest.fail(why, pytrace=False)
+    sims = Sims(tmp_path)
+    yield lambda world, args=None, robots=None: sims.start(world, robots, args)
+    bad = sims.stop_all()
+    assert not bad, f"ev3-sim did not exit 0: {bad}"
 
 
 @pytest.fixture

@@ -27,7 +27,7 @@ import pytest
 from ev3net import HB, LOSS, PAUSED, Program, T, free_ports, read_status, wait_until
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "sim"))
-from ev3sim_proc import Sim, Sims, cannot_run  # noqa: E402
+from ev3sim_proc import Sim  # noqa: E402
 
 # An open pen: the robot faces +x with 5 m of floor in front of it.
 OPEN = "bounds 0 0 600 300\nstart 50 150 0\n"
@@ -48,18 +48,6 @@ PATTERNS = {
 }
 LEDS = {"left": ("led0:red:brick-status", "led0:green:brick-status"),
         "right": ("led1:red:brick-status", "led1:green:brick-status")}
-
-
-@pytest.fixture
-def sim_factory(tmp_path):
-    """sim(world, args) -> Sim on a fresh directory; stopped at the end (SIGTERM, exit 0)."""
-    why = cannot_run()
-    if why:
-        pytest.fail(why, pytrace=False)
-    sims = Sims(tmp_path)
-    yield lambda world, args=None: sims.start(world, None, args)
-    bad = sims.stop_all()
-    assert not bad, f"ev3-sim did not exit 0: {bad}"
 
 
 class Fleet:

@@ -207,7 +207,7 @@ def test_reports_records_are_checked_against_reports_tla_and_left_out_of_the_wal
            (_pctake("2:1:12:41:2:6", 1, 4), "Reports.tla records 6"),                     # part of a marker
            (dict(_pctake("2:1:9:40:1:1:2%3A1%3A9%3A15%3A0", 0, 1), changed={"reg": []}),
             "changes more than the record of reports"),
-           (dict(take_ack, changed={"state": "OFF"}), "a TakeAck record changes more than the msgid")]
+           (dict(take_ack, changed={"state": "OFF"}), "a TakeAck record changes more than the msgid and lo")]
     for r, why in bad:
         try:
             tracecheck.read_trace(write(tmp_path / "bad.ndjson", [r]))
