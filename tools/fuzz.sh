@@ -16,7 +16,7 @@ case "$mode" in smoke|long) ;; *) usage ;; esac
 [[ "$seconds" =~ ^[0-9]+$ ]] || usage
 
 bindir="$root/build/fuzz/bin"
-targets=(fuzz_decode fuzz_behaviour fuzz_signed fuzz_agent fuzz_master fuzz_node)
+targets=(fuzz_decode fuzz_behaviour fuzz_signed fuzz_agent fuzz_master fuzz_node fuzz_robot fuzz_console)
 export ASAN_OPTIONS="${ASAN_OPTIONS:-abort_on_error=1:detect_leaks=1:symbolize=1}"
 export UBSAN_OPTIONS="${UBSAN_OPTIONS:-halt_on_error=1:print_stacktrace=1}"
 
