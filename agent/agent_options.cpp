@@ -1,5 +1,7 @@
 #include "agent_options.hpp"
 
+#include <ev3proto/reports.hpp>
+
 namespace ev3agent {
 
 using ev3proto::Timer;
@@ -21,6 +23,8 @@ std::vector<ev3io::OptionSpec> specs() {
       {"state-dir", "DIR", "keep the election state (epoch, vote, membership, floor) in DIR/ev3-agent.state, written before "
                            "what depends on it is sent; a failed write stops the agent with status 1 (default: none, in memory only)", false},
       {"master-script", "FILE", "console commands (as ev3-master --script) run when this agent is elected master", false},
+      {"report-buffer", "N", "reports kept until the PC master has recorded them, 1..1024; beyond, the oldest are "
+                             "dropped and recorded as dropped (default 1024)", false},
   });
   return s;
 }
@@ -91,6 +95,12 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
     out.timers.set(r.t, v);
   }
   out.election = a.has("election");
+  if (a.has("report-buffer")) {
+    std::uint64_t v = 0;
+    message = ev3io::read_uint(a, "report-buffer", 1, ev3proto::kReportSlots, v);
+    if (!message.empty()) return ParseOutcome::error;
+    out.report_buffer = static_cast<std::size_t>(v);
+  }
   if (a.has("score")) {
     std::uint64_t v = 0;
     message = ev3io::read_uint(a, "score", 0, 1000000, v);

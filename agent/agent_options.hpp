@@ -24,6 +24,7 @@ struct AgentOptions {
   std::uint32_t score = 0xFFFFFFFFu;  ///< --score N (default: computed from the capabilities)
   std::string state_dir;    ///< --state-dir DIR: epoch and votedFor on disk ("" = in memory only)
   std::string master_script;  ///< --master-script FILE: console commands run when elected master
+  std::size_t report_buffer = 0;  ///< --report-buffer N: reports kept until the PC records them (0 = the core's 1024)
 };
 
 using ParseOutcome = ev3io::ParseOutcome;

@@ -108,6 +108,7 @@ class Program {
                 robot::kModelADeviceNames, std::size(robot::kModelADeviceNames)};
     cfg.check = robot::behaviour_check(*rt_);
     cfg.timers = opt_.timers;
+    cfg.report_limit = opt_.report_buffer;
     const ev3proto::StartIds ids = ev3proto::draw_start_ids(random_u64());
     cfg.temp_id = ids.temp_id;
     cfg.first_msgid = ids.first_msgid;

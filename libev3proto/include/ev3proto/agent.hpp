@@ -74,6 +74,7 @@ class Agent {
       : cfg_(config), trace_(trace), id_(config.temp_id), now_(now),
         heard_(now), plugged_(config.caps.devices), tx_(config.first_msgid), el_(config.election, config.timers), durable_(el_.durable()) {
     win_.set_limit(config.window);
+    reports_.set_limit(config.report_limit);
     timers_.set(AgentTimer::periodic, now + cfg_.timers[Timer::heartbeat]);
     arm_lifecycle();
   }

@@ -118,6 +118,8 @@ struct AgentConfig {
   std::uint16_t temp_id = 50000; ///< Temporary id drawn at random by the caller (50000..65535).
   std::uint32_t first_msgid = 1; ///< msgid of the first datagram the agent sends.
   ElectionConfig election;       ///< Relay and election (off by default).
+  std::size_t report_limit = 0;  ///< Reports held at most (Reports.tla Cap): 0 = the ReportSlots template
+                                 ///< parameter; at most that (reports.hpp ReportBuffer::set_limit)
   std::size_t window = 0;        ///< Dedupe window entries (spec Window): 0 = the Window template
                                  ///< argument; at most that (one compiled core serves every size).
 };

@@ -56,7 +56,7 @@ class ReportBuffer {
   std::uint32_t Make(std::string_view datagram) noexcept {
     if (datagram.size() > kMaxReport || made_ == 0xFFFFFFFEu) return 0;
     std::uint32_t at = 0;
-    while (held() == Slots || !place(datagram.size(), at)) drop_oldest();
+    while (held() >= limit_ || !place(datagram.size(), at)) drop_oldest();
     std::memcpy(bytes_ + at, datagram.data(), datagram.size());
     ++made_;
     Entry& e = ent_[made_ % Slots];
@@ -80,6 +80,12 @@ class ReportBuffer {
     }
     if (sent_ < cur_ack_) sent_ = cur_ack_;
     return true;
+  }
+
+  /// Holds at most @p n reports (1..Slots; 0 or more than Slots: Slots), a bound set at run time
+  /// below the compiled one (ev3-agent --report-buffer). Call it before the first report.
+  void set_limit(std::size_t n) noexcept {
+    limit_ = n == 0 || n > Slots ? static_cast<std::uint32_t>(Slots) : static_cast<std::uint32_t>(n);
   }
 
   /// The agent reports to another master from now on (synced anew, a relay, an election): it has
@@ -165,6 +171,7 @@ class ReportBuffer {
   std::uint32_t cur_ack_ = 0, sent_ = 0;  // the current master: acknowledged, sent
   std::uint32_t dropped_ = 0;
   std::uint32_t tail_ = 0;                // the byte after the newest report
+  std::uint32_t limit_ = static_cast<std::uint32_t>(Slots);  // reports held at most (set_limit)
   Entry ent_[Slots];
   char bytes_[Bytes];
 };

@@ -85,6 +85,17 @@ TEST(ReportBuffer, AFullBufferDropsTheOldestIntoOneMarker) {
   EXPECT_EQ(b.held(), 2u);
 }
 
+TEST(ReportBuffer, ARunTimeLimitBelowTheCompiledOne) {
+  ReportBuffer<16, 4096> b;
+  b.set_limit(3);
+  for (int i = 1; i <= 5; ++i) b.Make(report(i));
+  EXPECT_EQ(b.held(), 3u);
+  EXPECT_EQ(b.dropped(), 2u);
+  b.set_limit(0);  // 0: the compiled bound
+  for (int i = 6; i <= 20; ++i) b.Make(report(i));
+  EXPECT_EQ(b.held(), 16u);
+}
+
 TEST(ReportBuffer, TheByteBoundDropsTooAndTheRingWraps) {
   ReportBuffer<100, 64> b;  // 64 bytes: at most 16 bytes a report
   const std::string r(12, 'x');

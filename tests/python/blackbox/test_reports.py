@@ -2,9 +2,12 @@
 ev3-master with --record; the master is killed (SIGKILL) in the middle of a mission that reports
 every 100 ms and comes back from its --state-file and --record a second later. The agents keep
 working meanwhile (a long --master-timeout-ms), so reports are made while no master runs; the
-restarted master takes them when the agents reach it again. Afterwards the record holds every report
-each agent made (the `made` of its own trace) exactly once, in order, and the status JSON says so
-(no gap, nothing dropped). A record file that is not one is refused at start, naming its line.
+restarted master takes them when the agents reach it again. The second robot's agent keeps at most
+8 reports (--report-buffer 8), so its bound drops some while the master is gone. Afterwards each
+record holds every number each agent made (the `made` of its own trace) exactly once, in order: the
+first robot's all as reports, the second's as reports and, where its bound dropped them, as dropped,
+and the status JSON counts them so (no gap). A record file that is not one is refused at start,
+naming its line.
 
 The agents' traces are checked against the spec at teardown like every other agent's (conftest.py);
 with this test they hold TakeAck records, and the master's PCTake records."""
@@ -76,6 +79,7 @@ def test_the_record_has_every_report_once_after_the_master_was_killed(master_exe
             "--port", str(aport), "--bind", "127.0.0.1", "--broadcast", f"127.0.0.1:{mport}",
             "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS_MS), "--paused-timeout-ms", "8000",
             "--sysfs-root", str(sim.root(name)), f"--trace={tmp_path / f'agent{i + 1}.nd'}",
+            *(["--report-buffer", "8"] if i == 1 else []),
             "--log-file", str(tmp_path / f"agent{i + 1}.log")], tmp_path, f"agent{i + 1}"))
     wait_until(lambda: (s := read_status(status)) and sum(a["state"] == "ACTIVE" for a in s["agents"]) == 2, 8,
                "two ACTIVE agents")
@@ -92,6 +96,7 @@ def test_the_record_has_every_report_once_after_the_master_was_killed(master_exe
     killed = {a: max(e[1] for e in es) for a, es in record(rec).items()}
     trace_of = {agent_id(tmp_path, i + 1): tmp_path / f"agent{i + 1}.nd" for i in range(len(POSES))}
     assert sorted(trace_of) == sorted(killed)
+    small = agent_id(tmp_path, 2)  # --report-buffer 8
     time.sleep(1.0)  # the agents go on working and reporting: nobody acknowledges
     made_then = {a: made(t) for a, t in trace_of.items()}
     m2 = master("master2")
@@ -114,14 +119,19 @@ def test_the_record_has_every_report_once_after_the_master_was_killed(master_exe
     entries = record(rec)
     for a in ids:
         es = entries[a]
-        # 1, 2, 3, ... each once, in order, every one a report (the bound dropped nothing)
-        assert [e[0] for e in es] == list(range(1, want[a] + 1)), es[:20]
-        assert all(e[0] == e[1] and e[2] == "report" for e in es)
-        assert s["reports"][str(a)] == {"first": 1, "last": want[a], "recorded": want[a], "dropped": 0,
-                                        "skipped": 0, "gap": None}
+        # 1, 2, 3, ... each once, in order: each entry starts where the previous one ended
+        assert es[0][0] == 1 and es[-1][1] == want[a], es[:20]
+        assert all(x[1] + 1 == y[0] for x, y in zip(es, es[1:])), es
+        assert all(e[2] == "report" and e[0] == e[1] or e[2] == "dropped" for e in es), es
+        dropped = sum(e[1] - e[0] + 1 for e in es if e[2] == "dropped")
+        assert s["reports"][str(a)] == {"first": 1, "last": want[a], "recorded": want[a] - dropped,
+                                        "dropped": dropped, "skipped": 0, "gap": None}
+        # the first robot's bound dropped nothing; the second's (8 reports) did, while no master ran
+        assert (dropped > 0) == (a == small), (a, dropped)
         # reports were made while no master ran, and reached the restarted one
         assert want[a] > made_then[a] > killed[a], (a, killed[a], made_then[a], want[a])
-    print(f"\nrecorded before the kill {killed}, made by then {made_then}, in the end {want}")
+    print(f"\nrecorded before the kill {killed}, made by then {made_then}, in the end {want}; dropped by agent "
+          f"{small}'s bound: {s['reports'][str(small)]['dropped']}")
     for p in programs:
         assert p.stop() == 0, p.name
 
