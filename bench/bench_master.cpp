@@ -9,6 +9,9 @@
 // due: resends, failures), its PONG and resends drained, the operator events drained, then
 // next_deadline() for the loop's sleep. The same source builds against an earlier commit's headers
 // (bench_master_baseline, EV3_MASTER_BASELINE) to show the registry walk it replaced.
+// BM_MasterReport: the same fleet reporting instead (docs/reports.md): REPORTs round robin at the
+// same rate, each the next number of its agent, recorded (PCTake) and acknowledged (PCAck); not in
+// the baseline, whose headers predate them.
 #include <benchmark/benchmark.h>
 
 #include <cstdint>
@@ -94,6 +97,44 @@ void BM_MasterPing(benchmark::State& state) {
   state.counters["core_seconds"] = static_cast<double>(now - t0) / 1000.0;
 }
 BENCHMARK(BM_MasterPing)->Arg(100)->Arg(10000)->Unit(benchmark::kNanosecond);
+
+#ifndef EV3_BENCH_BASELINE
+void BM_MasterReport(benchmark::State& state) {
+  const auto n = static_cast<std::size_t>(state.range(0));
+  const Millis t0 = 1000;
+  Master<> m(MasterConfig{}, t0);
+  std::vector<std::uint32_t> msgid(n, 1), seq(n, 0);
+  char buf[160];
+  for (std::size_t i = 0; i < n; ++i) {  // synced as in BM_MasterPing
+    std::snprintf(buf, sizeof buf, "%zu:0:1:1:A", 50000 + i);
+    m.handle_datagram(buf, static_cast<Peer>(i + 1), t0);
+    const auto id = static_cast<std::uint16_t>(2 + i);
+    std::snprintf(buf, sizeof buf, "%u:1:%u:3:%u", id, ++msgid[i], m.registry().at(id).mid);
+    m.handle_datagram(buf, static_cast<Peer>(i + 1), t0);
+    drain(m, nullptr);
+  }
+  std::uint64_t k = 0, sent = 0;
+  Millis now = t0;
+  for (auto _ : state) {
+    const std::size_t i = k % n;
+    const unsigned id = static_cast<unsigned>(2 + i);
+    now = t0 + 1 + k * 1000 / kDatagramsPerSecond;
+    ++msgid[i];
+    std::snprintf(buf, sizeof buf, "%u:1:%u:40:%u:1:%u%%3A1%%3A%u%%3A18%%3Ain4%%3AUS-DIST-CM%%3A42", id, msgid[i],
+                  ++seq[i], id, msgid[i]);
+    m.handle_datagram(buf, static_cast<Peer>(i + 1), now);
+    sent += drain(m, nullptr);
+    benchmark::DoNotOptimize(m.next_deadline());
+    ++k;
+  }
+  std::uint64_t recorded = 0;
+  for (const auto& r : m.report_records()) recorded += r.second.reports;
+  if (recorded != k) state.SkipWithError("not every report was recorded");
+  state.counters["agents"] = static_cast<double>(n);
+  state.counters["sent_per_datagram"] = static_cast<double>(sent) / static_cast<double>(k);
+}
+BENCHMARK(BM_MasterReport)->Arg(100)->Arg(10000)->Unit(benchmark::kNanosecond);
+#endif
 
 }  // namespace
 
