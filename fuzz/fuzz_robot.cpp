@@ -138,7 +138,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       }
       case 5: {
         static constexpr int kErr[] = {EBUSY, EINVAL, EIO, ENXIO, ETIMEDOUT, EAGAIN, EACCES, EPERM, EOPNOTSUPP, 0};
-        rt->read_failed(port, static_cast<Attr>(in.byte() % kAttrCount), kErr[in.byte() % 10], now);
+        const Attr attr = static_cast<Attr>(in.byte() % kAttrCount);
+        rt->read_failed(port, attr, kErr[in.byte() % 10], now);
         break;
       }
       case 6:
@@ -171,7 +172,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         if (op & 0x40) {
           rt->battery_present((op & 1) != 0);
         } else {
-          rt->led_present(led_dev(in.byte() % kLedCount), static_cast<std::int32_t>(in.byte()) - 8);
+          const Dev led = led_dev(in.byte() % kLedCount);
+          rt->led_present(led, static_cast<std::int32_t>(in.byte()) - 8);
           rt->led(static_cast<Led>(in.byte() % 6));
         }
         break;

@@ -125,8 +125,14 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     switch (in.byte() % 4) {
       case 0: {  // sign "S:1:M:5:IDLE" with any boot and seq, S a sender id or not quite one
         static const char* const kSenders[] = {"0", "1", "2", "3", "4", "5", "01", "65535", "65536", "x", "123456"};
-        const std::string d = std::string(kSenders[in.byte() % 11]) + ":1:" + std::to_string(in.byte()) + ":5:IDLE";
-        auth::Signer s(key, 1 + in.byte() % 3, in.u16() % 300);
+        // Each input byte read into a local, in order: the order of a call's arguments is the
+        // compiler's (a finding must replay the same under clang and gcc).
+        const char* const sender = kSenders[in.byte() % 11];
+        const unsigned msgid = in.byte();
+        const std::string d = std::string(sender) + ":1:" + std::to_string(msgid) + ":5:IDLE";
+        const unsigned boot = 1 + in.byte() % 3;
+        const unsigned seq = in.u16() % 300;
+        auth::Signer s(key, boot, seq);
         char t[auth::kTrailer];
         s.seal(d, t);
         bytes = last = d + std::string(t, auth::kTrailer);
