@@ -212,6 +212,7 @@ class Agent {
     if (dev_ok()) return false;  // not a device of the model
     DeviceUnplugged(port);
     record(Action::DeviceUnplugged, before, {}, {}, 0, Action::Ignore, port);
+    advance(now_);  // PAUSED -> ACTIVE: ACTIVE's shorter timeout may be due already (HeartbeatLost now)
     return true;
   }
 
