@@ -1145,11 +1145,13 @@ class Agent {
     if (SendReport(seq, std::string_view(buf, r.size))) reports_.sent_at_once(seq);
     return true;
   }
-  /// The master reports go to is master_id(): when it is another one than before (a sync, an
-  /// election, the PC back), that master has acknowledged nothing yet.
+  /// The master reports go to is master_id() in the epoch followed: when it is another one than
+  /// before (a sync, an election, the PC back, the same agent elected again: a new Master core with
+  /// a record of its own), that master has acknowledged nothing yet.
   void ReportTo() noexcept {
-    if (master_id() == report_to_) return;
+    if (master_id() == report_to_ && el_.following == report_epoch_) return;
     report_to_ = master_id();
+    report_epoch_ = el_.following;
     reports_.new_master();
   }
   /// REPORT(@p seq, lo, @p d) to the master followed.
@@ -1273,7 +1275,8 @@ class Agent {
   Message rx_;                    // the datagram handle_datagram() decoded
   Message inner_;                 // the datagram inside a RELAY / EPOCH_CMD
   ReportsType reports_;           // Reports.tla: the reports not yet in the PC's record
-  std::uint16_t report_to_ = 0;   // the master the report window counts for (ReportTo)
+  std::uint16_t report_to_ = 0;   // the master the report window counts for (ReportTo) ...
+  std::uint32_t report_epoch_ = 0; // ... and the epoch it was followed in
 };
 
 }  // namespace ev3proto

@@ -535,6 +535,10 @@ class Master {
   /// none of MasterLogic's or Election's variables (REPORT_ACK draws no msgid: it is cumulative
   /// and idempotent, no receiver tells it from its copies).
   MasterReceipt TakeReport(const Message& m, Peer from) {
+    // Only a registered agent's: a record (and the ids a restarted PC keeps from it) is never
+    // opened by a stranger's datagram; an agent a restarted PC does not know yet syncs again and
+    // then sends it everything it holds.
+    if (!reg_.contains(m.sender)) return ignored(MasterIgnored::unknown_sender);
     if (!PCTakeOk(m)) return ignored(MasterIgnored::bad_report);
     rec_traced_ = m.sender;
     rec_before_ = records_[m.sender].stored();
@@ -543,12 +547,12 @@ class Master {
     return taken(Action::PCTake);
   }
 
-  /// PCTake has a number to offer: from an assigned id, REPORT(seq, first, datagram) with a
-  /// report of that agent inside, or REPORT_DROPPED(first, last); numbers valid (reports.hpp).
+  /// PCTake has a number to offer: REPORT(seq, first, datagram) with a report of the sender
+  /// inside, or REPORT_DROPPED(first, last); numbers valid (reports.hpp: 1..4294967294, an agent's
+  /// last). Bad: ignored as bad_report.
   bool PCTakeOk(const Message& m) {
-    if (!is_assigned_id(m.sender)) return false;
     const auto a = m.param_u32(0), b = m.param_u32(1);
-    if (!a || !b) return false;
+    if (!a || !b || *a == 0xFFFFFFFFu || *b == 0xFFFFFFFFu) return false;
     if (m.type == MsgType::REPORT_DROPPED) return *a != 0 && *a <= *b;
     return *a != 0 && *b != 0 && *b <= *a && decode(m.param(2), report_).ok() && report_.sender == m.sender &&
            is_report(report_.type);

@@ -3,7 +3,8 @@
 ///        line per entry, and the rule a restarted master reads it back by. Master side: may allocate.
 ///
 /// Every entry of the record (OperatorEvent::recorded: a numbered report, a drop, a skip) is one
-/// line of five tab-separated fields, appended in the order recorded:
+/// line of six tab-separated fields (the last, params, empty but for a report), appended in the
+/// order recorded:
 ///
 ///     agent   first   last   kind      type           params
 ///     5       17      17     report    SENSOR_VALUE   in4:US-DIST-CM:255
@@ -11,7 +12,8 @@
 ///     7       1       3      skipped   REPORT
 ///
 /// `params` are the report's params joined by ':' as the console shows them, with '%', tab, CR,
-/// LF and bytes outside 0x20..0x7E written %XX. Lines starting with '#' are comments. Read back,
+/// LF and bytes outside 0x20..0x7E written %XX; read back, a line may leave out an empty params
+/// field and its tab. Lines starting with '#' are comments. Read back,
 /// each agent's entries must follow each other (first = the previous last + 1): a line that does
 /// not is refused, naming its line number and what it expected.
 #pragma once
@@ -79,7 +81,7 @@ inline bool apply_record_line(std::string_view line, std::map<std::uint16_t, Rep
     if (tab == std::string_view::npos) break;
     pos = tab + 1;
   }
-  if (n != 6) {
+  if (n != 6 && n != 5) {
     why = "expected 6 tab-separated fields (agent first last kind type params), found " + std::to_string(n);
     return false;
   }

@@ -107,7 +107,7 @@ class ReportBuffer {
   /// @p seq and @p datagram are the report's. The caller sends it and calls sent(). False when
   /// there is nothing to send or the window is full.
   bool next(bool& marker, std::uint32_t& seq, std::string_view& datagram) const noexcept {
-    if (sent_ >= made_ || sent_ >= cur_ack_ + kReportWindow) return false;
+    if (sent_ >= made_ || sent_ - cur_ack_ >= kReportWindow) return false;  // sent_ >= cur_ack_ always
     const std::uint32_t s = sent_ + 1;
     marker = s <= mk_;
     seq = marker ? mk_ : s;

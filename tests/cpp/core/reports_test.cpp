@@ -203,7 +203,7 @@ TEST(Record, LinesReadBackToTheSameRecord) {
 
 TEST(Record, ALineThatDoesNotFollowIsRefusedSayingWhy) {
   const std::pair<const char*, const char*> bad[] = {
-      {"5\t1\t1\treport\tACTION_OK", "expected 6 tab-separated fields"},
+      {"5\t1\t1\treport", "expected 6 tab-separated fields (agent first last kind type params), found 4"},
       {"1\t1\t1\treport\tACTION_OK\t0", "agent '1' is not an assigned id"},
       {"5\t0\t1\treport\tACTION_OK\t0", "are not numbers 1 <= first <= last"},
       {"5\t3\t2\tdropped\tREPORT_DROPPED\t", "are not numbers 1 <= first <= last"},
@@ -220,6 +220,8 @@ TEST(Record, ALineThatDoesNotFollowIsRefusedSayingWhy) {
   std::string why;
   ASSERT_TRUE(apply_record_line("# a comment", r, why));
   ASSERT_TRUE(apply_record_line("5\t1\t1\treport\tACTION_OK\t0", r, why));
+  ASSERT_TRUE(apply_record_line("7\t1\t4\tdropped\tREPORT_DROPPED", r, why)) << why;  // no empty params field
+  EXPECT_EQ(r[7].dropped, 4u);
   EXPECT_FALSE(apply_record_line("5\t3\t3\treport\tACTION_OK\t0", r, why));
   EXPECT_EQ(why, "agent 5's entry starts at 3, expected 2");
 }
