@@ -66,6 +66,22 @@ void check_write(const Write& w, bool off) {
   }
 }
 
+/// A device appears on @p port: its self-description parsed (@p ok) into @p info, or refused with
+/// @p why, which must then say why; the runtime is told as the device layer tells it.
+void appear(Runtime& rt, Dev port, bool ok, DeviceInfo& info, DeviceClass cls, Driver driver, std::string_view name,
+            const ReasonText& why, Millis now) {
+  if (!ok) {
+    if (why.view().empty()) fuzzin::violation("a self-description refused without a reason");
+    rt.device_faulty(port, why.view(), now);
+    return;
+  }
+  info.dev = port;
+  info.cls = cls;
+  info.driver = driver;
+  info.driver_name = decltype(info.driver_name)(name.substr(0, 23));
+  rt.device_connected(info, now);
+}
+
 }  // namespace
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -87,17 +103,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         MotorTexts t{d, ms, cpr, cmds, sa};
         DeviceInfo info;
         ReasonText why;
-        if (parse_motor_info(t, info.motor, why)) {
-          if (info.motor.max_speed <= 0 || info.motor.count_per_rot <= 0) fuzzin::violation("a motor limit taken as <= 0");
-          info.dev = port;
-          info.cls = DeviceClass::tacho_motor;
-          info.driver = info.motor.driver;
-          info.driver_name = decltype(info.driver_name)(std::string_view(d).substr(0, 23));
-          rt->device_connected(info, now);
-        } else {
-          if (why.view().empty()) fuzzin::violation("a motor refused without a reason");
-          rt->device_faulty(port, why.view(), now);
-        }
+        const bool ok = parse_motor_info(t, info.motor, why);
+        if (ok && (info.motor.max_speed <= 0 || info.motor.count_per_rot <= 0)) fuzzin::violation("a motor limit taken as <= 0");
+        appear(*rt, port, ok, info, DeviceClass::tacho_motor, info.motor.driver, d, why, now);
         break;
       }
       case 1: {  // a sensor appears
@@ -105,19 +113,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         SensorTexts t{d, modes, mode, dec, nv, u};
         DeviceInfo info;
         ReasonText why;
-        if (parse_sensor_info(t, info.sensor, why)) {
-          if (info.sensor.decimals > kMaxDecimals || info.sensor.num_values > kMaxValues ||
-              info.sensor.mode_count == 0)
-            fuzzin::violation("a sensor's self-description taken out of its bounds");
-          info.dev = port;
-          info.cls = DeviceClass::lego_sensor;
-          info.driver = info.sensor.driver;
-          info.driver_name = decltype(info.driver_name)(std::string_view(d).substr(0, 23));
-          rt->device_connected(info, now);
-        } else {
-          if (why.view().empty()) fuzzin::violation("a sensor refused without a reason");
-          rt->device_faulty(port, why.view(), now);
-        }
+        const bool ok = parse_sensor_info(t, info.sensor, why);
+        if (ok && (info.sensor.decimals > kMaxDecimals || info.sensor.num_values > kMaxValues || info.sensor.mode_count == 0))
+          fuzzin::violation("a sensor's self-description taken out of its bounds");
+        appear(*rt, port, ok, info, DeviceClass::lego_sensor, info.sensor.driver, d, why, now);
         break;
       }
       case 2:

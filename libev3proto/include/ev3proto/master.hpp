@@ -542,7 +542,7 @@ class Master {
     if (!PCTakeOk(m)) return ignored(MasterIgnored::bad_report);
     rec_traced_ = m.sender;
     rec_before_ = records_[m.sender].stored();
-    PCTake(m, from);
+    PCTake(m);
     PCAck(m.sender, from);
     return taken(Action::PCTake);
   }
@@ -560,7 +560,7 @@ class Master {
   /// Spec PCTake: the number is recorded if it is the next of the sender's record (reports.hpp
   /// PCTake); a report recorded goes to the operator numbered, a marker as reports_dropped,
   /// numbers the agent no longer held as reports_skipped; each into the record (keep_record).
-  void PCTake(const Message& m, Peer) {
+  void PCTake(const Message& m) {
     const bool marker = m.type == MsgType::REPORT_DROPPED;
     const std::uint32_t seq = *m.param_u32(0), first = marker ? seq : *m.param_u32(1);
     const std::uint32_t last = marker ? *m.param_u32(1) : 0;
@@ -947,7 +947,7 @@ class Master {
   std::vector<OperatorEvent> record_;              // the record's entries not yet appended (keep_record)
   Message report_;                                 // the report inside the REPORT PCTake takes
   std::uint16_t rec_traced_ = 0;                   // PCTake's sender and its last number recorded
-  std::uint32_t rec_before_ = 0;                   // ... before the step (its trace record)
+  std::uint32_t rec_before_ = 0;                   // ... as the step started (its trace record)
   std::uint32_t rejected_ = 0;
   Message rx_;
   MasterElection el_;  // Election.tla's variables of the master node, its rules (election/master.hpp)

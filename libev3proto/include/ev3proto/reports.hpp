@@ -83,7 +83,7 @@ class ReportBuffer {
   }
 
   /// Holds at most @p n reports (1..Slots; 0 or more than Slots: Slots), a bound set at run time
-  /// below the compiled one (ev3-agent --report-buffer). Call it before the first report.
+  /// below the compiled one (ev3-agent --report-buffer). Set it while nothing is held.
   void set_limit(std::size_t n) noexcept {
     limit_ = n == 0 || n > Slots ? static_cast<std::uint32_t>(Slots) : static_cast<std::uint32_t>(n);
   }
