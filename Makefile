@@ -121,14 +121,16 @@ demo: build
 # Spec -> implementation: MCAgent's state graph replayed against `ev3-agent --driver` (every edge,
 # except that of the edges where the agent ignores a datagram or answers a duplicate, 78 % of them,
 # one of each class and one in 8 of the rest: --sample 8; conformance-full replays them all),
-# every edge of MCMaster's against `ev3-master --driver`, and 40 seeded TLC -simulate traces of the
+# every edge of MCMaster's against `ev3-master --driver`, every edge of MCReportsReplay's (Reports.tla)
+# against `ev3-reports-driver` (the library's report buffer, records and record file; ~40 s), and
+# 40 seeded TLC -simulate traces of the
 # fleet (MCFleetSim: 3 agents, losses, duplicates, crashes) against one master and three agent
 # drivers talking to each other, then 40 of the whole system (MCSystemSim: the PC lost and back,
 # relay, pre-vote, elections, HANDOVER; --election-num, --election-depth) against the PC's, the
 # agents' and the elected agents' Master cores' drivers (docs/driver.md, docs/spec.md
 # "Conformance"; the fleet ~25-60 s, the election ~25-30 s more).
-# Two halves at once, each keeping about one core busy: the agent's replay and then the fleet's,
-# the master's replay and then the system's.
+# Two halves at once, each keeping about one core busy: the agent's replay, the reports' and then
+# the fleet's; the master's replay and then the system's.
 AGENT_SAMPLE := 8
 conformance: build
 	@python3 tools/suite.py --together "make conformance" conformance-agent-fleet conformance-master-system
@@ -136,6 +138,7 @@ conformance: build
 # (its two halves, of about equal time, run by conformance after the build)
 conformance-agent-fleet:
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model agent --sample $(AGENT_SAMPLE)
+	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model reports
 	@EV3_BIN=$(BIN) $(CURDIR)/.venv/bin/ev3-conformance replay --model fleet --seed 1 --num 40 --depth 300 \
 		--election-num 0
 

@@ -7,7 +7,7 @@
                                                   or in hex with --hex ('-' for an empty one)
 
     ev3-conformance graph [--model agent]         TLC's state graph of the model: states, edges, paths
-    ev3-conformance replay [--model agent|master] [--driver CMD] [--known CLASS] [--sample N]
+    ev3-conformance replay [--model agent|master|reports] [--driver CMD] [--known CLASS] [--sample N]
                                                   replay every edge against the driver (docs/driver.md);
                                                   agent --sample N: one in N of the ignored/duplicate
                                                   datagram edges (and one of each class)
@@ -140,14 +140,12 @@ def _cmd_graph(args: argparse.Namespace) -> int:
     return 0
 
 
-def _cmd_replay_master(args: argparse.Namespace) -> int:
-    import shlex
-    from ev3conformance import driver, graph, master_replay
-    module, cfg = MODELS["master"]
-    argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-master"), "--driver"]
-    g, figs = graph.dump_graph(module, cfg, "master")
-    c = graph.cfg_constants(module, cfg)
-    r = master_replay.MasterReplay(g, c, argv, tuple(args.known or ()))
+def _strict_replay(label: str, module: str, cfg: str, make, argv: list[str], known=()) -> int:
+    """A strict replay of every edge of a model's state graph (master, reports): make(graph,
+    constants, driver argv) gives the replay; prints the mismatches and the figures."""
+    from ev3conformance import driver, graph
+    g, figs = graph.dump_graph(module, cfg, label)
+    r = make(g, graph.cfg_constants(module, cfg), argv)
     try:
         f = r.run()
     except driver.DriverError as e:
@@ -155,13 +153,30 @@ def _cmd_replay_master(args: argparse.Namespace) -> int:
         return 2
     f.tlc_seconds = figs["tlc_seconds"] + figs["parse_seconds"]
     for (act, flds), (n, rep) in sorted(f.classes.items(), key=lambda kv: -kv[1][0]):
-        print(f"MISMATCH (master): {act} differs in [{', '.join(flds)}] on {n} edges; first one:")
+        print(f"MISMATCH ({label}): {act} differs in [{', '.join(flds)}] on {n} edges; first one:")
         print(rep)
     print(f.summary())
-    for k in args.known or ():
+    for k in known:
         print(f"KNOWN DIFFERENCE (spec vs core, reported, let pass with --known {k}): {f.tolerated} edges")
     print("replay: conforms" if not f.classes else "replay: FAIL")
     return 1 if f.classes else 0
+
+
+def _cmd_replay_master(args: argparse.Namespace) -> int:
+    import shlex
+    from ev3conformance import driver, master_replay
+    module, cfg = MODELS["master"]
+    argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-master"), "--driver"]
+    known = tuple(args.known or ())
+    return _strict_replay("master", module, cfg, lambda g, c, a: master_replay.MasterReplay(g, c, a, known), argv,
+                          known)
+
+
+def _cmd_replay_reports(args: argparse.Namespace) -> int:
+    import shlex
+    from ev3conformance import driver, reports_replay as rr
+    argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-reports-driver")]
+    return _strict_replay("reports", rr.MODULE, rr.CFG, rr.ReportsReplay, argv)
 
 
 def _cmd_replay_fleet(args: argparse.Namespace) -> int:
@@ -211,6 +226,8 @@ def _cmd_replay(args: argparse.Namespace) -> int:
         return _cmd_replay_master(args)
     if args.model == "fleet":
         return _cmd_replay_fleet(args)
+    if args.model == "reports":
+        return _cmd_replay_reports(args)
     module, cfg = MODELS[args.model]
     argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-agent"), "--driver"]
     g, figs = graph.dump_graph(module, cfg, args.model)
@@ -358,8 +375,9 @@ def _parser() -> argparse.ArgumentParser:
     gp.set_defaults(run=_cmd_graph)
 
     rp = sub.add_parser("replay", help="replay every edge of the model's state graph against a driver")
-    rp.add_argument("--model", choices=sorted(MODELS) + ["fleet"], default="agent")
-    rp.add_argument("--driver", help="driver command line (default: $EV3_BIN/ev3-agent --driver, ev3-master --driver)")
+    rp.add_argument("--model", choices=sorted(MODELS) + ["fleet", "reports"], default="agent")
+    rp.add_argument("--driver", help="driver command line (default: $EV3_BIN/ev3-agent --driver, ev3-master --driver, "
+                                     "ev3-reports-driver)")
     rp.add_argument("--sample", type=int, default=1, metavar="N",
                     help="agent: replay one in N of the edges where the agent ignores a datagram or"
                          " answers a duplicate, and one of each class of them (default 1: all)")

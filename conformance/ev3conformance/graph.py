@@ -248,6 +248,31 @@ class WalkFigures:
         return f"{name}: states {self.states}  edges {self.edges}  paths {self.paths} (longest {self.max_path})"
 
 
+@dataclass
+class StrictFigures(WalkFigures):
+    """What a strict replay counts (master, reports: every edge replayed, mismatches counted and
+    classified, see replay_walk)."""
+    name: str = ""
+    matched: int = 0
+    mismatched: int = 0
+    downstream: int = 0
+    tolerated: int = 0
+    classes: dict = field(default_factory=dict)   # (action, fields) -> [count, example report]
+
+    def summary(self) -> str:
+        done = self.matched + self.mismatched + self.downstream
+        pct = 100.0 * done / self.edges if self.edges else 0
+        lines = [self.head(self.name),
+                 f"  edges replayed {done} of {self.edges} ({pct:.1f}%)",
+                 f"  matched {self.matched}  mismatched {self.mismatched}  below a mismatch {self.downstream}"
+                 + (f"  (of the matched, {self.tolerated} with a tolerated known difference)" if self.tolerated else ""),
+                 f"  steps replayed {self.steps}  driver inputs {self.inputs}",
+                 f"  time: TLC {self.tlc_seconds:.1f}s, replay {self.seconds:.1f}s"]
+        for (act, flds), (n, _) in sorted(self.classes.items(), key=lambda kv: -kv[1][0]):
+            lines.append(f"  MISMATCH class {act} [{', '.join(flds)}]: {n} edges")
+        return "\n".join(lines)
+
+
 def walk(g: Graph, ps: PathSet, ok=None, leave=None):
     """The replay of every path of @p ps as driver operations, depth-first over the prefix tree:
     ("save", d) snapshots the node reached at depth d in slot d, ("restore", d) goes back to it,
@@ -290,3 +315,72 @@ def driver_inputs(g: Graph, ops, edge_input) -> list[tuple]:
         else:
             res.append((op, edge_input(g.states[g.edges[op[1]][1]]["lastAction"])))
     return res
+
+
+def replay_walk(g: Graph, argv: list[str], config: dict, tagged: list[tuple], fig, compare, report,
+                stop_first: bool = False) -> None:
+    """The strict replays (master, reports): a driver (@p argv) configured with @p config is fed the
+    inputs @p tagged (driver_inputs()); each edge is compared by compare(edge index, output) ->
+    {field: (spec, impl)} (empty: it conforms). Counts into @p fig (inputs, steps, matched,
+    mismatched, downstream: below a mismatch, seconds) and keeps the first example of each class
+    (action, fields) as report(path, diff, output) in fig.classes. stop_first: end at the first
+    mismatch."""
+    from ev3conformance import driver as drv
+    t0 = time.monotonic()
+    d = drv.Driver(argv)
+    try:
+        first = d.ask(config)
+        if "error" in first:
+            raise RuntimeError(f"driver refused the configuration: {first['error']}")
+        _compare_walk(g, tagged, d.stream([i for _, i in tagged]), fig, compare, report, stop_first)
+    finally:
+        d.kill()
+        d.close()
+    fig.seconds = time.monotonic() - t0
+
+
+def _compare_walk(g: Graph, tagged: list[tuple], outs, fig, compare, report, stop_first: bool) -> None:
+    bad_at: dict[int, bool] = {0: False}
+    path_at: dict[int, list[int]] = {0: []}
+    bad, path = False, []
+    for op, _ in tagged:
+        _, out = next(outs)
+        fig.inputs += 1
+        if op[0] == "save":
+            bad_at[op[1]], path_at[op[1]] = bad, list(path)
+            continue
+        if op[0] == "restore":
+            bad, path = bad_at[op[1]], list(path_at[op[1]])
+            continue
+        ei = op[1]
+        path = path + [ei]
+        fig.steps += 1
+        if bad:
+            fig.downstream += 1
+            continue
+        diff = compare(ei, out)
+        if not diff:
+            fig.matched += 1
+            continue
+        bad = True
+        fig.mismatched += 1
+        key = (g.states[g.edges[ei][1]]["lastAction"]["name"], tuple(sorted(diff)))
+        if key not in fig.classes:
+            fig.classes[key] = [0, report(path, diff, out)]
+        fig.classes[key][0] += 1
+        if stop_first:
+            break
+
+
+def mismatch_lines(g: Graph, path: list[int], show, spec: dict, impl: dict, width: tuple[int, int]) -> list[str]:
+    """The start of a strict replay's mismatch report: the path from the initial state (each
+    action as show(lastAction) gives it), then the variables after its last step side by side
+    (spec | implementation, !! where they differ), the columns @p width wide."""
+    lines = ["  path from the initial state:"]
+    for k, ei in enumerate(path):
+        lines.append(f"    {k + 1:2}. {show(g.states[g.edges[ei][1]]['lastAction'])}")
+    lines.append("  state after the last step (spec | implementation):")
+    for k in sorted(set(spec) | set(impl)):
+        mark = "  " if spec.get(k) == impl.get(k) else "!!"
+        lines.append(f"   {mark} {k:{width[0]}} {spec.get(k, '<absent>')!s:{width[1]}} | {impl.get(k, '<absent>')}")
+    return lines

@@ -18,9 +18,6 @@ is classified by (action, differing fields) and counted; edges below a diverged 
 
 from __future__ import annotations
 
-import json
-import time
-from dataclasses import dataclass, field
 
 from ev3conformance import driver as drv
 from ev3conformance import graph as gr
@@ -108,27 +105,6 @@ def _show_action(la: dict) -> str:
     return la["name"]
 
 
-@dataclass
-class MasterFigures(gr.WalkFigures):
-    matched: int = 0
-    mismatched: int = 0
-    downstream: int = 0
-    tolerated: int = 0
-    classes: dict = field(default_factory=dict)   # (action, fields) -> [count, example report]
-
-    def summary(self) -> str:
-        pct = 100.0 * (self.matched + self.mismatched + self.downstream) / self.edges if self.edges else 0
-        lines = [self.head("master"),
-                 f"  edges replayed {self.matched + self.mismatched + self.downstream} of {self.edges} ({pct:.1f}%)",
-                 f"  matched {self.matched}  mismatched {self.mismatched}  below a mismatch {self.downstream}"
-                 + (f"  (of the matched, {self.tolerated} with a tolerated known difference)" if self.tolerated else ""),
-                 f"  steps replayed {self.steps}  driver inputs {self.inputs}",
-                 f"  time: TLC {self.tlc_seconds:.1f}s, replay {self.seconds:.1f}s"]
-        for (act, flds), (n, _) in sorted(self.classes.items(), key=lambda kv: -kv[1][0]):
-            lines.append(f"  MISMATCH class {act} [{', '.join(flds)}]: {n} edges")
-        return "\n".join(lines)
-
-
 class MasterReplay:
     def __init__(self, g: gr.Graph, consts: dict, argv: list[str], tolerate: tuple = (),
                  stop_first: bool = False, cache: dict | None = None) -> None:
@@ -139,62 +115,23 @@ class MasterReplay:
         self.g, self.c, self.argv, self.tolerate = g, consts, argv, set(tolerate)
         self.stop_first = stop_first
         self.cache = cache if cache is not None else {}  # path set and inputs, kept across runs
-        self.fig = MasterFigures(states=len(g.states), edges=len(g.edges))
+        self.fig = gr.StrictFigures(name="master", states=len(g.states), edges=len(g.edges))
 
     def ops(self, ps: gr.PathSet):
         """The replay as a sequence of ops: ('save', d), ('restore', d), ('edge', ei)."""
         return gr.walk(self.g, ps)
 
-    def run(self) -> MasterFigures:
+    def run(self) -> gr.StrictFigures:
         g = self.g
-        t0 = time.monotonic()
         if "ps" not in self.cache:
             self.cache["ps"] = gr.cover(g)
         ps = self.cache["ps"]
         self.fig.paths, self.fig.max_path = ps.paths, ps.max_len
-        d = drv.Driver(self.argv)
-        try:
-            first = d.ask(master_config(self.c))
-            if "error" in first:
-                raise RuntimeError(f"driver refused the configuration: {first['error']}")
-            if "tagged" not in self.cache:
-                self.cache["tagged"] = gr.driver_inputs(g, self.ops(ps), master_input)
-            tagged = self.cache["tagged"]
-            outs = d.stream([i for _, i in tagged])
-            bad_at: dict[int, bool] = {0: False}
-            path_at: dict[int, list[int]] = {0: []}
-            bad, path = False, []
-            for op, inp in tagged:
-                sent_line, out = next(outs)
-                self.fig.inputs += 1
-                if op[0] == "save":
-                    bad_at[op[1]], path_at[op[1]] = bad, list(path)
-                    continue
-                if op[0] == "restore":
-                    bad, path = bad_at[op[1]], list(path_at[op[1]])
-                    continue
-                ei = op[1]
-                path = path + [ei]
-                self.fig.steps += 1
-                if bad:
-                    self.fig.downstream += 1
-                    continue
-                diff = self._compare(g.states[g.edges[ei][1]], out, g.states[g.edges[ei][0]])
-                if not diff:
-                    self.fig.matched += 1
-                    continue
-                bad = True
-                self.fig.mismatched += 1
-                key = (g.states[g.edges[ei][1]]["lastAction"]["name"], tuple(sorted(diff)))
-                if key not in self.fig.classes:
-                    self.fig.classes[key] = [0, self._report(path, diff, out)]
-                self.fig.classes[key][0] += 1
-                if self.stop_first:
-                    break
-        finally:
-            d.kill()
-            d.close()
-        self.fig.seconds = time.monotonic() - t0
+        if "tagged" not in self.cache:
+            self.cache["tagged"] = gr.driver_inputs(g, self.ops(ps), master_input)
+        gr.replay_walk(g, self.argv, master_config(self.c), self.cache["tagged"], self.fig,
+                       lambda ei, out: self._compare(g.states[g.edges[ei][1]], out, g.states[g.edges[ei][0]]),
+                       self._report, self.stop_first)
         return self.fig
 
     def _compare(self, sv: dict, out: dict, su: dict | None = None) -> dict:
@@ -232,15 +169,9 @@ class MasterReplay:
 
     def _report(self, path: list[int], diff: dict, out: dict) -> str:
         g = self.g
-        lines = ["  path from the initial state:"]
-        for k, ei in enumerate(path):
-            lines.append(f"    {k + 1:2}. {_show_action(g.states[g.edges[ei][1]]['lastAction'])}")
         sv = g.states[g.edges[path[-1]][1]]
         s, i = spec_vars(sv["ms"]), impl_vars(out.get("vars", {"nextId": 0, "msgid": 0, "reg": []}))
-        lines.append("  state after the last step (spec | implementation):")
-        for k in sorted(set(s) | set(i)):
-            mark = "  " if s.get(k) == i.get(k) else "!!"
-            lines.append(f"   {mark} {k:22} {s.get(k, '<absent>')!s:28} | {i.get(k, '<absent>')}")
+        lines = gr.mismatch_lines(g, path, _show_action, s, i, (22, 28))
         if "desired" not in str(diff):
             lines.append("   (spec desired: " + ", ".join(f"{x['id']}:{x['desired']}" for x in sv["ms"]["reg"]) + ")")
         for f, (a, b) in diff.items():

@@ -10,8 +10,10 @@
 (* its acknowledgement frees nothing, so the agent still holds them when   *)
 (* the PC returns and delivers them to the PC, in order, once.  A full     *)
 (* buffer drops its oldest report and keeps a drop marker in its place    *)
-(* (one range, however many are dropped), which is delivered and recorded *)
-(* like a report: the record has no hole, and a drop is never silent.     *)
+(* (one range, however many are dropped), which travels as one datagram   *)
+(* (first..last, as REPORT_DROPPED on the wire); the PC records the       *)
+(* marker's numbers from its next on as dropped: the record has no hole,  *)
+(* and a drop is never silent.                                            *)
 (*                                                                         *)
 (* The election and the relay are abstracted to the master an agent       *)
 (* reports to (`cur`), which changes within a budget, and the PC's return *)
@@ -51,23 +53,25 @@ VARIABLES
     nx,       \* nx[a]: the number the PC takes next from a (Len(rec[a]) + 1; 0: not known)
     inbox,    \* inbox[a]: taken by the PC, not stored yet (AckBeforeStore only; volatile)
     pcup,     \* the PC runs
-    net,      \* REP datagrams in flight
+    net,      \* reports and drop markers in flight to the PC
     acks,     \* acks[a][f]: the highest ACK in flight from master f to agent a (-1: none).  A
               \*   lower ACK delivered first amounts to a TakeAck, then the later PCAck: the same
               \*   reachable states as a set of ACKs each delivered or lost (checked)
     budget,   \* [loss, dup, crash, switch]: what the environment may still do
     dropped,  \* history: dropped[a]: the numbers whose reports a's bound dropped
-    sentrep   \* history: sentrep[a]: the numbers a has sent as reports (not as a marker's)
+    sentrep   \* history: sentrep[a]: the numbers a has sent as reports it held (not as a marker's)
 
 vars == <<made, lo, mk, cur, rec, nx, inbox, pcup, net, acks, budget, dropped, sentrep>>
 
-\* A report (or a marker's number) on its way to the PC.
-Rep(a, s, k) == [agent |-> a, seq |-> s, kind |-> k]
-Datagrams == {Rep(a, s, k) : a \in Agents, s \in Seqs, k \in Kinds}
+\* Report s of agent a (REPORT on the wire), and the drop marker f..l (REPORT_DROPPED), on their
+\* way to a master: the numbers seq..last, of one kind.
+Report(a, s) == [agent |-> a, seq |-> s, last |-> s, kind |-> "report"]
+Marker(a, f, l) == [agent |-> a, seq |-> f, last |-> l, kind |-> "dropped"]
+Datagrams == {Report(a, s) : a \in Agents, s \in Seqs} \cup
+             {Marker(a, f, l) : a \in Agents, f \in Seqs, l \in Seqs}
 
 \* What a holds as a report (not dropped): mk[a] + 1 .. made[a].
 Held(a) == made[a] - mk[a]
-KindOf(a, s) == IF s <= mk[a] THEN "dropped" ELSE "report"
 Stored(a) == Len(rec[a])
 
 TypeOK ==
@@ -122,20 +126,21 @@ Make(a) ==
        ELSE UNCHANGED <<mk, dropped>>
     /\ UNCHANGED <<lo, cur, rec, nx, inbox, pcup, net, acks, budget, sentrep>>
 
-\* Send: a sends everything it holds, each number as a report or as the drop marker's part,
-\* to the master it reports to (a round of its retries, at any time; SilentDrop: the marker is
-\* kept but never sent, so the PC never learns of the drop).  To the PC: into the network.  The
-\* interim master takes them at once (to show and act on them) and acknowledges them all (its
-\* part of the network and its record are not modelled: they matter only to HandoverLoses).
-Sent(a) == IF BUG = "SilentDrop" THEN mk[a] + 1..made[a] ELSE lo[a]..made[a]
+\* Send: a sends everything it holds, its drop marker (when it holds one) and its reports, to the
+\* master it reports to (a round of its retries, at any time; SilentDrop: the marker is kept but
+\* never sent, so the PC never learns of the drop).  To the PC: into the network.  The interim
+\* master takes them at once (to show and act on them) and acknowledges them all (its part of the
+\* network and its record are not modelled: they matter only to HandoverLoses).
+MarkerOut(a) == IF mk[a] >= lo[a] /\ BUG # "SilentDrop" THEN {Marker(a, lo[a], mk[a])} ELSE {}
+Sent(a) == {Report(a, s) : s \in mk[a] + 1..made[a]} \cup MarkerOut(a)
 Send(a) ==
     /\ Sent(a) # {}
     /\ IF cur[a] = "pc"
-       THEN /\ net' = net \cup {Rep(a, s, KindOf(a, s)) : s \in Sent(a)}
+       THEN /\ net' = net \cup Sent(a)
             /\ UNCHANGED acks
        ELSE /\ SendAck("im", a, made[a])
             /\ UNCHANGED net
-    /\ sentrep' = [sentrep EXCEPT ![a] = @ \cup {s \in Sent(a) : s \notin dropped[a]}]
+    /\ sentrep' = [sentrep EXCEPT ![a] = @ \cup {m.seq : m \in {x \in Sent(a) : x.kind = "report" /\ x.seq \notin dropped[a]}}]
     /\ UNCHANGED <<made, lo, mk, cur, rec, nx, inbox, pcup, budget, dropped>>
 
 \* TakeAck: a takes the acknowledgement in flight from f of its first n numbers.  The PC's frees
@@ -167,29 +172,33 @@ Takeover(a) ==
 (* PC steps.                                                               *)
 (***************************************************************************)
 
-\* PCTake: the PC takes number s of agent a if it is the next of a's record (a copy, or one
-\* ahead of a lost one, is left).  It stores it, then may acknowledge (PCAck).  AckBeforeStore:
-\* it acknowledges at once and stores later (PCStore): a crash in between loses it.
-\* ForgetfulWindow: after a restart the PC does not know where a's record ends (nx = 0) and
-\* takes whatever number comes first as the next.  GapAsDrop: a number ahead of the next makes the
-\* PC record the ones between as dropped (they were lost or are late, not dropped).
+\* Entries(f, l, k): the record's entries for numbers f..l, of kind k.
+Entries(f, l, k) == [i \in 1..l - f + 1 |-> [seq |-> f + i - 1, kind |-> k]]
+
+\* PCTake: the PC takes m of agent a if m covers the next number of a's record: a report that is
+\* the next, or a marker from at most the next to at least it, whose numbers from the next on are
+\* recorded as dropped (a copy, or one ahead of a lost one, is left).  It stores them, then may
+\* acknowledge (PCAck).  AckBeforeStore: it acknowledges at once and stores later (PCStore): a
+\* crash in between loses them.  ForgetfulWindow: after a restart the PC does not know where a's
+\* record ends (nx = 0) and takes whatever comes first as the next.  GapAsDrop: a datagram ahead
+\* of the next makes the PC record the numbers between as dropped (they were lost or are late, not
+\* dropped).
 PCTake(m) ==
     /\ pcup /\ m \in net
     /\ LET a == m.agent
-           next == IF nx[a] = 0 THEN m.seq ELSE nx[a]
-       IN IF m.seq = next + Len(inbox[a])
+           next == (IF nx[a] = 0 THEN m.seq ELSE nx[a]) + Len(inbox[a])
+       IN IF m.seq <= next /\ next <= m.last
           THEN IF BUG = "AckBeforeStore"
-               THEN /\ inbox' = [inbox EXCEPT ![a] = Append(@, [seq |-> m.seq, kind |-> m.kind])]
-                    /\ SendAck("pc", a, m.seq)
+               THEN /\ inbox' = [inbox EXCEPT ![a] = @ \o Entries(next, m.last, m.kind)]
+                    /\ SendAck("pc", a, m.last)
                     /\ UNCHANGED <<rec, nx>>
-               ELSE /\ rec' = [rec EXCEPT ![a] = Append(@, [seq |-> m.seq, kind |-> m.kind])]
-                    /\ nx' = [nx EXCEPT ![a] = m.seq + 1]
+               ELSE /\ rec' = [rec EXCEPT ![a] = @ \o Entries(next, m.last, m.kind)]
+                    /\ nx' = [nx EXCEPT ![a] = m.last + 1]
                     /\ UNCHANGED <<inbox, acks>>
-          ELSE IF BUG = "GapAsDrop" /\ nx[a] > 0 /\ m.seq > nx[a] + Len(inbox[a])
-          THEN /\ rec' = [rec EXCEPT ![a] = @ \o [i \in 1..m.seq - nx[a] + 1 |->
-                             IF i <= m.seq - nx[a] THEN [seq |-> nx[a] + i - 1, kind |-> "dropped"]
-                             ELSE [seq |-> m.seq, kind |-> m.kind]]]
-               /\ nx' = [nx EXCEPT ![a] = m.seq + 1]
+          ELSE IF BUG = "GapAsDrop" /\ nx[a] > 0 /\ m.seq > next
+          THEN /\ rec' = [rec EXCEPT ![a] = @ \o Entries(next, m.seq - 1, "dropped")
+                                              \o Entries(m.seq, m.last, m.kind)]
+               /\ nx' = [nx EXCEPT ![a] = m.last + 1]
                /\ UNCHANGED <<inbox, acks>>
           ELSE UNCHANGED <<rec, nx, inbox, acks>>
     /\ Taken(m)

@@ -1,0 +1,257 @@
+// ev3-reports-driver: the library's reliable reports (reports.hpp: an agent's ReportBuffer, a
+// master's ReportRecord and PCTake; record.hpp: the PC's record file) driven one spec step at a
+// time, no sockets, no clock: NDJSON on stdin, one NDJSON line on stdout per input line
+// (docs/driver.md "Reports driver"). `ev3-conformance replay --model reports` replays every edge of
+// MCReportsReplay's state graph (spec/tla/Reports.tla) against it.
+#include <cstdio>
+#include <map>
+#include <string>
+#include <vector>
+
+#include <ev3proto/json.hpp>
+#include <ev3proto/record.hpp>
+#include <ev3proto/reports.hpp>
+
+#include "ev3prog/driver_json.hpp"
+
+namespace {
+
+using ev3prog::Json;
+using ev3proto::ReportRecord;
+using ev3proto::ReportTaken;
+
+constexpr const char* kProgram = "ev3-reports-driver";
+constexpr const char* kInputs = "config, make, send, take_ack, new_master, take, ack, crash, check, save, restore";
+
+// The buffer's compiled bound is small (the driver copies it at every save); `config` sets the bound
+// a model uses below it at run time, as ev3-agent --report-buffer does.
+using Buffer = ev3proto::ReportBuffer<64, 4096>;
+
+/// Everything the driver holds: each agent's buffer, the PC's records and its record file, and the
+/// interim master's records (one interim master: Reports.tla's "im").
+struct World {
+  std::size_t cap = 64;
+  std::map<std::uint16_t, Buffer> agents;
+  std::map<std::uint16_t, ReportRecord> pc, im;
+  std::string file;  // the PC's record file (record.hpp lines), appended as ev3-master --record does
+};
+
+const char* taken_name(ReportTaken t) {
+  switch (t) {
+    case ReportTaken::stored: return "stored";
+    case ReportTaken::dropped: return "dropped";
+    case ReportTaken::copy: return "copy";
+    case ReportTaken::ahead: return "ahead";
+    case ReportTaken::invalid: return "invalid";
+  }
+  return "?";
+}
+
+std::string records_json(const std::map<std::uint16_t, ReportRecord>& rs) {
+  std::string s = "{";
+  bool first = true;
+  for (const auto& [id, r] : rs) {
+    if (!first) s += ',';
+    first = false;
+    s += "\"" + std::to_string(id) + "\":{\"first\":" + std::to_string(r.first) + ",\"next\":" + std::to_string(r.next) +
+         ",\"stored\":" + std::to_string(r.stored()) + ",\"reports\":" + std::to_string(r.reports) +
+         ",\"dropped\":" + std::to_string(r.dropped) + ",\"skipped\":" + std::to_string(r.skipped) +
+         ",\"ahead\":" + std::to_string(r.ahead) + "}";
+  }
+  return s + "}";
+}
+
+class Driver {
+ public:
+  int run() {
+    return ev3prog::run_driver_lines(nullptr, seq_, [this](const std::string& line) { return handle(line); });
+  }
+
+ private:
+  std::string error(const std::string& msg) const { return ev3prog::driver_error(kProgram, seq_, msg); }
+
+  /// The agent an input names ("agent": an id 2..49999).
+  bool agent_of(const Json& in, std::uint16_t& id, std::string& err) const {
+    const long long a = in["agent"].num(-1);
+    if (!ev3proto::is_assigned_id(static_cast<std::uint16_t>(a)) || a > 0xFFFF) {
+      err = "\"agent\" must be an assigned id (2..49999)";
+      return false;
+    }
+    id = static_cast<std::uint16_t>(a);
+    return true;
+  }
+
+  Buffer& buffer(std::uint16_t id) {
+    auto it = w_.agents.find(id);
+    if (it == w_.agents.end()) {
+      it = w_.agents.emplace(id, Buffer{}).first;
+      it->second.set_limit(w_.cap);
+    }
+    return it->second;
+  }
+
+  /// Spec Send: a round of retries (everything the current master has not acknowledged, from its
+  /// start), as many datagrams as the window gives. To the interim master (@p to_im), each is taken
+  /// by its record at once (PCTake) and `im_ack` answers what it acknowledges.
+  std::string send(std::uint16_t id, bool to_im, std::string& extra) {
+    Buffer& b = buffer(id);
+    b.retry();
+    std::string s = ",\"sent\":[";
+    bool marker = false, first = true;
+    std::uint32_t seq = 0;
+    std::string_view datagram;
+    while (b.next(marker, seq, datagram)) {
+      const std::uint32_t from = marker ? b.lo() : seq, last = seq;
+      const std::uint32_t lo = b.lo();
+      b.sent(seq);
+      if (!first) s += ',';
+      first = false;
+      s += "{\"seq\":" + std::to_string(from) + ",\"last\":" + std::to_string(last) + ",\"first\":" +
+           std::to_string(lo) + ",\"kind\":\"" + (marker ? "dropped" : "report") + "\"}";
+      if (to_im) {
+        std::uint32_t skipped = 0;
+        ev3proto::PCTake(w_.im[id], from, marker ? last : 0, lo, skipped);
+      }
+    }
+    s += "]";
+    if (to_im) s += ",\"im_ack\":" + std::to_string(w_.im[id].stored());
+    extra = s;
+    return {};
+  }
+
+  std::string handle(const std::string& line) {
+    Json in;
+    std::string err;
+    if (!ev3prog::parse_json(line, in, err)) return error("not JSON: " + err);
+    if (in.kind != Json::Kind::object) return error("an input is a JSON object");
+    const std::string type = in["type"].str();
+    std::string extra;
+    std::uint16_t id = 0;
+    if (type == "config") {
+      const long long cap = in["cap"].num(64);
+      if (cap < 1 || cap > 64) return error("\"cap\" must be 1..64 (reports an agent holds at once)");
+      w_ = World{};
+      w_.cap = static_cast<std::size_t>(cap);
+      w_.file = std::string(ev3proto::kRecordHeader) + "\n";
+    } else if (type == "make") {
+      if (!agent_of(in, id, err)) return error(err);
+      Buffer& b = buffer(id);
+      const std::string report = "report " + std::to_string(b.made() + 1);
+      extra = ",\"seq\":" + std::to_string(b.Make(report));
+    } else if (type == "send") {
+      if (!agent_of(in, id, err)) return error(err);
+      const std::string to = in["to"].str("pc");
+      if (to != "pc" && to != "im") return error("\"to\" must be \"pc\" or \"im\"");
+      send(id, to == "im", extra);
+    } else if (type == "take_ack") {
+      if (!agent_of(in, id, err)) return error(err);
+      const long long n = in["n"].num(-1);
+      if (n < 0 || n > 0xFFFFFFFFLL) return error("\"n\" must be a number 0..4294967295");
+      const bool ok = buffer(id).TakeAck(static_cast<std::uint32_t>(n), in["pc"].boolean(), in["current"].boolean());
+      extra = std::string(",\"taken\":") + (ok ? "true" : "false");
+    } else if (type == "new_master") {
+      if (!agent_of(in, id, err)) return error(err);
+      buffer(id).new_master();
+    } else if (type == "take") {
+      if (!agent_of(in, id, err)) return error(err);
+      const std::string m = in["master"].str("pc");
+      if (m != "pc" && m != "im") return error("\"master\" must be \"pc\" or \"im\"");
+      const long long seq = in["seq"].num(-1), last = in["last"].num(0), first = in["first"].num(-1);
+      if (seq < 0 || seq > 0xFFFFFFFFLL || last < 0 || last > 0xFFFFFFFFLL || first < 0 || first > 0xFFFFFFFFLL)
+        return error("\"seq\", \"last\" and \"first\" must be numbers 0..4294967295");
+      ReportRecord& r = (m == "pc" ? w_.pc : w_.im)[id];
+      const ReportRecord before = r;
+      std::uint32_t skipped = 0;
+      const ReportTaken t = ev3proto::PCTake(r, static_cast<std::uint32_t>(seq), static_cast<std::uint32_t>(last),
+                                             static_cast<std::uint32_t>(first), skipped);
+      if (m == "pc") note(id, before, r);
+      extra = std::string(",\"taken\":\"") + taken_name(t) + "\",\"skipped\":" + std::to_string(skipped);
+    } else if (type == "ack") {
+      if (!agent_of(in, id, err)) return error(err);
+      const std::string m = in["master"].str("pc");
+      if (m != "pc" && m != "im") return error("\"master\" must be \"pc\" or \"im\"");
+      extra = ",\"ack\":" + std::to_string((m == "pc" ? w_.pc : w_.im)[id].stored());
+    } else if (type == "crash") {
+      // The PC stops and starts again: what it holds of each agent is its record file, read back.
+      std::map<std::uint16_t, ReportRecord> back;
+      std::size_t start = 0, n = 0;
+      for (std::size_t nl; (nl = w_.file.find('\n', start)) != std::string::npos; start = nl + 1) {
+        ++n;
+        if (!ev3proto::apply_record_line(std::string_view(w_.file).substr(start, nl - start), back, err))
+          return error("the record file's line " + std::to_string(n) + " is refused: " + err);
+      }
+      w_.pc = std::move(back);
+    } else if (type == "save") {
+      snaps_.insert_or_assign(in["slot"].num(), w_);
+    } else if (type == "restore") {
+      auto it = snaps_.find(in["slot"].num());
+      if (it == snaps_.end()) return error("no snapshot in that slot");
+      w_ = it->second;
+    } else if (type != "check") {
+      return error("unknown input type '" + type + "' (" + kInputs + ")");
+    }
+    return output(extra);
+  }
+
+  /// The record file's lines for what PCTake added to record @p r (it was @p before), in the order
+  /// numbers are recorded: the skipped, then the report or the marker's numbers.
+  void note(std::uint16_t id, const ReportRecord& before, const ReportRecord& r) {
+    std::uint32_t next = before.next == 0 ? r.first : before.next;
+    const auto line = [&](ev3proto::OperatorEvent::Kind k, ev3proto::MsgType type, std::uint32_t count) {
+      if (count == 0) return;
+      ev3proto::OperatorEvent e;
+      e.kind = k;
+      e.agent = id;
+      e.command = type;
+      e.seq = next;
+      e.last = k == ev3proto::OperatorEvent::Kind::report ? 0 : next + count - 1;
+      if (k == ev3proto::OperatorEvent::Kind::report) e.text = "report " + std::to_string(next);
+      w_.file += ev3proto::record_line(e);
+      next += count;
+    };
+    line(ev3proto::OperatorEvent::Kind::reports_skipped, ev3proto::MsgType::REPORT, r.skipped - before.skipped);
+    line(ev3proto::OperatorEvent::Kind::report, ev3proto::MsgType::SENSOR_VALUE, r.reports - before.reports);
+    line(ev3proto::OperatorEvent::Kind::reports_dropped, ev3proto::MsgType::REPORT_DROPPED, r.dropped - before.dropped);
+  }
+
+  std::string output(const std::string& extra) const {
+    std::string s = ev3prog::output_start(seq_, true) + extra + ",\"agents\":{";
+    bool first = true;
+    for (const auto& [id, b] : w_.agents) {
+      if (!first) s += ',';
+      first = false;
+      s += "\"" + std::to_string(id) + "\":{\"made\":" + std::to_string(b.made()) + ",\"lo\":" + std::to_string(b.lo()) +
+           ",\"mk\":" + std::to_string(b.mk()) + ",\"held\":" + std::to_string(b.held()) + ",\"dropped\":" +
+           std::to_string(b.dropped()) + ",\"current_ack\":" + std::to_string(b.current_ack()) + "}";
+    }
+    s += "},\"pc\":" + records_json(w_.pc) + ",\"im\":" + records_json(w_.im) + ",\"record\":";
+    ev3proto::json_string(s, w_.file);
+    return s + "}";
+  }
+
+  World w_;
+  std::map<long long, World> snaps_;
+  unsigned long long seq_ = 0;
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--help" || a == "-h") {
+      std::printf(
+          "usage: %s\n\n"
+          "The library's reliable reports (an agent's report buffer, a master's record of each\n"
+          "agent, the PC's record file) one spec step at a time: one NDJSON input per stdin line\n"
+          "(%s), one NDJSON output line per input on stdout.\n"
+          "docs/driver.md \"Reports driver\" has the protocol.\n",
+          kProgram, kInputs);
+      return 0;
+    }
+    std::fprintf(stderr, "%s: takes no arguments but --help (got '%s')\n", kProgram, a.c_str());
+    return 2;
+  }
+  static Driver d;
+  return d.run();
+}
