@@ -335,7 +335,7 @@ class Program {
   }
 
   /// --record: reads the record of reports back (record.hpp's rule) so that each agent's record
-  /// continues where it ends, keeps ids of the record from being handed out again, and opens the
+  /// continues where it ends (the core never hands out a recorded agent's id again), and opens the
   /// file for appending. A line that is not an entry, or does not follow the agent's previous one,
   /// is refused naming its number; a last line cut by a crash (no newline) is cut off the file.
   bool load_record(ev3proto::MasterConfig& cfg, std::string& note) {
@@ -376,8 +376,6 @@ class Program {
         return false;
       }
     }
-    for (const auto& kv : cfg.records)
-      if (cfg.next_id <= kv.first) cfg.next_id = static_cast<std::uint16_t>(kv.first + 1);  // never handed out again
     if (entries != 0)
       note = "record " + opt_.record + ": " + std::to_string(entries) + " entries of " +
              std::to_string(cfg.records.size()) + " agents" +

@@ -193,25 +193,12 @@ class Driver {
     return output(extra);
   }
 
-  /// The record file's lines for what PCTake added to record @p r (it was @p before), in the order
-  /// numbers are recorded: the skipped, then the report or the marker's numbers.
+  /// The record file's lines for what PCTake added to @p id's record (it was @p before), as
+  /// ev3-master --record appends them.
   void note(std::uint16_t id, const ReportRecord& before, const ReportRecord& r) {
-    std::uint32_t next = before.next == 0 ? r.first : before.next;
-    const auto line = [&](ev3proto::OperatorEvent::Kind k, ev3proto::MsgType type, std::uint32_t count) {
-      if (count == 0) return;
-      ev3proto::OperatorEvent e;
-      e.kind = k;
-      e.agent = id;
-      e.command = type;
-      e.seq = next;
-      e.last = k == ev3proto::OperatorEvent::Kind::report ? 0 : next + count - 1;
-      if (k == ev3proto::OperatorEvent::Kind::report) e.text = "report " + std::to_string(next);
-      w_.file += ev3proto::record_line(e);
-      next += count;
-    };
-    line(ev3proto::OperatorEvent::Kind::reports_skipped, ev3proto::MsgType::REPORT, r.skipped - before.skipped);
-    line(ev3proto::OperatorEvent::Kind::report, ev3proto::MsgType::SENSOR_VALUE, r.reports - before.reports);
-    line(ev3proto::OperatorEvent::Kind::reports_dropped, ev3proto::MsgType::REPORT_DROPPED, r.dropped - before.dropped);
+    ev3proto::record_events(id, ev3proto::taken_entries(before, r), ev3proto::MsgType::SENSOR_VALUE,
+                            "report " + std::to_string(r.next - 1),
+                            [this](ev3proto::OperatorEvent&& e) { w_.file += ev3proto::record_line(e); });
   }
 
   std::string output(const std::string& extra) const {

@@ -31,6 +31,7 @@
 #include "master_types.hpp"
 #include "messages.hpp"
 #include "msgids.hpp"
+#include "record.hpp"
 #include "timers.hpp"
 #include "wire.hpp"
 
@@ -58,6 +59,8 @@ class Master {
         el_(config.election, config.epoch, config.self_id, config.members, config.members_epoch, config.timers) {
     records_ = cfg_.records;
     cfg_.records.clear();  // kept once, in records_
+    for (const auto& kv : records_)  // a recorded agent's id is never handed out again
+      if (is_assigned_id(kv.first) && next_id_ <= kv.first) next_id_ = static_cast<std::uint16_t>(kv.first + 1);
     if (!cfg_.election) return;  // Fleet.tla's master: MASTER for good, no LEADER
     if (config.candidate) {
       el_.become_candidate(now_);  // Restart(PC): stands at once
@@ -565,12 +568,11 @@ class Master {
     const std::uint32_t seq = *m.param_u32(0), first = marker ? seq : *m.param_u32(1);
     const std::uint32_t last = marker ? *m.param_u32(1) : 0;
     ReportRecord& r = records_[m.sender];
-    const std::uint32_t before = r.next;
+    const ReportRecord before = r;
     std::uint32_t skipped = 0;
-    const ReportTaken t = ev3proto::PCTake(r, seq, last, first, skipped);
-    if (skipped != 0) note_record(OperatorEvent::Kind::reports_skipped, m.sender, MsgType::REPORT, {}, first - skipped, first - 1);
-    if (t == ReportTaken::stored) note_record(OperatorEvent::Kind::report, m.sender, report_.type, report_text(report_), seq, 0);
-    if (t == ReportTaken::dropped) note_record(OperatorEvent::Kind::reports_dropped, m.sender, MsgType::REPORT_DROPPED, {}, before > seq ? before : seq, last);
+    ev3proto::PCTake(r, seq, last, first, skipped);
+    record_events(m.sender, taken_entries(before, r), report_.type, report_text(report_),
+                  [this](OperatorEvent&& e) { note_record(std::move(e)); });
   }
   /// Spec PCAck: REPORT_ACK(the last number recorded) to the sender, cumulative, with msgid 0.
   void PCAck(std::uint16_t agent, Peer from) {
@@ -581,15 +583,7 @@ class Master {
     send_with(from, agent, 0, MsgType::REPORT_ACK, p, 1);
   }
   /// An entry of the record: an operator event, kept for ready()'s append (keep_record).
-  void note_record(OperatorEvent::Kind k, std::uint16_t agent, MsgType type, std::string text, std::uint32_t seq,
-                   std::uint32_t last) {
-    OperatorEvent e;
-    e.kind = k;
-    e.agent = agent;
-    e.command = type;
-    e.text = std::move(text);
-    e.seq = seq;
-    e.last = last;
+  void note_record(OperatorEvent&& e) {
     if (cfg_.keep_record) record_.push_back(e);
     ev_.push_back(std::move(e));
   }

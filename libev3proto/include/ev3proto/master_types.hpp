@@ -47,7 +47,8 @@ struct MasterConfig {
   /// not stored. Off by default (the record is then the operator events and report_records()).
   bool keep_record = false;
   /// The record of reports restored from stable storage, per agent (a restarted PC continues each
-  /// agent's record where it ends).
+  /// agent's record where it ends, and never hands out the id of an agent it has a record of:
+  /// next_id is raised above them).
   std::map<std::uint16_t, ReportRecord> records;
 
   /// The configuration for an agent that won epoch @p epoch with membership @p members (see

@@ -53,6 +53,28 @@ inline std::string record_line(const OperatorEvent& e) {
   return s + '\n';
 }
 
+/// The entries @p e that PCTake made on @p agent's record (taken_entries), as the operator events
+/// the master reports them by, each handed to @p emit: the skipped numbers, the report (of type
+/// @p type, its params @p text joined by ':'), the numbers recorded as dropped.
+template <typename Emit>
+void record_events(std::uint16_t agent, const ReportEntries& e, MsgType type, std::string_view text, Emit&& emit) {
+  const auto event = [&](OperatorEvent::Kind k, MsgType t, std::uint32_t seq, std::uint32_t last, std::string_view s) {
+    OperatorEvent ev;
+    ev.kind = k;
+    ev.agent = agent;
+    ev.command = t;
+    ev.text = std::string(s);
+    ev.seq = seq;
+    ev.last = last;
+    emit(std::move(ev));
+  };
+  if (e.skipped != 0)
+    event(OperatorEvent::Kind::reports_skipped, MsgType::REPORT, e.skipped_from, e.skipped_from + e.skipped - 1, {});
+  if (e.report != 0) event(OperatorEvent::Kind::report, type, e.report, 0, text);
+  if (e.dropped != 0)
+    event(OperatorEvent::Kind::reports_dropped, MsgType::REPORT_DROPPED, e.dropped_from, e.dropped_from + e.dropped - 1, {});
+}
+
 namespace detail {
 /// A canonical decimal number of at most 10 digits, at most @p max.
 inline bool record_number(std::string_view f, std::uint32_t max, std::uint32_t& out) {

@@ -235,4 +235,26 @@ inline ReportTaken PCTake(ReportRecord& r, std::uint32_t seq, std::uint32_t last
   return t;
 }
 
+/// What one PCTake added to a record, in the order its numbers were recorded: @c skipped numbers
+/// from @c skipped_from, then the report numbered @c report (0: none), then @c dropped numbers from
+/// @c dropped_from. The record's entries (record.hpp, OperatorEvent::recorded) are these.
+struct ReportEntries {
+  std::uint32_t skipped_from = 0, skipped = 0;
+  std::uint32_t report = 0;
+  std::uint32_t dropped_from = 0, dropped = 0;
+};
+
+/// The entries PCTake made on a record that was @p before and is @p after.
+inline ReportEntries taken_entries(const ReportRecord& before, const ReportRecord& after) noexcept {
+  ReportEntries e;
+  std::uint32_t next = before.next == 0 ? after.first : before.next;
+  e.skipped_from = next;
+  e.skipped = after.skipped - before.skipped;
+  next += e.skipped;
+  if (after.reports != before.reports) e.report = next++;
+  e.dropped_from = next;
+  e.dropped = after.dropped - before.dropped;
+  return e;
+}
+
 }  // namespace ev3proto

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "ev3proto/agent.hpp"
+#include "ev3proto/master.hpp"
 #include "ev3proto/record.hpp"
 #include "ev3proto/reports.hpp"
 
@@ -149,35 +150,59 @@ TEST(PCTake, RecordsOnlyTheNextAndSaysWhatItDid) {
   EXPECT_EQ(r.reports, 2u);
 }
 
+TEST(PCTake, TheEntriesItMadeInTheOrderRecorded) {
+  ReportRecord r;
+  std::uint32_t skipped = 0;
+  ReportRecord before = r;
+  PCTake(r, 4, 0, 4, skipped);  // a new record starts at first = 4: report 4
+  ReportEntries e = taken_entries(before, r);
+  EXPECT_EQ(e.report, 4u);
+  EXPECT_EQ(e.skipped + e.dropped, 0u);
+  before = r;
+  PCTake(r, 5, 9, 5, skipped);  // the marker 5..9
+  e = taken_entries(before, r);
+  EXPECT_EQ(e.report, 0u);
+  EXPECT_EQ(e.dropped_from, 5u);
+  EXPECT_EQ(e.dropped, 5u);
+  before = r;
+  PCTake(r, 5, 11, 5, skipped);  // the marker grew: only 10 and 11 are new
+  e = taken_entries(before, r);
+  EXPECT_EQ(e.dropped_from, 10u);
+  EXPECT_EQ(e.dropped, 2u);
+  before = r;
+  PCTake(r, 14, 0, 14, skipped);  // 12 and 13 no longer held: skipped, then report 14
+  e = taken_entries(before, r);
+  EXPECT_EQ(e.skipped_from, 12u);
+  EXPECT_EQ(e.skipped, 2u);
+  EXPECT_EQ(e.report, 14u);
+  EXPECT_EQ(e.dropped, 0u);
+  before = r;
+  PCTake(r, 14, 0, 14, skipped);  // a copy: nothing
+  e = taken_entries(before, r);
+  EXPECT_EQ(e.skipped + e.report + e.dropped, 0u);
+}
+
+TEST(MasterRecords, ARecordedAgentsIdIsNeverHandedOutAgain) {
+  MasterConfig c;
+  c.next_id = 2;
+  c.records[7].first = 1;
+  c.records[7].next = 4;
+  c.records[7].reports = 3;
+  Master<> m(c, 0);
+  EXPECT_EQ(m.next_id(), 8u);
+  EXPECT_EQ(m.report_records().at(7).stored(), 3u);
+}
+
 TEST(Record, LinesReadBackToTheSameRecord) {
   std::map<std::uint16_t, ReportRecord> mine;
   std::string text;
   const auto take = [&](std::uint16_t agent, std::uint32_t seq, std::uint32_t last, std::uint32_t first) {
     std::uint32_t skipped = 0;
     ReportRecord& r = mine[agent];
-    const std::uint32_t before = r.next;
-    const ReportTaken t = PCTake(r, seq, last, first, skipped);
-    OperatorEvent e;
-    e.agent = agent;
-    if (skipped) {
-      e.kind = OperatorEvent::Kind::reports_skipped;
-      e.seq = first - skipped;
-      e.last = first - 1;
-      text += record_line(e);
-    }
-    if (t == ReportTaken::stored) {
-      e.kind = OperatorEvent::Kind::report;
-      e.command = MsgType::SENSOR_VALUE;
-      e.text = "in4:US\t%\n";
-      e.seq = seq;
-      text += record_line(e);
-    }
-    if (t == ReportTaken::dropped) {
-      e.kind = OperatorEvent::Kind::reports_dropped;
-      e.seq = before > seq ? before : seq;
-      e.last = last;
-      text += record_line(e);
-    }
+    const ReportRecord before = r;
+    PCTake(r, seq, last, first, skipped);
+    record_events(agent, taken_entries(before, r), MsgType::SENSOR_VALUE, "in4:US\t%\n",
+                  [&](OperatorEvent&& e) { text += record_line(e); });
   };
   take(5, 1, 0, 1);
   take(5, 2, 4, 2);
