@@ -122,7 +122,8 @@ demo: build
 # except that of the edges where the agent ignores a datagram or answers a duplicate, 78 % of them,
 # one of each class and one in 8 of the rest: --sample 8; conformance-full replays them all),
 # every edge of MCMaster's against `ev3-master --driver`, every edge of MCReportsReplay's (Reports.tla)
-# against `ev3-reports-driver` (the library's report buffer, records and record file; ~40 s), and
+# against `ev3-reports-driver` (the library's report buffer, records and record file; two graphs,
+# ~1.5 min), and
 # 40 seeded TLC -simulate traces of the
 # fleet (MCFleetSim: 3 agents, losses, duplicates, crashes) against one master and three agent
 # drivers talking to each other, then 40 of the whole system (MCSystemSim: the PC lost and back,

@@ -176,7 +176,8 @@ def _cmd_replay_reports(args: argparse.Namespace) -> int:
     import shlex
     from ev3conformance import driver, reports_replay as rr
     argv = shlex.split(args.driver) if args.driver else [str(driver.default_bin() / "ev3-reports-driver")]
-    return _strict_replay("reports", rr.MODULE, rr.CFG, rr.ReportsReplay, argv)
+    return max(_strict_replay(label, rr.MODULE, cfg, lambda g, c, a, n=label: rr.ReportsReplay(g, c, a, name=n), argv)
+               for label, cfg in rr.CFGS)
 
 
 def _cmd_replay_fleet(args: argparse.Namespace) -> int:

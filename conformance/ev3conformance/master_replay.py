@@ -18,6 +18,8 @@ is classified by (action, differing fields) and counted; edges below a diverged 
 
 from __future__ import annotations
 
+import time
+
 
 from ev3conformance import driver as drv
 from ev3conformance import graph as gr
@@ -123,6 +125,7 @@ class MasterReplay:
 
     def run(self) -> gr.StrictFigures:
         g = self.g
+        t0 = time.monotonic()
         if "ps" not in self.cache:
             self.cache["ps"] = gr.cover(g)
         ps = self.cache["ps"]
@@ -132,6 +135,7 @@ class MasterReplay:
         gr.replay_walk(g, self.argv, master_config(self.c), self.cache["tagged"], self.fig,
                        lambda ei, out: self._compare(g.states[g.edges[ei][1]], out, g.states[g.edges[ei][0]]),
                        self._report, self.stop_first)
+        self.fig.seconds = time.monotonic() - t0
         return self.fig
 
     def _compare(self, sv: dict, out: dict, su: dict | None = None) -> dict:

@@ -19,9 +19,9 @@ Mapping (an agent is named by its id, a master "pc" or "im"):
   PCCrash          -> crash: the PC's records rebuilt from its record file, read back
   PCRestart, Lose  -> check (nothing for the library to do; the state is still compared)
 Compared after every step: each agent's made, lo, mk; the PC's record of it (the record file's lines
-expanded number by number, against `rec`; `nx` against the record's next); what Send sends (the set
-of datagrams, against the spec's `Sent(a)`); the acknowledgement in flight after PCAck and after a
-Send to the interim master (the highest sent, against `acks`).
+expanded number by number, against `rec`; `nx` against the record's next); what Send sends to the
+PC (the set of datagrams, against the spec's `Sent(a)`); the acknowledgement PCAck sends (the
+number of entries of `rec`) and the interim master's after a Send to it (everything made).
 
 Every edge is replayed; a mismatch is classified by (action, differing fields) and counted, and
 the edges below a diverged state are counted as "downstream" of it.
@@ -29,9 +29,14 @@ the edges below a diverged state are counted as "downstream" of it.
 
 from __future__ import annotations
 
+import time
+
 from ev3conformance import graph as gr
 
-MODULE, CFG = "MCReportsReplay.tla", "MCReportsReplay.cfg"
+MODULE = "MCReportsReplay.tla"
+# The graphs replayed: MCReports.cfg's constants (a loss, a duplicate, a PC crash, a switch), then
+# a drop marker of two numbers reaching a PC that took its first already.
+CFGS = (("reports", "MCReportsReplay.cfg"), ("reports-marker", "MCReportsReplayMarker.cfg"))
 
 
 def reports_config(c: dict) -> dict:
@@ -110,17 +115,20 @@ def _show_action(la: dict) -> str:
 
 
 class ReportsReplay:
-    def __init__(self, g: gr.Graph, consts: dict, argv: list[str], stop_first: bool = False) -> None:
+    def __init__(self, g: gr.Graph, consts: dict, argv: list[str], stop_first: bool = False,
+                 name: str = "reports") -> None:
         self.g, self.c, self.argv, self.stop_first = g, consts, argv, stop_first
-        self.fig = gr.StrictFigures(name="reports", states=len(g.states), edges=len(g.edges))
+        self.fig = gr.StrictFigures(name=name, states=len(g.states), edges=len(g.edges))
 
     def run(self) -> gr.StrictFigures:
         g = self.g
+        t0 = time.monotonic()
         ps = gr.cover(g)
         self.fig.paths, self.fig.max_path = ps.paths, ps.max_len
         gr.replay_walk(g, self.argv, reports_config(self.c), gr.driver_inputs(g, gr.walk(g, ps), reports_input),
                        self.fig, lambda ei, out: self._compare(g.states[g.edges[ei][0]], g.states[g.edges[ei][1]], out),
                        self._report, self.stop_first)
+        self.fig.seconds = time.monotonic() - t0
         return self.fig
 
     def _compare(self, su: dict, sv: dict, out: dict) -> dict:
@@ -139,12 +147,12 @@ class ReportsReplay:
             impl_sent = {(x["seq"], x["last"], x["kind"]) for x in out.get("sent", [])}
             if a[1] == "pc" and spec_sent != impl_sent:
                 diff["sent"] = (sorted(spec_sent), sorted(impl_sent))
-            if a[1] == "im" and max(su["acks"][a[0]]["im"], out.get("im_ack", -1)) != sv["acks"][a[0]]["im"]:
-                diff["ack"] = (sv["acks"][a[0]]["im"], out.get("im_ack"))
-        if la["name"] == "PCAck":
-            # (the master core sends no REPORT_ACK 0: the spec's acknowledgement of 0 frees nothing)
-            if max(su["acks"][a[0]]["pc"], out.get("ack", -1)) != sv["acks"][a[0]]["pc"]:
-                diff["ack"] = (sv["acks"][a[0]]["pc"], out.get("ack"))
+            # the interim master acknowledges everything made (SendAck("im", a, made[a]))
+            if a[1] == "im" and out.get("im_ack") != su["made"][a[0]]:
+                diff["ack"] = (su["made"][a[0]], out.get("im_ack"))
+        if la["name"] == "PCAck" and out.get("ack") != len(su["rec"][a[0]]):
+            # SendAck("pc", a, Stored(a)) (the master core sends no REPORT_ACK 0: it frees nothing)
+            diff["ack"] = (len(su["rec"][a[0]]), out.get("ack"))
         return diff
 
     def _report(self, path: list[int], diff: dict, out: dict) -> str:

@@ -72,13 +72,28 @@ class Driver {
 
   /// The agent an input names ("agent": an id 2..49999).
   bool agent_of(const Json& in, std::uint16_t& id, std::string& err) const {
-    const long long a = in["agent"].num(-1);
-    if (!ev3proto::is_assigned_id(static_cast<std::uint16_t>(a)) || a > 0xFFFF) {
+    const long long a = in["agent"].kind == Json::Kind::number ? in["agent"].n : -1;
+    if (a < 0 || a > 0xFFFF || !ev3proto::is_assigned_id(static_cast<std::uint16_t>(a))) {
       err = "\"agent\" must be an assigned id (2..49999)";
       return false;
     }
     id = static_cast<std::uint16_t>(a);
     return true;
+  }
+
+  /// A field that must be one of two names (@p a is its default when absent).
+  static bool one_of(const Json& in, const char* key, const char* a, const char* b, std::string& out, std::string& err) {
+    out = in[key].kind == Json::Kind::null ? a : in[key].str("?");
+    if (out == a || out == b) return true;
+    err = std::string("\"") + key + "\" must be \"" + a + "\" or \"" + b + "\"";
+    return false;
+  }
+  /// A field that must be a number 0..4294967295 (@p dflt when absent).
+  static bool u32(const Json& in, const char* key, long long dflt, long long& out, std::string& err) {
+    out = in[key].kind == Json::Kind::null ? dflt : in[key].kind == Json::Kind::number ? in[key].n : -1;
+    if (out >= 0 && out <= 0xFFFFFFFFLL) return true;
+    err = std::string("\"") + key + "\" must be a number 0..4294967295";
+    return false;
   }
 
   Buffer& buffer(std::uint16_t id) {
@@ -128,8 +143,9 @@ class Driver {
     std::string extra;
     std::uint16_t id = 0;
     if (type == "config") {
-      const long long cap = in["cap"].num(64);
-      if (cap < 1 || cap > 64) return error("\"cap\" must be 1..64 (reports an agent holds at once)");
+      long long cap = 0;
+      if (!u32(in, "cap", 64, cap, err) || cap < 1 || cap > 64)
+        return error("\"cap\" must be 1..64 (reports an agent holds at once)");
       w_ = World{};
       w_.cap = static_cast<std::size_t>(cap);
       w_.file = std::string(ev3proto::kRecordHeader) + "\n";
@@ -139,38 +155,43 @@ class Driver {
       const std::string report = "report " + std::to_string(b.made() + 1);
       extra = ",\"seq\":" + std::to_string(b.Make(report));
     } else if (type == "send") {
-      if (!agent_of(in, id, err)) return error(err);
-      const std::string to = in["to"].str("pc");
-      if (to != "pc" && to != "im") return error("\"to\" must be \"pc\" or \"im\"");
+      std::string to;
+      if (!agent_of(in, id, err) || !one_of(in, "to", "pc", "im", to, err)) return error(err);
       send(id, to == "im", extra);
     } else if (type == "take_ack") {
-      if (!agent_of(in, id, err)) return error(err);
-      const long long n = in["n"].num(-1);
-      if (n < 0 || n > 0xFFFFFFFFLL) return error("\"n\" must be a number 0..4294967295");
+      long long n = 0;
+      if (!agent_of(in, id, err) || !u32(in, "n", -1, n, err)) return error(err);
       const bool ok = buffer(id).TakeAck(static_cast<std::uint32_t>(n), in["pc"].boolean(), in["current"].boolean());
       extra = std::string(",\"taken\":") + (ok ? "true" : "false");
     } else if (type == "new_master") {
       if (!agent_of(in, id, err)) return error(err);
       buffer(id).new_master();
     } else if (type == "take") {
-      if (!agent_of(in, id, err)) return error(err);
-      const std::string m = in["master"].str("pc");
-      if (m != "pc" && m != "im") return error("\"master\" must be \"pc\" or \"im\"");
-      const long long seq = in["seq"].num(-1), last = in["last"].num(0), first = in["first"].num(-1);
-      if (seq < 0 || seq > 0xFFFFFFFFLL || last < 0 || last > 0xFFFFFFFFLL || first < 0 || first > 0xFFFFFFFFLL)
-        return error("\"seq\", \"last\" and \"first\" must be numbers 0..4294967295");
-      ReportRecord& r = (m == "pc" ? w_.pc : w_.im)[id];
+      std::string m;
+      long long seq = 0, last = 0, first = 0;
+      if (!agent_of(in, id, err) || !one_of(in, "master", "pc", "im", m, err) || !u32(in, "seq", -1, seq, err) ||
+          !u32(in, "last", 0, last, err) || !u32(in, "first", -1, first, err))
+        return error(err);
+      if (seq == 0 || first == 0) return error("\"seq\" and \"first\" must be report numbers (1 or more)");
+      auto& rs = m == "pc" ? w_.pc : w_.im;
+      const bool known = rs.count(id) != 0;
+      ReportRecord& r = rs[id];
       const ReportRecord before = r;
       std::uint32_t skipped = 0;
       const ReportTaken t = ev3proto::PCTake(r, static_cast<std::uint32_t>(seq), static_cast<std::uint32_t>(last),
                                              static_cast<std::uint32_t>(first), skipped);
-      if (m == "pc") note(id, before, r);
+      if (t == ReportTaken::invalid) {
+        if (!known) rs.erase(id);  // an invalid offer opens no record
+      } else if (m == "pc") {
+        note(id, before, r);
+      }
       extra = std::string(",\"taken\":\"") + taken_name(t) + "\",\"skipped\":" + std::to_string(skipped);
     } else if (type == "ack") {
-      if (!agent_of(in, id, err)) return error(err);
-      const std::string m = in["master"].str("pc");
-      if (m != "pc" && m != "im") return error("\"master\" must be \"pc\" or \"im\"");
-      extra = ",\"ack\":" + std::to_string((m == "pc" ? w_.pc : w_.im)[id].stored());
+      std::string m;
+      if (!agent_of(in, id, err) || !one_of(in, "master", "pc", "im", m, err)) return error(err);
+      const auto& rs = m == "pc" ? w_.pc : w_.im;
+      const auto it = rs.find(id);
+      extra = ",\"ack\":" + std::to_string(it == rs.end() ? 0u : it->second.stored());
     } else if (type == "crash") {
       // The PC stops and starts again: what it holds of each agent is its record file, read back.
       std::map<std::uint16_t, ReportRecord> back;

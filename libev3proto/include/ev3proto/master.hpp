@@ -571,8 +571,9 @@ class Master {
     const ReportRecord before = r;
     std::uint32_t skipped = 0;
     ev3proto::PCTake(r, seq, last, first, skipped);
-    record_events(m.sender, taken_entries(before, r), report_.type, report_text(report_),
-                  [this](OperatorEvent&& e) { note_record(std::move(e)); });
+    const ReportEntries e = taken_entries(before, r);
+    record_events(m.sender, e, report_.type, e.report != 0 ? report_text(report_) : std::string(),
+                  [this](OperatorEvent&& ev) { note_record(std::move(ev)); });
   }
   /// Spec PCAck: REPORT_ACK(the last number recorded) to the sender, cumulative, with msgid 0.
   void PCAck(std::uint16_t agent, Peer from) {

@@ -100,6 +100,12 @@ def test_the_driver_reads_the_record_back_and_refuses_bad_input():
         assert rr.record_entries(after["record"]) == {7: ((1, "dropped"), (2, "report"), (3, "report"))}
         assert d.ask({"type": "ack", "agent": 7})["ack"] == 3
         assert "error" in d.ask({"type": "make", "agent": 1})          # not an assigned id
+        assert "error" in d.ask({"type": "make", "agent": -65534})     # nor is this (2 modulo 2^16)
+        assert "error" in d.ask({"type": "take", "agent": 9, "seq": 0, "first": 1})
+        out = d.ask({"type": "take", "agent": 9, "seq": 3, "first": 5})  # first above the number: invalid
+        assert out["taken"] == "invalid" and "9" not in out["pc"]       # and no record is opened
+        out = d.ask({"type": "ack", "agent": 9})
+        assert out["ack"] == 0 and "9" not in out["pc"]
         assert "error" in d.ask({"type": "config", "cap": 0})
         assert "error" in d.ask({"type": "restore", "slot": 9})
         assert "error" in d.ask({"type": "send", "agent": 7, "to": "nobody"})
