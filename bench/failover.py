@@ -1,0 +1,162 @@
+#!/usr/bin/env python3
+"""Failover of a fleet when its master dies (docs/benchmarks.md, "Failover"): the PC master and
+three agents with --election on loopback (no devices), all ACTIVE and knowing the membership; then
+the PC is killed (SIGKILL) and the agents' traces say, on the machine's monotonic clock that the
+programs' cores run on:
+
+  detection   kill -> the first agent leaves ACTIVE (HeartbeatLost: PANIC). For a WORKING agent
+              this is also when its motors stop (PAUSED).
+  failover    kill -> every agent follows a new master (an agent's leader is neither none nor the
+              PC, directly or through a relay, or the agent is the new master) and still does at
+              the end of the run.
+  first relay kill -> the first agent that accepts a relay (AcceptRelay) and how many relays were
+              accepted and dropped again (RelayDropped) before the failover.
+
+    python3 bench/failover.py --runs 5 --bin build/bin [-- AGENT-FLAGS...]
+    python3 bench/failover.py --runs 5 -- --heartbeat-ms 200 --master-timeout-ms 1000
+
+AGENT-FLAGS (after --) go to every ev3-agent (timers: --heartbeat-ms, --master-timeout-ms, ...).
+Each run takes the sync, the failover and --settle seconds more; a run with no failover within
+--timeout seconds is reported as such. Prints one line per run and the medians.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import signal
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "python" / "blackbox"))
+from ev3net import Program, free_ports, read_status, wait_until  # noqa: E402
+
+SCORES = (1, 20, 40)
+
+
+def records(path: Path) -> list[dict]:
+    """The trace's records so far (a last line still being written is left out)."""
+    if not path.exists():
+        return []
+    text = path.read_text()
+    lines = text.splitlines() if text.endswith("\n") else text.splitlines()[:-1]
+    return [json.loads(x) for x in lines if x.strip()]
+
+
+def knows_members(recs: list[dict]) -> bool:
+    return any(r["action"] == "HandleHeartbeat" and len(r.get("changed", {}).get("members", [])) == 3 for r in recs)
+
+
+def timeline(recs: list[dict], kill: int) -> dict:
+    """What one agent's trace says after the kill at @p kill (ms, CLOCK_MONOTONIC)."""
+    v: dict = {}
+    out = {"lost": None, "follows": None, "relays": 0, "relay_drops": 0, "first_relay": None}
+    for r in recs:
+        v.update(r.get("changed", {}))
+        if r["now"] < kill:
+            continue
+        if out["lost"] is None and r.get("changed", {}).get("state") in ("PANIC", "PAUSED"):
+            out["lost"] = r["now"] - kill
+        if r["action"] == "AcceptRelay":
+            out["relays"] += 1
+            if out["first_relay"] is None:
+                out["first_relay"] = r["now"] - kill
+        if r["action"] == "RelayDropped":
+            out["relay_drops"] += 1
+        new_master = (v.get("leader", 0) not in (0, 1) and v.get("following", 0) > 0) or v.get("life") == "MASTER"
+        if new_master and out["follows"] is None:
+            out["follows"] = r["now"] - kill
+        elif not new_master:
+            out["follows"] = None  # lost again: the failover is when it last found one
+    return out
+
+
+def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, settle: float) -> dict:
+    mport, *aports = free_ports(4)
+    progs = []
+    try:
+        status = tmp / "status.json"
+        master = Program(bindir / "ev3-master",
+                         ["--port", str(mport), "--bind", "127.0.0.1", "--election", "--state-file", str(tmp / "m.state"),
+                          "--status-json", str(status), *sum((["--broadcast", f"127.0.0.1:{p}"] for p in aports), []),
+                          "--log-file", str(tmp / "master.log")], tmp, "master")
+        progs.append(master)
+        for i, p in enumerate(aports):
+            (tmp / f"s{i}").mkdir()
+            progs.append(Program(bindir / "ev3-agent", [
+                "--port", str(p), "--bind", "127.0.0.1",
+                *sum((["--broadcast", f"127.0.0.1:{q}"] for q in [mport] + [a for a in aports if a != p]), []),
+                "--election", "--score", str(SCORES[i]), "--state-dir", str(tmp / f"s{i}"),
+                "--sysfs-root", str(tmp / "nosys"), f"--trace={tmp / f'agent{i}.nd'}",
+                "--log-file", str(tmp / f"agent{i}.log"), *agent_flags], tmp, f"agent{i}"))
+        wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == 3 and
+                   all(a["state"] == "ACTIVE" for a in s["agents"]), 15, "three ACTIVE agents")
+        wait_until(lambda: all(knows_members(records(tmp / f"agent{i}.nd")) for i in range(3)), 10,
+                   "every agent to know the membership")
+        time.sleep(0.3)
+        master.stop(signal.SIGKILL)
+        kill = int(time.monotonic() * 1000)
+        end = time.monotonic() + timeout
+
+        def settled():
+            ts = [timeline(records(tmp / f"agent{i}.nd"), kill) for i in range(3)]
+            return all(t["follows"] is not None for t in ts)
+        while time.monotonic() < end and not settled():
+            time.sleep(0.05)
+        time.sleep(settle)
+        ts = [timeline(records(tmp / f"agent{i}.nd"), kill) for i in range(3)]
+    finally:
+        for p in progs:
+            p.close()
+    lost = [t["lost"] for t in ts if t["lost"] is not None]
+    follows = [t["follows"] for t in ts]
+    firsts = [t["first_relay"] for t in ts if t["first_relay"] is not None]
+    return {"detection": min(lost) if lost else None,
+            "failover": max(follows) if all(f is not None for f in follows) else None,
+            "first_relay": min(firsts) if firsts else None,
+            "relays": sum(t["relays"] for t in ts), "relay_drops": sum(t["relay_drops"] for t in ts)}
+
+
+def fmt(ms) -> str:
+    return "-" if ms is None else f"{ms / 1000:.2f} s"
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--runs", type=int, default=5)
+    ap.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="where ev3-master and ev3-agent are")
+    ap.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for the failover (default 30)")
+    ap.add_argument("--settle", type=float, default=1.0, help="seconds watched after it (default 1)")
+    ap.add_argument("agent_flags", nargs="*", help="flags for every ev3-agent (after --)")
+    a = ap.parse_args()
+    if a.runs < 1:
+        ap.error("--runs must be 1 or more")
+    bindir = Path(a.bin)
+    for exe in ("ev3-master", "ev3-agent"):
+        if not (bindir / exe).exists():
+            ap.error(f"{bindir / exe} is missing: build first (make build) or give --bin")
+    print(f"failover: PC master + 3 agents on loopback, agent flags: {' '.join(a.agent_flags) or '(defaults)'}")
+    res = []
+    for k in range(a.runs):
+        with tempfile.TemporaryDirectory(prefix="ev3failover.") as d:
+            r = one_run(bindir, Path(d), a.agent_flags, a.timeout, a.settle)
+        res.append(r)
+        print(f"  run {k + 1}: detection {fmt(r['detection'])}  failover {fmt(r['failover'])}  "
+              f"first relay {fmt(r['first_relay'])}  relays accepted {r['relays']}, dropped {r['relay_drops']}",
+              flush=True)
+    for key in ("detection", "failover"):
+        xs = [r[key] for r in res if r[key] is not None]
+        if xs:
+            print(f"  median {key}: {fmt(statistics.median(xs))} (min {fmt(min(xs))}, max {fmt(max(xs))}, "
+                  f"{len(xs)} of {len(res)} runs)")
+        else:
+            print(f"  median {key}: none of {len(res)} runs")
+    return 0 if all(r["failover"] is not None for r in res) else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
