@@ -418,7 +418,7 @@ class Demo:
         assert self.master
         self.master.send_signal(signal.SIGKILL)
         self.master.wait()
-        self.event(f"master killed (SIGKILL); agents' states now: "
+        self.event("master killed (SIGKILL); agents' states now: "
                    + ", ".join(f"#{i + 1} {s}" for i, s in sorted(self.agent_state.items())))
         end = time.monotonic() + 3 * PAUSED / 1000 + 3
         while time.monotonic() < end:

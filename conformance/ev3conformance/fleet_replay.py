@@ -318,9 +318,6 @@ class _Trace(SimTrace):
         d = {}
         for k in sorted(set(sv) | set(iv)):
             if sv.get(k, "<absent>") != iv.get(k, "<absent>"):
-                fld = k.split(".", 1)[1] if "." in k else k
-                if k.startswith("reg[") and (k not in sv or k not in iv):
-                    fld = "registry entries"
                 d[k] = (sv.get(k, "<absent>"), iv.get(k, "<absent>"))
         if d:
             out["master"] = d

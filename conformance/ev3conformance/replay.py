@@ -12,7 +12,6 @@ import json
 import time
 import zlib
 from dataclasses import dataclass, field
-from pathlib import Path
 
 from ev3conformance import driver as drv
 from ev3conformance import graph as gr
@@ -242,7 +241,7 @@ class AgentReplay:
         return gr.walk(self.g, ps, self.replayable, self.leave.__contains__)
 
     def run(self) -> Figures:
-        g, c = self.g, self.c
+        g = self.g
         t0 = time.monotonic()
         if "ps" not in self.cache:
             self.cache["ps"] = gr.cover(g, self.replayable)
@@ -279,7 +278,6 @@ class AgentReplay:
         outs = d.stream(lines)
         pending: list[tuple[dict, list]] = []
         saved: dict[int, list] = {}
-        slot_node: dict[int, str] = {0: init}
         cur_path: list[int] = []
         path_at: dict[int, list[int]] = {0: []}
         for op, inp in tagged:
