@@ -202,6 +202,7 @@ spec: deps
 	@python3 tools/spec.py check --size small
 	@python3 tools/spec.py refute
 	@python3 tools/spec.py diagram --check
+	@python3 tools/spec.py distributed reports_three
 
 # One small model per spec module (manifest.json "quick"): make check's share of make spec.
 spec-quick: deps

@@ -18,6 +18,10 @@ Subcommands:
                                        the spec mutations of spec/tla/mutations.toml, each
                                        on a copy of spec/tla with the models make spec
                                        runs, until one kills it (docs/spec.md)
+  distributed MODEL [--workers N] [--threads T] [--host H] [--bug B]
+                                       one model of the manifest by TLC's distributed mode:
+                                       a TLCServer and N TLCWorker processes (on this machine,
+                                       or workers started by hand on others); safety only
 
 Python 3 standard library only.  Uses the pinned jar .tools/tla2tools.jar; every
 TLC run gets its own -metadir under build/spec/.
@@ -919,6 +923,116 @@ def check_args(args):
             raise SystemExit("--only and --update: the manifest is updated by a run of every model")
 
 
+def manifest_model(name):
+    """The manifest's model @p name (the lifecycle's or the election's): (module, cfg, entry)."""
+    man = load_manifest()
+    for m in man["models"] + man["election"]["models"]:
+        if m["name"] == name:
+            return m["module"], m["cfg"], m
+    names = sorted({m["name"] for m in man["models"] + man["election"]["models"]})
+    raise SystemExit("distributed: %s: no such model in manifest.json (models: %s)" % (name, ", ".join(names)))
+
+
+def free_port():
+    import socket
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def cmd_distributed(args):
+    """TLC's distributed mode (tlc2.tool.distributed): the server holds the state queue and the
+    fingerprint set, each worker (its own JVM, --threads threads) computes successors and checks the
+    invariants of the states it is given. TLC 2.18's server checks no temporal property and, on a
+    violation, prints the trace without naming the invariant and exits 0: this runner leaves the
+    model's PROPERTIES out (saying so), fails on any "Error:" and compares the distinct states with
+    the manifest's (the depth it reports may differ by one from a one-machine run's)."""
+    module, cfg, entry = manifest_model(args.model)
+    if args.workers < 0 or args.threads < 1:
+        raise SystemExit("distributed: --workers must be 0 or more, --threads 1 or more")
+    md = metadir("distributed-" + args.model)
+    text = open(os.path.join(SPEC, cfg)).read()
+    kept, dropping = [], False
+    for line in text.splitlines():
+        head = line.split("\\*")[0].strip()
+        if re.match(r"^(PROPERTIES|PROPERTY)\b", head):
+            dropping = True
+            continue
+        if dropping and re.match(r"^[A-Z_]+\b", head) and head.split()[0] in (
+                "CONSTANTS", "CONSTANT", "INVARIANTS", "INVARIANT", "SPECIFICATION", "INIT", "NEXT",
+                "SYMMETRY", "CONSTRAINT", "CONSTRAINTS", "ACTION_CONSTRAINT", "VIEW", "CHECK_DEADLOCK"):
+            dropping = False
+        if not dropping:
+            kept.append(line)
+    left_out = kept != text.splitlines()
+    if args.bug:
+        if not any(re.match(r"^\s*BUG\s*=", l) for l in kept):
+            raise SystemExit("distributed: --bug: %s has no BUG constant" % cfg)
+        kept = ['    BUG = "%s"' % args.bug if re.match(r"^\s*BUG\s*=", l) else l for l in kept]
+    dcfg = os.path.join(md, os.path.basename(cfg))
+    with open(dcfg, "w") as f:
+        f.write("\n".join(kept) + "\n")
+    port = args.port or free_port()
+    props = ["-Dtlc2.tool.distributed.TLCServer.port=%d" % port, "-Djava.rmi.server.hostname=" + args.host]
+    server_cmd = JAVA + props + ["-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.tool.distributed.TLCServer",
+                                 "-metadir", os.path.join(md, "states"), "-config", dcfg, module + ".tla"]
+    worker_cmd = JAVA + props + ["-Dtlc2.tool.distributed.TLCWorker.threadCount=%d" % args.threads,
+                                 "-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.tool.distributed.TLCWorker", args.host]
+    print("distributed: %s (%s %s) on %s:%d, %d local worker(s) of %d thread(s)%s"
+          % (args.model, module, cfg, args.host, port, args.workers, args.threads,
+             "; temporal properties left out (TLCServer checks none)" if left_out else ""))
+    log = os.path.join(md, "server.log")
+    t0 = time.monotonic()
+    workers = []
+    with open(log, "w") as out:
+        server = subprocess.Popen(server_cmd, cwd=SPEC, stdout=out, stderr=subprocess.STDOUT, text=True)
+        try:
+            deadline = time.monotonic() + 120
+            while "is ready" not in open(log).read():
+                if server.poll() is not None or time.monotonic() > deadline:
+                    print(open(log).read()[-3000:])
+                    raise SystemExit("distributed: the TLC server did not start (above)")
+                time.sleep(0.1)
+            if args.workers == 0:
+                print("distributed: server ready; start workers with: java -cp %s %s tlc2.tool.distributed.TLCWorker %s"
+                      % (JAR, " ".join(props), args.host), flush=True)
+            for i in range(args.workers):
+                workers.append(subprocess.Popen(worker_cmd, cwd=md, stdout=open(os.path.join(md, "worker%d.log" % i), "w"),
+                                                stderr=subprocess.STDOUT))
+            rc = server.wait(timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            server.kill()
+            server.wait()
+            rc = None
+        finally:
+            for w in workers:
+                try:
+                    w.wait(timeout=10)
+                except subprocess.TimeoutExpired:
+                    w.kill()
+                    w.wait()
+    secs = time.monotonic() - t0
+    text = open(log).read()
+    fig = figures(text)
+    registered = len(re.findall(r"^Registration for worker", text, re.M))
+    ok = rc == 0 and "No error has been found" in text and not re.search(r"^Error:", text, re.M)
+    if rc is None:
+        print("distributed: FAIL: no verdict within %d s (--timeout); the server's log: %s" % (args.timeout, log))
+        raise SystemExit(1)
+    if fig:
+        print("distributed: %s states generated, %s distinct, depth %s, %.1f s, %d worker thread(s) registered"
+              % (format(fig["generated"], ","), format(fig["distinct"], ","), fig["depth"], secs, registered))
+    if not ok:
+        print(counterexample(text)[:4000])
+        raise SystemExit("distributed: FAIL: %s (the server's log: %s)" % (
+            "TLC reports an error (above; for a violation TLC's server does not name the property, a "
+            "one-machine run of the model does)" if re.search(r"^Error:", text, re.M) else "exit status %s" % rc, log))
+    if fig and entry.get("distinct") not in (None, fig["distinct"]):
+        raise SystemExit("distributed: FAIL: %d distinct states, the manifest says %d" % (fig["distinct"], entry["distinct"]))
+    shutil.rmtree(md, ignore_errors=True)
+    print("distributed: ok, the manifest's %s distinct states" % format(fig["distinct"], ","))
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -935,7 +1049,19 @@ def main():
     mu.add_argument("--only", nargs="*", help="mutation ids (prefixes)")
     mu.add_argument("--all", action="store_true", help="also those expected to survive")
     mu.add_argument("--list", action="store_true", help="the catalogue, checked, nothing run")
+    di = sub.add_parser("distributed", help="one model by TLC's distributed mode (TLCServer, TLCWorker)")
+    di.add_argument("model", help="a model name of manifest.json (e.g. reports_three)")
+    di.add_argument("--workers", type=int, default=2, help="TLCWorker processes started here (default 2; 0: "
+                    "none, start them by hand)")
+    di.add_argument("--threads", type=int, default=1, help="threads per worker (default 1)")
+    di.add_argument("--host", default="127.0.0.1", help="the address the server is reached at (default 127.0.0.1)")
+    di.add_argument("--port", type=int, default=0, help="the server's RMI port (default: a free one)")
+    di.add_argument("--timeout", type=int, default=3600, help="seconds before the run is stopped (default 3600)")
+    di.add_argument("--bug", help="a broken variant of the spec (its BUG constant), which must fail")
     args = ap.parse_args()
+    if args.cmd == "distributed":
+        cmd_distributed(args)
+        return
     if args.cmd == "check":
         check_args(args)
     if args.cmd == "mutate":
