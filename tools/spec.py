@@ -940,42 +940,57 @@ def free_port():
         return s.getsockname()[1]
 
 
+CFG_SECTIONS = ("CONSTANTS", "CONSTANT", "INVARIANTS", "INVARIANT", "PROPERTIES", "PROPERTY", "SPECIFICATION",
+                "INIT", "NEXT", "SYMMETRY", "CONSTRAINT", "CONSTRAINTS", "ACTION_CONSTRAINT", "VIEW",
+                "CHECK_DEADLOCK")
+
+
+def safety_cfg(text, bug=None):
+    """A cfg's text without its PROPERTIES / PROPERTY sections (TLC's distributed server checks no
+    temporal property), with BUG = @p bug when given. Returns (text, whether properties were left
+    out); ValueError when @p bug is given and the cfg has no BUG constant."""
+    kept, dropping = [], False
+    for line in text.splitlines():
+        head = line.split("\\*")[0].strip()
+        word = head.split()[0] if head else ""
+        if word in ("PROPERTIES", "PROPERTY"):
+            dropping = True
+            continue
+        if word in CFG_SECTIONS:
+            dropping = False
+        if not dropping:
+            kept.append(line)
+    left_out = len(kept) != len(text.splitlines())
+    if bug:
+        if not any(re.match(r"^\s*BUG\s*=", l) for l in kept):
+            raise ValueError("no BUG constant")
+        kept = ['    BUG = "%s"' % bug if re.match(r"^\s*BUG\s*=", l) else l for l in kept]
+    return "\n".join(kept) + "\n", left_out
+
+
 def cmd_distributed(args):
     """TLC's distributed mode (tlc2.tool.distributed): the server holds the state queue and the
     fingerprint set, each worker (its own JVM, --threads threads) computes successors and checks the
     invariants of the states it is given. TLC 2.18's server checks no temporal property and, on a
     violation, prints the trace without naming the invariant and exits 0: this runner leaves the
     model's PROPERTIES out (saying so), fails on any "Error:" and compares the distinct states with
-    the manifest's (the depth it reports may differ by one from a one-machine run's)."""
+    the manifest's (the depth it reports is not the one-machine run's BFS depth)."""
     module, cfg, entry = manifest_model(args.model)
     if args.workers < 0 or args.threads < 1:
         raise SystemExit("distributed: --workers must be 0 or more, --threads 1 or more")
     md = metadir("distributed-" + args.model)
-    text = open(os.path.join(SPEC, cfg)).read()
-    kept, dropping = [], False
-    for line in text.splitlines():
-        head = line.split("\\*")[0].strip()
-        if re.match(r"^(PROPERTIES|PROPERTY)\b", head):
-            dropping = True
-            continue
-        if dropping and re.match(r"^[A-Z_]+\b", head) and head.split()[0] in (
-                "CONSTANTS", "CONSTANT", "INVARIANTS", "INVARIANT", "SPECIFICATION", "INIT", "NEXT",
-                "SYMMETRY", "CONSTRAINT", "CONSTRAINTS", "ACTION_CONSTRAINT", "VIEW", "CHECK_DEADLOCK"):
-            dropping = False
-        if not dropping:
-            kept.append(line)
-    left_out = kept != text.splitlines()
-    if args.bug:
-        if not any(re.match(r"^\s*BUG\s*=", l) for l in kept):
-            raise SystemExit("distributed: --bug: %s has no BUG constant" % cfg)
-        kept = ['    BUG = "%s"' % args.bug if re.match(r"^\s*BUG\s*=", l) else l for l in kept]
-    dcfg = os.path.join(md, os.path.basename(cfg))
+    try:
+        text, left_out = safety_cfg(open(os.path.join(SPEC, cfg)).read(), args.bug)
+    except ValueError as e:
+        raise SystemExit("distributed: %s: %s" % (cfg, e))
+    # In the spec directory: the server and its workers read a cfg there, by its name alone.
+    dcfg = os.path.join(SPEC, "distributed-%d-%s" % (os.getpid(), cfg))
     with open(dcfg, "w") as f:
-        f.write("\n".join(kept) + "\n")
+        f.write(text)
     port = args.port or free_port()
     props = ["-Dtlc2.tool.distributed.TLCServer.port=%d" % port, "-Djava.rmi.server.hostname=" + args.host]
     server_cmd = JAVA + props + ["-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.tool.distributed.TLCServer",
-                                 "-metadir", os.path.join(md, "states"), "-config", dcfg, module + ".tla"]
+                                 "-metadir", os.path.join(md, "states"), "-config", os.path.basename(dcfg), module + ".tla"]
     worker_cmd = JAVA + props + ["-Dtlc2.tool.distributed.TLCWorker.threadCount=%d" % args.threads,
                                  "-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.tool.distributed.TLCWorker", args.host]
     print("distributed: %s (%s %s) on %s:%d, %d local worker(s) of %d thread(s)%s"
@@ -1011,6 +1026,7 @@ def cmd_distributed(args):
                 except subprocess.TimeoutExpired:
                     w.kill()
                     w.wait()
+            os.remove(dcfg)
     secs = time.monotonic() - t0
     text = open(log).read()
     fig = figures(text)
