@@ -18,6 +18,10 @@ Subcommands:
                                        the spec mutations of spec/tla/mutations.toml, each
                                        on a copy of spec/tla with the models make spec
                                        runs, until one kills it (docs/spec.md)
+  scale MODEL AGENTS [--set NAME=VALUE] [--simulate N --depth D]
+                                       one model of the manifest with other agents (AGENTS:
+                                       a TLA+ set, "{2, 3, 4}"), safety only, one worker:
+                                       states, depth, time; or N random behaviours
   distributed MODEL [--workers N] [--threads T] [--host H] [--bug B]
                                        one model of the manifest by TLC's distributed mode:
                                        a TLCServer and N TLCWorker processes (on this machine,
@@ -968,6 +972,48 @@ def safety_cfg(text, bug=None):
     return "\n".join(kept) + "\n", left_out
 
 
+def cmd_scale(args):
+    """A manifest model with the agents @p args.agents instead of its own (its cfg's `Agents =`),
+    safety only (PROPERTIES left out), one worker: what the state space and the time become
+    (docs/spec.md "Cost with the number of agents"); with --simulate N, N random behaviours of at
+    most --depth states (TLC -simulate, seed 1) instead of the whole state space."""
+    module, cfg, entry = manifest_model(args.model)
+    text, _ = safety_cfg(open(os.path.join(SPEC, cfg)).read())
+    if not re.search(r"(?m)^\s*Agents\s*=", text):
+        raise SystemExit("scale: %s has no Agents constant" % cfg)
+    if not re.fullmatch(r"\{[\w\s,]*\}", args.agents.strip()):
+        raise SystemExit("scale: AGENTS must be a TLA+ set of agents, e.g. \"{2, 3, 4}\" (got %r)" % args.agents)
+    text = re.sub(r"(?m)^(\s*Agents\s*=).*$", lambda m: m.group(1) + " " + args.agents.strip(), text)
+    for kv in args.set or ():
+        k, _, v = kv.partition("=")
+        if not v or not re.fullmatch(r"\w+", k.strip()) or not re.search(r"(?m)^\s*%s\s*=" % k.strip(), text):
+            raise SystemExit("scale: --set %s: NAME=VALUE for a constant %s sets with =" % (kv, cfg))
+        text = re.sub(r"(?m)^(\s*%s\s*=).*$" % k.strip(), lambda m: m.group(1) + " " + v.strip(), text)
+    scfg = os.path.join(SPEC, "scale-%d-%s" % (os.getpid(), cfg))
+    with open(scfg, "w") as f:
+        f.write(text)
+    extra = ["-simulate", "num=%d" % args.simulate, "-depth", str(args.depth), "-seed", "1"] if args.simulate else []
+    try:
+        rc, out, secs = tlc(module, os.path.basename(scfg), workers=1, extra=extra, name="scale-" + args.model,
+                            seconds=1000, timeout=args.timeout)
+    finally:
+        os.remove(scfg)
+    if rc is None:
+        raise SystemExit("scale: %s %s: no verdict within %d s (--timeout)" % (args.model, args.agents, args.timeout))
+    v = violation(out)
+    if rc != 0 or v:
+        print(counterexample(out)[:4000])
+        raise SystemExit("scale: %s %s: TLC failed (exit %s%s)" % (args.model, args.agents, rc, ", " + v if v else ""))
+    if args.simulate:
+        g = re.findall(r"Progress: ([\d,]+) states checked", out)
+        print("scale: %s with Agents = %s: %d behaviours of depth <= %d, %s states checked, %.1f s"
+              % (args.model, args.agents, args.simulate, args.depth, g[-1] if g else "?", secs))
+        return
+    fig = figures(out)
+    print("scale: %s with Agents = %s: %s states generated, %s distinct, depth %s, %.1f s (1 worker)"
+          % (args.model, args.agents, format(fig["generated"], ","), format(fig["distinct"], ","), fig["depth"], secs))
+
+
 def cmd_distributed(args):
     """TLC's distributed mode (tlc2.tool.distributed): the server holds the state queue and the
     fingerprint set, each worker (its own JVM, --threads threads) computes successors and checks the
@@ -1065,6 +1111,14 @@ def main():
     mu.add_argument("--only", nargs="*", help="mutation ids (prefixes)")
     mu.add_argument("--all", action="store_true", help="also those expected to survive")
     mu.add_argument("--list", action="store_true", help="the catalogue, checked, nothing run")
+    sc = sub.add_parser("scale", help="a model with other agents: states, depth, time (or a simulation)")
+    sc.add_argument("model", help="a model name of manifest.json (e.g. system)")
+    sc.add_argument("agents", help='the agents, a TLA+ set: "{2, 3, 4}" (model values as the cfg spells them)')
+    sc.add_argument("--simulate", type=int, default=0, metavar="N", help="N random behaviours instead (TLC -simulate)")
+    sc.add_argument("--depth", type=int, default=60, help="--simulate: states per behaviour at most (default 60)")
+    sc.add_argument("--timeout", type=int, default=3600, help="seconds before the run is stopped (default 3600)")
+    sc.add_argument("--set", action="append", metavar="NAME=VALUE", help="another constant of the cfg, e.g. "
+                    '"CmdAgents={3}" (repeatable)')
     di = sub.add_parser("distributed", help="one model by TLC's distributed mode (TLCServer, TLCWorker)")
     di.add_argument("model", help="a model name of manifest.json (e.g. reports_three)")
     di.add_argument("--workers", type=int, default=2, help="TLCWorker processes started here (default 2; 0: "
@@ -1077,6 +1131,9 @@ def main():
     args = ap.parse_args()
     if args.cmd == "distributed":
         cmd_distributed(args)
+        return
+    if args.cmd == "scale":
+        cmd_scale(args)
         return
     if args.cmd == "check":
         check_args(args)
