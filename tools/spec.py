@@ -20,12 +20,12 @@ Subcommands:
                                        runs, until one kills it (docs/spec.md)
   scale MODEL AGENTS [--set NAME=VALUE] [--simulate N --depth D]
                                        one model of the manifest with other agents (AGENTS:
-                                       a TLA+ set, "{2, 3, 4}"), safety only, one worker:
+                                       a TLA+ set, "{2, 3, 4}"), invariants only, one worker:
                                        states, depth, time; or N random behaviours
   distributed MODEL [--workers N] [--threads T] [--host H] [--bug B]
                                        one model of the manifest by TLC's distributed mode:
                                        a TLCServer and N TLCWorker processes (on this machine,
-                                       or workers started by hand on others); safety only
+                                       or workers started by hand on others); invariants only
 
 Python 3 standard library only.  Uses the pinned jar .tools/tla2tools.jar; every
 TLC run gets its own -metadir under build/spec/.
@@ -35,6 +35,7 @@ import json
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -974,7 +975,7 @@ def safety_cfg(text, bug=None):
 
 def cmd_scale(args):
     """A manifest model with the agents @p args.agents instead of its own (its cfg's `Agents =`),
-    safety only (PROPERTIES left out), one worker: what the state space and the time become
+    its invariants only (PROPERTIES left out), one worker: what the state space and the time become
     (docs/spec.md "Cost with the number of agents"); with --simulate N, N random behaviours of at
     most --depth states (TLC -simulate, seed 1) instead of the whole state space."""
     module, cfg, entry = manifest_model(args.model)
@@ -1017,10 +1018,11 @@ def cmd_scale(args):
 def cmd_distributed(args):
     """TLC's distributed mode (tlc2.tool.distributed): the server holds the state queue and the
     fingerprint set, each worker (its own JVM, --threads threads) computes successors and checks the
-    invariants of the states it is given. TLC 2.18's server checks no temporal property and, on a
-    violation, prints the trace without naming the invariant and exits 0: this runner leaves the
-    model's PROPERTIES out (saying so), fails on any "Error:" and compares the distinct states with
-    the manifest's (the depth it reports is not the one-machine run's BFS depth)."""
+    invariants of the states it is given. TLC 2.18's server checks no temporal property, honours no
+    CHECK_DEADLOCK line and, on a violation, prints the trace without naming the invariant and exits
+    0: this runner leaves the model's PROPERTIES out (saying so), passes -deadlock for CHECK_DEADLOCK
+    FALSE, fails on any "Error:" or when every local worker stops, and compares the distinct states
+    with the manifest's (the depth it reports is not the one-machine run's BFS depth)."""
     module, cfg, entry = manifest_model(args.model)
     if args.workers < 0 or args.threads < 1:
         raise SystemExit("distributed: --workers must be 0 or more, --threads 1 or more")
@@ -1031,56 +1033,70 @@ def cmd_distributed(args):
         raise SystemExit("distributed: %s: %s" % (cfg, e))
     # In the spec directory: the server and its workers read a cfg there, by its name alone.
     dcfg = os.path.join(SPEC, "distributed-%d-%s" % (os.getpid(), cfg))
-    with open(dcfg, "w") as f:
-        f.write(text)
     port = args.port or free_port()
-    props = ["-Dtlc2.tool.distributed.TLCServer.port=%d" % port, "-Djava.rmi.server.hostname=" + args.host]
-    server_cmd = JAVA + props + ["-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.tool.distributed.TLCServer",
-                                 "-metadir", os.path.join(md, "states"), "-config", os.path.basename(dcfg), module + ".tla"]
-    worker_cmd = JAVA + props + ["-Dtlc2.tool.distributed.TLCWorker.threadCount=%d" % args.threads,
+    props = ["-Dtlc2.tool.distributed.TLCServer.port=%d" % port]
+    # The server honours no CHECK_DEADLOCK line: -deadlock turns its deadlock check off.
+    no_deadlock = ["-deadlock"] if re.search(r"(?m)^\s*CHECK_DEADLOCK\s+FALSE", text) else []
+    server_cmd = JAVA + props + ["-Djava.rmi.server.hostname=" + args.host, "-Djava.io.tmpdir=" + md, "-cp", JAR,
+                                 "tlc2.tool.distributed.TLCServer", "-metadir", os.path.join(md, "states")] + \
+        no_deadlock + ["-config", os.path.basename(dcfg), module + ".tla"]
+    # A worker is called back by the server at the address it advertises: its own (here, loopback).
+    worker_cmd = JAVA + props + ["-Djava.rmi.server.hostname=127.0.0.1",
+                                 "-Dtlc2.tool.distributed.TLCWorker.threadCount=%d" % args.threads,
                                  "-Djava.io.tmpdir=" + md, "-cp", JAR, "tlc2.tool.distributed.TLCWorker", args.host]
     print("distributed: %s (%s %s) on %s:%d, %d local worker(s) of %d thread(s)%s"
           % (args.model, module, cfg, args.host, port, args.workers, args.threads,
-             "; temporal properties left out (TLCServer checks none)" if left_out else ""))
+             "; its PROPERTIES left out (the run checks the invariants)" if left_out else ""), flush=True)
     log = os.path.join(md, "server.log")
     t0 = time.monotonic()
-    workers = []
-    with open(log, "w") as out:
-        server = subprocess.Popen(server_cmd, cwd=SPEC, stdout=out, stderr=subprocess.STDOUT, text=True)
-        try:
-            deadline = time.monotonic() + 120
-            while "is ready" not in open(log).read():
-                if server.poll() is not None or time.monotonic() > deadline:
-                    print(open(log).read()[-3000:])
-                    raise SystemExit("distributed: the TLC server did not start (above)")
-                time.sleep(0.1)
-            if args.workers == 0:
-                print("distributed: server ready; start workers with: java -cp %s %s tlc2.tool.distributed.TLCWorker %s"
-                      % (JAR, " ".join(props), args.host), flush=True)
-            for i in range(args.workers):
-                workers.append(subprocess.Popen(worker_cmd, cwd=md, stdout=open(os.path.join(md, "worker%d.log" % i), "w"),
-                                                stderr=subprocess.STDOUT))
-            rc = server.wait(timeout=args.timeout)
-        except subprocess.TimeoutExpired:
-            server.kill()
-            server.wait()
-            rc = None
-        finally:
-            for w in workers:
+    workers, server, rc = [], None, None
+    old_term = signal.signal(signal.SIGTERM, lambda *_: sys.exit("distributed: stopped (SIGTERM)"))
+    try:
+        with open(dcfg, "w") as f:
+            f.write(text)
+        with open(log, "w") as out:
+            server = subprocess.Popen(server_cmd, cwd=SPEC, stdout=out, stderr=subprocess.STDOUT, text=True)
+        deadline = time.monotonic() + 300
+        while "is ready" not in open(log).read():
+            if server.poll() is not None or time.monotonic() > deadline:
+                print(open(log).read()[-3000:])
+                raise SystemExit("distributed: the TLC server did not start (above)")
+            time.sleep(0.1)
+        if args.workers == 0:
+            print("distributed: server ready; on each worker machine: java -cp tla2tools.jar %s "
+                  "-Djava.rmi.server.hostname=THAT_MACHINES_ADDRESS tlc2.tool.distributed.TLCWorker %s"
+                  % (" ".join(props), args.host), flush=True)
+        for i in range(args.workers):
+            workers.append(subprocess.Popen(worker_cmd, cwd=md, stdout=open(os.path.join(md, "worker%d.log" % i), "w"),
+                                            stderr=subprocess.STDOUT))
+        end = time.monotonic() + args.timeout
+        while server.poll() is None:
+            if time.monotonic() > end:
+                print("distributed: FAIL: no verdict within %d s (--timeout); the server's log: %s" % (args.timeout, log))
+                raise SystemExit(1)
+            if workers and all(w.poll() is not None for w in workers):
+                time.sleep(2)  # the server may be writing its verdict
+                if server.poll() is None:
+                    raise SystemExit("distributed: FAIL: every worker stopped before the server's verdict "
+                                     "(their logs: %s/worker*.log)" % md)
+            time.sleep(0.2)
+        rc = server.returncode
+    finally:
+        signal.signal(signal.SIGTERM, old_term)
+        for p in ([server] if server else []) + workers:
+            if p.poll() is None:
                 try:
-                    w.wait(timeout=10)
+                    p.wait(timeout=10 if p is not server else 0.1)
                 except subprocess.TimeoutExpired:
-                    w.kill()
-                    w.wait()
+                    p.kill()
+                    p.wait()
+        if os.path.exists(dcfg):
             os.remove(dcfg)
     secs = time.monotonic() - t0
     text = open(log).read()
     fig = figures(text)
     registered = len(re.findall(r"^Registration for worker", text, re.M))
     ok = rc == 0 and "No error has been found" in text and not re.search(r"^Error:", text, re.M)
-    if rc is None:
-        print("distributed: FAIL: no verdict within %d s (--timeout); the server's log: %s" % (args.timeout, log))
-        raise SystemExit(1)
     if fig:
         print("distributed: %s states generated, %s distinct, depth %s, %.1f s, %d worker thread(s) registered"
               % (format(fig["generated"], ","), format(fig["distinct"], ","), fig["depth"], secs, registered))
