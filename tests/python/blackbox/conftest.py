@@ -137,6 +137,8 @@ def _traced_init(self, exe, args, tmp, name, *a, **kw):
     args = list(args)
     self.trace_path = None
     prog = Path(args[0]).name if Path(exe).name.startswith("qemu") and args else Path(exe).name
+    if Path(exe).name == "ip" and args[:2] == ["netns", "exec"] and len(args) > 3:
+        prog = Path(args[3]).name  # a program in a network namespace (netns.Lan.argv)
     if (_MODE != "0" and prog in ("ev3-agent", "ev3-master") and args and "--driver" not in args
             and not any(x == "--trace" or x.startswith("--trace=") for x in args)
             and any(x.startswith("--") for x in args)):
