@@ -14,6 +14,7 @@ programs' cores run on:
 
     python3 bench/failover.py --runs 5 --bin build/bin [-- AGENT-FLAGS...]
     python3 bench/failover.py --runs 5 -- --heartbeat-ms 200 --master-timeout-ms 1000
+    python3 bench/failover.py --runs 5 --netns     # each program in a network namespace (root)
 
 AGENT-FLAGS (after --) go to every ev3-agent (timers: --heartbeat-ms, --master-timeout-ms, ...).
 Each run takes the sync, the failover and --settle seconds more; a run with no failover within
@@ -33,6 +34,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python" / "blackbox"))
+import netns  # noqa: E402
 from ev3net import Program, free_ports, read_status, wait_until  # noqa: E402
 
 SCORES = (1, 20, 40)
@@ -77,24 +79,37 @@ def timeline(recs: list[dict], kill: int) -> dict:
     return out
 
 
-def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, settle: float) -> dict:
-    mport, *aports = free_ports(4)
+def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, settle: float, lan=None) -> dict:
+    """One run; with @p lan (netns.Lan of 4 nodes) each program in a namespace of its own, all on
+    one port and the subnet's broadcast address, instead of loopback ports."""
+    if lan:
+        mport, aports = 12345, [12345] * 3
+        where = [["--broadcast", f"{lan.broadcast()}:12345"]] * 4
+
+        def start(i, exe, args, name):
+            return Program(Path("ip"), lan.argv(i, [str(exe), *args])[1:], tmp, name)
+    else:
+        mport, *aports = free_ports(4)
+        ports = [mport, *aports]
+        where = [["--bind", "127.0.0.1", *sum((["--broadcast", f"127.0.0.1:{q}"] for q in ports if q != p), [])]
+                 for p in ports]
+
+        def start(i, exe, args, name):
+            return Program(exe, args, tmp, name)
     progs = []
     try:
         status = tmp / "status.json"
-        master = Program(bindir / "ev3-master",
-                         ["--port", str(mport), "--bind", "127.0.0.1", "--election", "--state-file", str(tmp / "m.state"),
-                          "--status-json", str(status), *sum((["--broadcast", f"127.0.0.1:{p}"] for p in aports), []),
-                          "--log-file", str(tmp / "master.log")], tmp, "master")
+        master = start(0, bindir / "ev3-master",
+                       ["--port", str(mport), *where[0], "--election", "--state-file", str(tmp / "m.state"),
+                        "--status-json", str(status), "--log-file", str(tmp / "master.log")], "master")
         progs.append(master)
         for i, p in enumerate(aports):
             (tmp / f"s{i}").mkdir()
-            progs.append(Program(bindir / "ev3-agent", [
-                "--port", str(p), "--bind", "127.0.0.1",
-                *sum((["--broadcast", f"127.0.0.1:{q}"] for q in [mport] + [a for a in aports if a != p]), []),
+            progs.append(start(i + 1, bindir / "ev3-agent", [
+                "--port", str(p), *where[i + 1],
                 "--election", "--score", str(SCORES[i]), "--state-dir", str(tmp / f"s{i}"),
                 "--sysfs-root", str(tmp / "nosys"), f"--trace={tmp / f'agent{i}.nd'}",
-                "--log-file", str(tmp / f"agent{i}.log"), *agent_flags], tmp, f"agent{i}"))
+                "--log-file", str(tmp / f"agent{i}.log"), *agent_flags], f"agent{i}"))
         wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == 3 and
                    all(a["state"] == "ACTIVE" for a in s["agents"]), 15, "three ACTIVE agents")
         wait_until(lambda: all(knows_members(records(tmp / f"agent{i}.nd")) for i in range(3)), 10,
@@ -133,6 +148,8 @@ def main() -> int:
     ap.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="where ev3-master and ev3-agent are")
     ap.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for the failover (default 30)")
     ap.add_argument("--settle", type=float, default=1.0, help="seconds watched after it (default 1)")
+    ap.add_argument("--netns", action="store_true", help="each program in a network namespace on one bridge "
+                    "(root; real broadcast) instead of loopback")
     ap.add_argument("agent_flags", nargs="*", help="flags for every ev3-agent (after --)")
     a = ap.parse_args()
     if a.runs < 1:
@@ -141,11 +158,19 @@ def main() -> int:
     for exe in ("ev3-master", "ev3-agent"):
         if not (bindir / exe).exists():
             ap.error(f"{bindir / exe} is missing: build first (make build) or give --bin")
-    print(f"failover: PC master + 3 agents on loopback, agent flags: {' '.join(a.agent_flags) or '(defaults)'}")
+    if a.netns and (why := netns.available()):
+        ap.error(f"--netns: {why}")
+    print(f"failover: PC master + 3 agents {'in network namespaces on a bridge' if a.netns else 'on loopback'}, "
+          f"agent flags: {' '.join(a.agent_flags) or '(defaults)'}")
     res = []
     for k in range(a.runs):
-        with tempfile.TemporaryDirectory(prefix="ev3failover.") as d:
-            r = one_run(bindir, Path(d), a.agent_flags, a.timeout, a.settle)
+        lan = netns.Lan(4) if a.netns else None
+        try:
+            with tempfile.TemporaryDirectory(prefix="ev3failover.") as d:
+                r = one_run(bindir, Path(d), a.agent_flags, a.timeout, a.settle, lan)
+        finally:
+            if lan:
+                lan.close()
         res.append(r)
         print(f"  run {k + 1}: detection {fmt(r['detection'])}  failover {fmt(r['failover'])}  "
               f"first relay {fmt(r['first_relay'])}  relays accepted {r['relays']}, dropped {r['relay_drops']}",
