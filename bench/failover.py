@@ -16,7 +16,8 @@ programs' cores run on:
     python3 bench/failover.py --runs 5 -- --heartbeat-ms 200 --master-timeout-ms 1000
     python3 bench/failover.py --runs 5 --netns     # each program in a network namespace (root)
 
-AGENT-FLAGS (after --) go to every ev3-agent (timers: --heartbeat-ms, --master-timeout-ms, ...).
+--keep DIR keeps each run's logs and traces (DIR/run-N: master.log, agentI.log, agentI.nd) for a
+run worth a look. AGENT-FLAGS (after --) go to every ev3-agent (timers: --heartbeat-ms, --master-timeout-ms, ...).
 Each run takes the sync, the failover and --settle seconds more; a run with no failover within
 --timeout seconds is reported as such. Prints one line per run and the medians.
 """
@@ -148,6 +149,7 @@ def main() -> int:
     ap.add_argument("--bin", default=str(ROOT / "build" / "bin"), help="where ev3-master and ev3-agent are")
     ap.add_argument("--timeout", type=float, default=30.0, help="seconds to wait for the failover (default 30)")
     ap.add_argument("--settle", type=float, default=1.0, help="seconds watched after it (default 1)")
+    ap.add_argument("--keep", metavar="DIR", help="keep each run's logs and traces in DIR/run-N (new directories)")
     ap.add_argument("--netns", action="store_true", help="each program in a network namespace on one bridge "
                     "(root; real broadcast) instead of loopback")
     ap.add_argument("agent_flags", nargs="*", help="flags for every ev3-agent (after --)")
@@ -158,6 +160,8 @@ def main() -> int:
     for exe in ("ev3-master", "ev3-agent"):
         if not (bindir / exe).exists():
             ap.error(f"{bindir / exe} is missing: build first (make build) or give --bin")
+    if a.keep and any((Path(a.keep) / f"run-{k + 1}").exists() for k in range(a.runs)):
+        ap.error(f"--keep {a.keep}: it holds run-N directories already; give a new directory")
     if a.netns and (why := netns.available()):
         ap.error(f"--netns: {why}")
     print(f"failover: PC master + 3 agents {'in network namespaces on a bridge' if a.netns else 'on loopback'}, "
@@ -167,7 +171,9 @@ def main() -> int:
         lan = netns.Lan(4) if a.netns else None
         try:
             with tempfile.TemporaryDirectory(prefix="ev3failover.") as d:
-                r = one_run(bindir, Path(d), a.agent_flags, a.timeout, a.settle, lan)
+                run_dir = Path(a.keep) / f"run-{k + 1}" if a.keep else Path(d)
+                run_dir.mkdir(parents=True, exist_ok=False)
+                r = one_run(bindir, run_dir, a.agent_flags, a.timeout, a.settle, lan)
         finally:
             if lan:
                 lan.close()
