@@ -25,7 +25,6 @@ Each run takes the sync, the failover and --settle seconds more; a run with no f
 from __future__ import annotations
 
 import argparse
-import json
 import signal
 import statistics
 import sys
@@ -37,17 +36,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tests" / "python" / "blackbox"))
 import netns  # noqa: E402
 from ev3net import Program, free_ports, read_status, wait_until  # noqa: E402
+from ev3net import trace_records as records  # noqa: E402
 
 SCORES = (1, 20, 40)
-
-
-def records(path: Path) -> list[dict]:
-    """The trace's records so far (a last line still being written is left out)."""
-    if not path.exists():
-        return []
-    text = path.read_text()
-    lines = text.splitlines() if text.endswith("\n") else text.splitlines()[:-1]
-    return [json.loads(x) for x in lines if x.strip()]
 
 
 def knows_members(recs: list[dict]) -> bool:
@@ -171,8 +162,10 @@ def main() -> int:
         lan = netns.Lan(4) if a.netns else None
         try:
             with tempfile.TemporaryDirectory(prefix="ev3failover.") as d:
-                run_dir = Path(a.keep) / f"run-{k + 1}" if a.keep else Path(d)
-                run_dir.mkdir(parents=True, exist_ok=False)
+                run_dir = Path(d)
+                if a.keep:
+                    run_dir = Path(a.keep) / f"run-{k + 1}"
+                    run_dir.mkdir(parents=True)
                 r = one_run(bindir, run_dir, a.agent_flags, a.timeout, a.settle, lan)
         finally:
             if lan:

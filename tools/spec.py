@@ -31,6 +31,7 @@ Python 3 standard library only.  Uses the pinned jar .tools/tla2tools.jar; every
 TLC run gets its own -metadir under build/spec/.
 """
 import argparse
+import contextlib
 import json
 import os
 import re
@@ -950,6 +951,30 @@ CFG_SECTIONS = ("CONSTANTS", "CONSTANT", "INVARIANTS", "INVARIANT", "PROPERTIES"
                 "CHECK_DEADLOCK")
 
 
+def set_constant(text, name, value):
+    """A cfg's text with constant @p name set to @p value (`name = value`); ValueError when the cfg
+    sets no such constant."""
+    pat = r"(?m)^(\s*%s\s*=).*$" % re.escape(name)
+    if not re.search(pat, text):
+        raise ValueError("no %s constant" % name)
+    return re.sub(pat, lambda m: m.group(1) + " " + value, text)
+
+
+@contextlib.contextmanager
+def cfg_beside_model(kind, cfg, text):
+    """A derived cfg written in the spec directory (TLC, its distributed server and its workers read
+    a cfg there by its name alone) as spec/tla/KIND-PID-CFG; its name while the block runs, removed
+    after it."""
+    path = os.path.join(SPEC, "%s-%d-%s" % (kind, os.getpid(), cfg))
+    try:
+        with open(path, "w") as f:
+            f.write(text)
+        yield os.path.basename(path)
+    finally:
+        if os.path.exists(path):
+            os.remove(path)
+
+
 def safety_cfg(text, bug=None):
     """A cfg's text without its PROPERTIES / PROPERTY sections (TLC's distributed server checks no
     temporal property), with BUG = @p bug when given. Returns (text, whether properties were left
@@ -966,11 +991,8 @@ def safety_cfg(text, bug=None):
         if not dropping:
             kept.append(line)
     left_out = len(kept) != len(text.splitlines())
-    if bug:
-        if not any(re.match(r"^\s*BUG\s*=", l) for l in kept):
-            raise ValueError("no BUG constant")
-        kept = ['    BUG = "%s"' % bug if re.match(r"^\s*BUG\s*=", l) else l for l in kept]
-    return "\n".join(kept) + "\n", left_out
+    out = "\n".join(kept) + "\n"
+    return (set_constant(out, "BUG", '"%s"' % bug) if bug else out), left_out
 
 
 def cmd_scale(args):
@@ -980,25 +1002,21 @@ def cmd_scale(args):
     most --depth states (TLC -simulate, seed 1) instead of the whole state space."""
     module, cfg, entry = manifest_model(args.model)
     text, _ = safety_cfg(open(os.path.join(SPEC, cfg)).read())
-    if not re.search(r"(?m)^\s*Agents\s*=", text):
-        raise SystemExit("scale: %s has no Agents constant" % cfg)
     if not re.fullmatch(r"\{[\w\s,]*\}", args.agents.strip()):
         raise SystemExit("scale: AGENTS must be a TLA+ set of agents, e.g. \"{2, 3, 4}\" (got %r)" % args.agents)
-    text = re.sub(r"(?m)^(\s*Agents\s*=).*$", lambda m: m.group(1) + " " + args.agents.strip(), text)
-    for kv in args.set or ():
-        k, _, v = kv.partition("=")
-        if not v or not re.fullmatch(r"\w+", k.strip()) or not re.search(r"(?m)^\s*%s\s*=" % k.strip(), text):
-            raise SystemExit("scale: --set %s: NAME=VALUE for a constant %s sets with =" % (kv, cfg))
-        text = re.sub(r"(?m)^(\s*%s\s*=).*$" % k.strip(), lambda m: m.group(1) + " " + v.strip(), text)
-    scfg = os.path.join(SPEC, "scale-%d-%s" % (os.getpid(), cfg))
-    with open(scfg, "w") as f:
-        f.write(text)
-    extra = ["-simulate", "num=%d" % args.simulate, "-depth", str(args.depth), "-seed", "1"] if args.simulate else []
     try:
-        rc, out, secs = tlc(module, os.path.basename(scfg), workers=1, extra=extra, name="scale-" + args.model,
-                            seconds=1000, timeout=args.timeout)
-    finally:
-        os.remove(scfg)
+        text = set_constant(text, "Agents", args.agents.strip())
+        for kv in args.set or ():
+            k, _, v = kv.partition("=")
+            if not v or not re.fullmatch(r"\w+", k.strip()):
+                raise ValueError("--set %s: give NAME=VALUE" % kv)
+            text = set_constant(text, k.strip(), v.strip())
+    except ValueError as e:
+        raise SystemExit("scale: %s: %s" % (cfg, e))
+    extra = ["-simulate", "num=%d" % args.simulate, "-depth", str(args.depth), "-seed", "1"] if args.simulate else []
+    with cfg_beside_model("scale", cfg, text) as scfg:
+        rc, out, secs = tlc(module, scfg, workers=1, extra=extra, name="scale-" + args.model, seconds=1000,
+                            timeout=args.timeout)
     if rc is None:
         raise SystemExit("scale: %s %s: no verdict within %d s (--timeout)" % (args.model, args.agents, args.timeout))
     v = violation(out)
@@ -1031,15 +1049,10 @@ def cmd_distributed(args):
         text, left_out = safety_cfg(open(os.path.join(SPEC, cfg)).read(), args.bug)
     except ValueError as e:
         raise SystemExit("distributed: %s: %s" % (cfg, e))
-    # In the spec directory: the server and its workers read a cfg there, by its name alone.
-    dcfg = os.path.join(SPEC, "distributed-%d-%s" % (os.getpid(), cfg))
     port = args.port or free_port()
     props = ["-Dtlc2.tool.distributed.TLCServer.port=%d" % port]
     # The server honours no CHECK_DEADLOCK line: -deadlock turns its deadlock check off.
     no_deadlock = ["-deadlock"] if re.search(r"(?m)^\s*CHECK_DEADLOCK\s+FALSE", text) else []
-    server_cmd = JAVA + props + ["-Djava.rmi.server.hostname=" + args.host, "-Djava.io.tmpdir=" + md, "-cp", JAR,
-                                 "tlc2.tool.distributed.TLCServer", "-metadir", os.path.join(md, "states")] + \
-        no_deadlock + ["-config", os.path.basename(dcfg), module + ".tla"]
     # A worker is called back by the server at the address it advertises: its own (here, loopback).
     worker_cmd = JAVA + props + ["-Djava.rmi.server.hostname=127.0.0.1",
                                  "-Dtlc2.tool.distributed.TLCWorker.threadCount=%d" % args.threads,
@@ -1051,47 +1064,47 @@ def cmd_distributed(args):
     t0 = time.monotonic()
     workers, server, rc = [], None, None
     old_term = signal.signal(signal.SIGTERM, lambda *_: sys.exit("distributed: stopped (SIGTERM)"))
-    try:
-        with open(dcfg, "w") as f:
-            f.write(text)
-        with open(log, "w") as out:
-            server = subprocess.Popen(server_cmd, cwd=SPEC, stdout=out, stderr=subprocess.STDOUT, text=True)
-        deadline = time.monotonic() + 300
-        while "is ready" not in open(log).read():
-            if server.poll() is not None or time.monotonic() > deadline:
-                print(open(log).read()[-3000:])
-                raise SystemExit("distributed: the TLC server did not start (above)")
-            time.sleep(0.1)
-        if args.workers == 0:
-            print("distributed: server ready; on each worker machine: java -cp tla2tools.jar %s "
-                  "-Djava.rmi.server.hostname=THAT_MACHINES_ADDRESS tlc2.tool.distributed.TLCWorker %s"
-                  % (" ".join(props), args.host), flush=True)
-        for i in range(args.workers):
-            workers.append(subprocess.Popen(worker_cmd, cwd=md, stdout=open(os.path.join(md, "worker%d.log" % i), "w"),
-                                            stderr=subprocess.STDOUT))
-        end = time.monotonic() + args.timeout
-        while server.poll() is None:
-            if time.monotonic() > end:
-                print("distributed: FAIL: no verdict within %d s (--timeout); the server's log: %s" % (args.timeout, log))
-                raise SystemExit(1)
-            if workers and all(w.poll() is not None for w in workers):
-                time.sleep(2)  # the server may be writing its verdict
-                if server.poll() is None:
-                    raise SystemExit("distributed: FAIL: every worker stopped before the server's verdict "
-                                     "(their logs: %s/worker*.log)" % md)
-            time.sleep(0.2)
-        rc = server.returncode
-    finally:
-        signal.signal(signal.SIGTERM, old_term)
-        for p in ([server] if server else []) + workers:
-            if p.poll() is None:
-                try:
-                    p.wait(timeout=10 if p is not server else 0.1)
-                except subprocess.TimeoutExpired:
-                    p.kill()
-                    p.wait()
-        if os.path.exists(dcfg):
-            os.remove(dcfg)
+    with cfg_beside_model("distributed", cfg, text) as dcfg:
+        try:
+            server_cmd = JAVA + props + ["-Djava.rmi.server.hostname=" + args.host, "-Djava.io.tmpdir=" + md, "-cp", JAR,
+                                         "tlc2.tool.distributed.TLCServer", "-metadir", os.path.join(md, "states")] + \
+                no_deadlock + ["-config", dcfg, module + ".tla"]
+            with open(log, "w") as out:
+                server = subprocess.Popen(server_cmd, cwd=SPEC, stdout=out, stderr=subprocess.STDOUT, text=True)
+            deadline = time.monotonic() + 300
+            while "is ready" not in open(log).read():
+                if server.poll() is not None or time.monotonic() > deadline:
+                    print(open(log).read()[-3000:])
+                    raise SystemExit("distributed: the TLC server did not start (above)")
+                time.sleep(0.1)
+            if args.workers == 0:
+                print("distributed: server ready; on each worker machine: java -cp tla2tools.jar %s "
+                      "-Djava.rmi.server.hostname=THAT_MACHINES_ADDRESS tlc2.tool.distributed.TLCWorker %s"
+                      % (" ".join(props), args.host), flush=True)
+            for i in range(args.workers):
+                workers.append(subprocess.Popen(worker_cmd, cwd=md, stdout=open(os.path.join(md, "worker%d.log" % i), "w"),
+                                                stderr=subprocess.STDOUT))
+            end = time.monotonic() + args.timeout
+            while server.poll() is None:
+                if time.monotonic() > end:
+                    print("distributed: FAIL: no verdict within %d s (--timeout); the server's log: %s" % (args.timeout, log))
+                    raise SystemExit(1)
+                if workers and all(w.poll() is not None for w in workers):
+                    time.sleep(2)  # the server may be writing its verdict
+                    if server.poll() is None:
+                        raise SystemExit("distributed: FAIL: every worker stopped with no verdict from the server "
+                                         "(their logs: %s/worker*.log)" % md)
+                time.sleep(0.2)
+            rc = server.returncode
+        finally:
+            signal.signal(signal.SIGTERM, old_term)
+            for p in ([server] if server else []) + workers:
+                if p.poll() is None:
+                    try:
+                        p.wait(timeout=10 if p is not server else 0.1)
+                    except subprocess.TimeoutExpired:
+                        p.kill()
+                        p.wait()
     secs = time.monotonic() - t0
     text = open(log).read()
     fig = figures(text)
@@ -1132,7 +1145,7 @@ def main():
     sc.add_argument("agents", help='the agents, a TLA+ set: "{2, 3, 4}" (model values as the cfg spells them)')
     sc.add_argument("--simulate", type=int, default=0, metavar="N", help="N random behaviours instead (TLC -simulate)")
     sc.add_argument("--depth", type=int, default=60, help="--simulate: states per behaviour at most (default 60)")
-    sc.add_argument("--timeout", type=int, default=3600, help="seconds before the run is stopped (default 3600)")
+    sc.add_argument("--timeout", type=int, default=3600, help="seconds a run may take, then it is stopped (default 3600)")
     sc.add_argument("--set", action="append", metavar="NAME=VALUE", help="another constant of the cfg, e.g. "
                     '"CmdAgents={3}" (repeatable)')
     di = sub.add_parser("distributed", help="one model by TLC's distributed mode (TLCServer, TLCWorker)")
@@ -1142,7 +1155,7 @@ def main():
     di.add_argument("--threads", type=int, default=1, help="threads per worker (default 1)")
     di.add_argument("--host", default="127.0.0.1", help="the address the server is reached at (default 127.0.0.1)")
     di.add_argument("--port", type=int, default=0, help="the server's RMI port (default: a free one)")
-    di.add_argument("--timeout", type=int, default=3600, help="seconds before the run is stopped (default 3600)")
+    di.add_argument("--timeout", type=int, default=3600, help="seconds a run may take, then it is stopped (default 3600)")
     di.add_argument("--bug", help="a broken variant of the spec (its BUG constant), which must fail")
     args = ap.parse_args()
     if args.cmd == "distributed":

@@ -415,6 +415,16 @@ def assert_static_armel(exe: Path) -> None:
         assert "ARM" in info and "statically linked" in info, info
 
 
+def trace_records(path: Path) -> list[dict]:
+    """The records of a running program's --trace file so far (a last line still being written is
+    left out)."""
+    if not path.exists():
+        return []
+    text = path.read_text()
+    lines = text.splitlines() if text.endswith("\n") else text.splitlines()[:-1]
+    return [json.loads(x) for x in lines if x.strip()]
+
+
 def read_status(path: Path) -> dict | None:
     try:
         return json.loads(path.read_text())

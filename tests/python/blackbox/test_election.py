@@ -14,7 +14,6 @@ MasterLogic composed with Election.tla's rules of the PC ("Election master trace
 
 from __future__ import annotations
 
-import json
 import re
 import signal
 import time
@@ -23,7 +22,7 @@ from pathlib import Path
 import pytest
 from ev3conformance import merged
 
-from ev3net import Links, Program, free_ports, read_status, wait_until
+from ev3net import Links, Program, free_ports, read_status, trace_records, wait_until
 
 HB, LOSS, PAUSED = 100, 600, 1200          # ms; back-off before standing: 3000 + score x 100
 SCORES = (1, 20, 40)
@@ -37,13 +36,7 @@ def log_lines(tmp: Path, name: str) -> list[str]:
 
 
 def trace(tmp: Path, name: str) -> list[dict]:
-    """The records of a running program's trace so far (a last line still being written is left out)."""
-    p = tmp / f"{name}.nd"
-    if not p.exists():
-        return []
-    text = p.read_text()
-    lines = text.splitlines() if text.endswith("\n") else text.splitlines()[:-1]
-    return [json.loads(l) for l in lines if l.strip()]
+    return trace_records(tmp / f"{name}.nd")
 
 
 def start_fleet(master_exe, agent_exe, programs, tmp: Path, hears: dict[int, list[int]], links: Links | None = None):
