@@ -7,6 +7,9 @@ namespace ev3agent {
 using ev3proto::Timer;
 
 namespace {
+/// A timer's default, in words for the help ("100").
+std::string dflt(Timer t) { return std::to_string(ev3proto::Timers{}[t]); }
+
 std::vector<ev3io::OptionSpec> specs() {
   std::vector<ev3io::OptionSpec> s = ev3io::common_specs();
   s.insert(s.begin() + 3, {
@@ -14,10 +17,15 @@ std::vector<ev3io::OptionSpec> specs() {
       {"sysfs-root", "DIR", "ev3dev's sysfs: the devices, LEDs and battery under DIR/class (default /sys; ev3-sim's mount)", false},
       {"ports", "SPEC", "model A's ports, role=port,... (default left=outB,right=outC,touch=in1,colour=in3,ultrasonic=in4)", false},
       {"tick-ms", "N", "control tick while the motors may move, 5..100 ms (default 20)", false},
-      {"heartbeat-ms", "N", "period of AGENT / PING / PANIC (default 1000)", false},
-      {"master-timeout-ms", "N", "master silent this long: ACTIVE -> PANIC, WORKING -> PAUSED (default 3000)", false},
+      {"watchdog-ms", "N", "wheels held this long after the last contact with a master; 0: off, else at least "
+                           "2 x heartbeat (default " + std::to_string(AgentOptions{}.watchdog_ms) +
+                           ", or 5 x heartbeat when that is longer)", false},
+      {"heartbeat-ms", "N", "period of AGENT / PING / PANIC; the other timers but sync are multiples of it "
+                            "(default " + dflt(Timer::heartbeat) + ")", false},
+      {"master-timeout-ms", "N", "master silent this long: ACTIVE -> PANIC, WORKING -> PAUSED (default 8 x "
+                                 "heartbeat: " + dflt(Timer::loss) + ")", false},
       {"paused-timeout-ms", "N", "master silent this long in PAUSED -> PANIC (default 2 x master timeout)", false},
-      {"sync-timeout-ms", "N", "IDLE without MASTER this long -> PANIC (default 10000)", false},
+      {"sync-timeout-ms", "N", "IDLE without MASTER this long -> PANIC (default " + dflt(Timer::sync) + ")", false},
       {"election", "", "relay and master election on (off by default: one master, the PC)", false},
       {"score", "N", "election score, lower = stands first and wins (default: from the capabilities)", false},
       {"state-dir", "DIR", "keep the election state (epoch, vote, membership, floor) in DIR/ev3-agent.state, written before "
@@ -88,11 +96,32 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
                     {"master-timeout-ms", Timer::loss},
                     {"paused-timeout-ms", Timer::paused},
                     {"sync-timeout-ms", Timer::sync}};
+  if (a.has("heartbeat-ms")) {  // every other timer is a multiple of it (timers.hpp), unless given
+    std::uint64_t h = 0;
+    message = ev3io::read_uint(a, "heartbeat-ms", 1, 86400000, h);
+    if (!message.empty()) return ParseOutcome::error;
+    const ev3proto::Millis sync = out.timers[Timer::sync];
+    out.timers = ev3proto::Timers::for_heartbeat(h);
+    out.timers.set(Timer::sync, sync);
+    if (!a.has("watchdog-ms") && out.watchdog_ms != 0 && out.watchdog_ms < 5 * h)
+      out.watchdog_ms = 5 * h < 600000 ? 5 * h : 600000;
+  }
   for (const auto& r : rows) {
     std::uint64_t v = out.timers[r.t];
     message = ev3io::read_uint(a, r.flag, 1, 86400000, v);
     if (!message.empty()) return ParseOutcome::error;
     out.timers.set(r.t, v);
+  }
+  {
+    std::uint64_t v = out.watchdog_ms;
+    message = ev3io::read_uint(a, "watchdog-ms", 0, 600000, v);
+    if (!message.empty()) return ParseOutcome::error;
+    out.watchdog_ms = v;
+    if (v != 0 && v < 2 * out.timers[Timer::heartbeat]) {
+      message = "bad value for --watchdog-ms: " + std::to_string(v) + " (0, or at least 2 x --heartbeat-ms " +
+                std::to_string(out.timers[Timer::heartbeat]) + ": a contact takes a PING and its answer)";
+      return ParseOutcome::error;
+    }
   }
   out.election = a.has("election");
   if (a.has("report-buffer")) {

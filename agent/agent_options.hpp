@@ -7,6 +7,7 @@
 #include <string>
 
 #include <ev3proto/robot/model.hpp>
+#include <ev3proto/robot_runtime.hpp>
 #include <ev3proto/timers.hpp>
 
 #include "ev3io/cli.hpp"
@@ -19,6 +20,8 @@ struct AgentOptions {
   std::string sysfs_root = "/sys";  ///< --sysfs-root DIR: ev3dev's tree (a brick's /sys, or ev3-sim's mount)
   ev3proto::robot::PortMap ports;    ///< --ports role=port,...: model A's ports
   ev3proto::Millis tick_ms = 20;     ///< --tick-ms N: the control tick while the motors may move
+  /// --watchdog-ms N: wheels held this long after the last contact with a master (0: off)
+  ev3proto::Millis watchdog_ms = ev3proto::robot::RuntimeConfig{}.watchdog_ms;
   ev3proto::Timers timers;  ///< sync, heartbeat, loss (--master-timeout-ms), paused
   bool election = false;    ///< --election: relay and election on (AgentConfig::election)
   std::uint32_t score = 0xFFFFFFFFu;  ///< --score N (default: computed from the capabilities)

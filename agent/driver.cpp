@@ -46,25 +46,17 @@ class Driver {
   bool configure(const Json& in, std::string& err) {
     ev3proto::AgentConfig c;
     const Json& t = in["timers"];
-    struct {
-      const char* name;
-      ev3proto::Timer timer;
-    } const rows[] = {{"sync", ev3proto::Timer::sync},
-                      {"heartbeat", ev3proto::Timer::heartbeat},
-                      {"loss", ev3proto::Timer::loss},
-                      {"paused", ev3proto::Timer::paused},
-                      {"relay_retry", ev3proto::Timer::relay_retry},
-                      {"backoff", ev3proto::Timer::backoff},
-                      {"backoff_step", ev3proto::Timer::backoff_step},
-                      {"candidate", ev3proto::Timer::candidate}};
-    for (const auto& r : rows)
-      if (t.has(r.name)) c.timers.set(r.timer, static_cast<Millis>(t[r.name].num(1)));
+    for (const ev3proto::TimerSpec& r : ev3proto::kTimerTable) {
+      const std::string name(r.name);
+      if (t.has(name)) c.timers.set(r.timer, static_cast<Millis>(t[name].num(1)));
+    }
     // Relay and election (Election.tla): {"enabled", "score", "epoch", "voted_for", and the membership
     // its state keeps: "members" [ids], "members_epoch", "floor"}, checked as ev3-agent checks its
     // state file (ev3proto::parse_durable).
     const Json& el = in["election"];
     c.election.enabled = el["enabled"].boolean(false);
     if (el.has("score")) c.election.score = static_cast<std::uint32_t>(el["score"].num(0));
+    if (el.has("seed")) c.election.seed = static_cast<std::uint32_t>(el["seed"].num(0));
     if (!restore_durable(el, c.election.durable, err)) return false;
     if (!c.timers.valid()) {
       err = "timers: paused must be greater than loss";

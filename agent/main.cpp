@@ -100,6 +100,7 @@ class Program {
     robot::RuntimeConfig rc;
     rc.ports = opt_.ports;
     rc.tick_ms = opt_.tick_ms;
+    rc.watchdog_ms = opt_.watchdog_ms;
     rt_.emplace(rc, start);
     rio_.scan(*rt_, start);
     link_.emplace(robot::announced_devices(devices_.ev3dev_tree()));
@@ -113,6 +114,7 @@ class Program {
     cfg.temp_id = ids.temp_id;
     cfg.first_msgid = ids.first_msgid;
     cfg.election.enabled = opt_.election;
+    cfg.election.seed = static_cast<std::uint32_t>(random_u64()) | 1u;  // the back-off's random part
     if (opt_.election) cfg.election.score = opt_.score;
     if (!load_state(cfg.election)) return 2;
     if (!sh_.load_script("--master-script", opt_.master_script)) return 2;
@@ -163,9 +165,11 @@ class Program {
       found += " " + std::string(robot::to_string(r)) + "=" + std::string(robot::to_string(d)) +
                (devices_.present(d) ? "" : "(missing)");
     }
-    sh_.log.log(kInfo, "devices under %s:%s; LEDs: %s; battery: %s; control tick %llu ms", opt_.sysfs_root.c_str(),
-             found.c_str(), *devices_.led_names() != '\0' ? devices_.led_names() : "none",
-             devices_.has_battery() ? "yes" : "no", static_cast<unsigned long long>(opt_.tick_ms));
+    const std::string watchdog =
+        opt_.watchdog_ms == 0 ? "off" : std::to_string(static_cast<unsigned long long>(opt_.watchdog_ms)) + " ms";
+    sh_.log.log(kInfo, "devices under %s:%s; LEDs: %s; battery: %s; control tick %llu ms; watchdog %s",
+             opt_.sysfs_root.c_str(), found.c_str(), *devices_.led_names() != '\0' ? devices_.led_names() : "none",
+             devices_.has_battery() ? "yes" : "no", static_cast<unsigned long long>(opt_.tick_ms), watchdog.c_str());
   }
 
   /// What the link handed between node and runtime, for the log.
@@ -204,6 +208,13 @@ class Program {
       case K::control:
         sh_.log.log(kDebug, "runtime: %s %s", std::string(ev3proto::to_string(n.control)).c_str(),
                  std::string(n.name).c_str());
+        break;
+      case K::watchdog:
+        if (n.taken)
+          sh_.log.log(kInfo, "watchdog: wheels held, no contact with a master for %llu ms",
+                   static_cast<unsigned long long>(opt_.watchdog_ms));
+        else
+          sh_.log.log(kInfo, "watchdog: hold ended (contact with a master, or the core took over)");
         break;
     }
   }

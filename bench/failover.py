@@ -15,6 +15,12 @@ programs' cores run on:
     python3 bench/failover.py --runs 5 --bin build/bin [-- AGENT-FLAGS...]
     python3 bench/failover.py --runs 5 -- --heartbeat-ms 200 --master-timeout-ms 1000
     python3 bench/failover.py --runs 5 --netns     # each program in a network namespace (root)
+    python3 bench/failover.py --runs 20 --faults 30 --warm 5   # 30 % loss, dup, reorder on every sender
+
+--faults PCT gives every program (master and agents) --fault-loss, --fault-dup and --fault-reorder PCT
+(the transport's fault injection, a seed per program and run); --warm S runs the synced fleet S
+seconds before the kill, and any verdict in that time is false: an agent leaving ACTIVE ("master
+lost") or the master dropping an agent ("agent lost").
 
 --keep DIR keeps each run's logs and traces (DIR/run-N: master.log, agentI.log, agentI.nd) for a
 run worth a look. AGENT-FLAGS (after --) go to every ev3-agent (timers: --heartbeat-ms, --master-timeout-ms, ...).
@@ -71,7 +77,23 @@ def timeline(recs: list[dict], kill: int) -> dict:
     return out
 
 
-def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, settle: float, lan=None) -> dict:
+def false_master_lost(recs: list[dict], kill: int) -> int:
+    """An agent's "master lost" verdicts before the kill, once it was ACTIVE: state changes to
+    PANIC or PAUSED with the master alive."""
+    n, synced = 0, False
+    for r in recs:
+        if r.get("node", "agent") != "agent" or r["now"] >= kill:
+            continue
+        st = r.get("changed", {}).get("state")
+        if st == "ACTIVE":
+            synced = True
+        elif st in ("PANIC", "PAUSED") and synced:
+            n += 1
+    return n
+
+
+def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, settle: float, lan=None,
+            faults: int = 0, warm: float = 0.3, seed: int = 1) -> dict:
     """One run; with @p lan (netns.Lan of 4 nodes) each program in a namespace of its own, all on
     one port and the subnet's broadcast address, instead of loopback ports."""
     if lan:
@@ -88,12 +110,16 @@ def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, set
 
         def start(i, exe, args, name):
             return Program(exe, args, tmp, name)
+    def inject(i):
+        return (["--fault-loss", str(faults), "--fault-dup", str(faults), "--fault-reorder", str(faults),
+                 "--fault-seed", str(seed * 10 + i)] if faults else [])
     progs = []
     try:
         status = tmp / "status.json"
         master = start(0, bindir / "ev3-master",
                        ["--port", str(mport), *where[0], "--election", "--state-file", str(tmp / "m.state"),
-                        "--status-json", str(status), "--log-file", str(tmp / "master.log")], "master")
+                        "--status-json", str(status), "--log-file", str(tmp / "master.log"),
+                        f"--trace={tmp / 'master.nd'}", *inject(0)], "master")
         progs.append(master)
         for i, p in enumerate(aports):
             (tmp / f"s{i}").mkdir()
@@ -101,14 +127,15 @@ def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, set
                 "--port", str(p), *where[i + 1],
                 "--election", "--score", str(SCORES[i]), "--state-dir", str(tmp / f"s{i}"),
                 "--sysfs-root", str(tmp / "nosys"), f"--trace={tmp / f'agent{i}.nd'}",
-                "--log-file", str(tmp / f"agent{i}.log"), *agent_flags], f"agent{i}"))
+                "--log-file", str(tmp / f"agent{i}.log"), *inject(i + 1), *agent_flags], f"agent{i}"))
         wait_until(lambda: (s := read_status(status)) and len(s["agents"]) == 3 and
                    all(a["state"] == "ACTIVE" for a in s["agents"]), 15, "three ACTIVE agents")
         wait_until(lambda: all(knows_members(records(tmp / f"agent{i}.nd")) for i in range(3)), 10,
                    "every agent to know the membership")
-        time.sleep(0.3)
+        time.sleep(warm)
         master.stop(signal.SIGKILL)
         kill = int(time.monotonic() * 1000)
+        agent_lost = (tmp / "master.log").read_text(errors="replace").count("lost (not heard")
         end = time.monotonic() + timeout
 
         def settled():
@@ -118,6 +145,7 @@ def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, set
             time.sleep(0.05)
         time.sleep(settle)
         ts = [timeline(records(tmp / f"agent{i}.nd"), kill) for i in range(3)]
+        master_lost = sum(false_master_lost(records(tmp / f"agent{i}.nd"), kill) for i in range(3))
     finally:
         for p in progs:
             p.close()
@@ -127,7 +155,8 @@ def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, set
     return {"detection": min(lost) if lost else None,
             "failover": max(follows) if all(f is not None for f in follows) else None,
             "first_relay": min(firsts) if firsts else None,
-            "relays": sum(t["relays"] for t in ts), "relay_drops": sum(t["relay_drops"] for t in ts)}
+            "relays": sum(t["relays"] for t in ts), "relay_drops": sum(t["relay_drops"] for t in ts),
+            "false_master_lost": master_lost, "false_agent_lost": agent_lost}
 
 
 def fmt(ms) -> str:
@@ -143,10 +172,18 @@ def main() -> int:
     ap.add_argument("--keep", metavar="DIR", help="keep each run's logs and traces in DIR/run-N (new directories)")
     ap.add_argument("--netns", action="store_true", help="each program in a network namespace on one bridge "
                     "(root; real broadcast) instead of loopback")
+    ap.add_argument("--faults", type=int, default=0, metavar="PCT",
+                    help="loss, duplication and reordering of PCT %% on every sender (default 0)")
+    ap.add_argument("--warm", type=float, default=0.3, metavar="S",
+                    help="seconds the synced fleet runs before the kill (default 0.3)")
     ap.add_argument("agent_flags", nargs="*", help="flags for every ev3-agent (after --)")
     a = ap.parse_args()
     if a.runs < 1:
         ap.error("--runs must be 1 or more")
+    if not 0 <= a.faults <= 100:
+        ap.error("--faults must be 0..100")
+    if a.warm < 0:
+        ap.error("--warm must not be negative")
     bindir = Path(a.bin)
     for exe in ("ev3-master", "ev3-agent"):
         if not (bindir / exe).exists():
@@ -156,7 +193,8 @@ def main() -> int:
     if a.netns and (why := netns.available()):
         ap.error(f"--netns: {why}")
     print(f"failover: PC master + 3 agents {'in network namespaces on a bridge' if a.netns else 'on loopback'}, "
-          f"agent flags: {' '.join(a.agent_flags) or '(defaults)'}")
+          f"agent flags: {' '.join(a.agent_flags) or '(defaults)'}"
+          f"{f', {a.faults} % loss, duplication and reordering' if a.faults else ''}, {a.warm} s before the kill")
     res = []
     for k in range(a.runs):
         lan = netns.Lan(4) if a.netns else None
@@ -166,21 +204,25 @@ def main() -> int:
                 if a.keep:
                     run_dir = Path(a.keep) / f"run-{k + 1}"
                     run_dir.mkdir(parents=True)
-                r = one_run(bindir, run_dir, a.agent_flags, a.timeout, a.settle, lan)
+                r = one_run(bindir, run_dir, a.agent_flags, a.timeout, a.settle, lan, a.faults, a.warm, k + 1)
         finally:
             if lan:
                 lan.close()
         res.append(r)
         print(f"  run {k + 1}: detection {fmt(r['detection'])}  failover {fmt(r['failover'])}  "
-              f"first relay {fmt(r['first_relay'])}  relays accepted {r['relays']}, dropped {r['relay_drops']}",
+              f"first relay {fmt(r['first_relay'])}  relays accepted {r['relays']}, dropped {r['relay_drops']}  "
+              f"false verdicts: master lost {r['false_master_lost']}, agent lost {r['false_agent_lost']}",
               flush=True)
     for key in ("detection", "failover"):
-        xs = [r[key] for r in res if r[key] is not None]
+        xs = sorted(r[key] for r in res if r[key] is not None)
         if xs:
-            print(f"  median {key}: {fmt(statistics.median(xs))} (min {fmt(min(xs))}, max {fmt(max(xs))}, "
-                  f"{len(xs)} of {len(res)} runs)")
+            p99 = xs[min(len(xs) - 1, -(-99 * len(xs) // 100) - 1)]  # nearest rank
+            print(f"  {key}: median {fmt(statistics.median(xs))}, p99 {fmt(p99)} (min {fmt(xs[0])}, max "
+                  f"{fmt(xs[-1])}, {len(xs)} of {len(res)} runs)")
         else:
-            print(f"  median {key}: none of {len(res)} runs")
+            print(f"  {key}: none of {len(res)} runs")
+    print(f"  false verdicts: master lost {sum(r['false_master_lost'] for r in res)}, agent lost "
+          f"{sum(r['false_agent_lost'] for r in res)} (in {a.warm * len(res):.0f} s of the synced fleet before the kills)")
     return 0 if all(r["failover"] is not None for r in res) else 1
 
 

@@ -3,7 +3,7 @@
 the robot runs past the ultrasonic's threshold, measured end to end (docs/benchmarks.md "Robot").
 
   .venv/bin/python bench/robot_sim.py [--bin build/bin] [--presses 30] [--tick-ms 20] [--speed 700]
-                             [--stops 3] [--agent-prefix qemu-arm --agent-bin build/arm/bin]
+                             [--stops 3] [--holds 10] [--agent-prefix qemu-arm --agent-bin build/arm/bin]
 
 One ev3-sim (real time, --log-level 4: every write stamped with the simulated time), one ev3-master
 (console on stdin), one ev3-agent on the robot's tree. Bumper: each press is a `drive speed=S` from
@@ -11,6 +11,8 @@ a random x in front of a box the ultrasonic's ray misses; the press time is ev3-
 (`bumper_pressed_at`), the stop times its log lines `write .../command <- 'stop'`. Ultrasonic: a
 `drive speed=S stop=coast|brake|hold` towards a wall; the distance from the point where the sensor
 was 20 cm from the wall (PROXIMITY_ALERT's threshold) to where the bumper's face came to rest.
+Watchdog: the master stopped (SIGSTOP) while `drive` runs; the delay from the agent's last contact
+(the end of the last run-timed written, less 500 ms) to both motors' `stop` in ev3-sim's log.
 Prints one table row per series. The simulated clock runs at real time (--time-scale 1), so the
 figures are the agent's real-time loop; on a loaded machine late wake-ups show in the maximum.
 """
@@ -26,6 +28,7 @@ import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -50,7 +53,8 @@ class Rig:
                                         "--broadcast", f"127.0.0.1:{aport}", "--log-level", "2"],
                                        stdin=subprocess.PIPE, stdout=open(self.out, "wb"), stderr=subprocess.STDOUT)
         agent = [str(args.agent_bin / "ev3-agent"), "--port", str(aport), "--bind", "127.0.0.1", "--broadcast",
-                 f"127.0.0.1:{mport}", "--heartbeat-ms", "200", "--sysfs-root", str(self.sim.root()), "--tick-ms",
+                 f"127.0.0.1:{mport}", "--heartbeat-ms", "200", "--watchdog-ms", "500", "--sysfs-root",
+                 str(self.sim.root()), "--tick-ms",
                  str(args.tick_ms), "--log-level", "2", "--log-file", str(tmp / "agent.log")]
         self.agent = subprocess.Popen(([args.agent_prefix] if args.agent_prefix else []) + agent,
                                       stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -121,6 +125,41 @@ def bumper(args) -> None:
           f"{statistics.median(lat):.1f} / {p95:.1f} / {lat[-1]:.1f} ms |", flush=True)
 
 
+def watchdog(args) -> None:
+    """The contact watchdog: `drive` runs (RunForever, written as run-timed to the bound), the master
+    is stopped (SIGSTOP: no PONG any more) until both motors' `stop` are in ev3-sim's log, then goes
+    on (SIGCONT) and the robot drives again. From the log alone: the last run-timed written before
+    the stop ends at the bound (its time + time_sp), the last contact was the bound less the
+    watchdog (500 ms), and the stop's delay is counted from that contact."""
+    with tempfile.TemporaryDirectory(prefix="robot_sim.") as d:
+        rig = Rig(args, "bounds 0 0 5000 300\nstart 60 150 0\n", Path(d))
+        delay = []
+        try:
+            rig.say(f"behaviour 2 drive speed={args.speed // 3}")
+            rig.say("start 2")
+            for i in range(args.holds):
+                wait_until(lambda: abs(rig.sim.robot()["speed"]) > 1e-3, 5, "the robot driving")
+                time.sleep(0.5)
+                mark = rig.sim.log.stat().st_size
+                rig.master.send_signal(signal.SIGSTOP)
+                try:
+                    log = wait_until(lambda: (lambda t: t if len(stops_after(t, 0)) == 2 else None)(rig.log_since(mark)),
+                                     3, f"both motors' stop after the master stopped ({i + 1})")
+                finally:
+                    rig.master.send_signal(signal.SIGCONT)
+                before = rig.log_since(0)[:mark + log.index("<- 'stop'")]
+                timed = [(float(m.group(1)), int(m.group(2))) for m in
+                         re.finditer(r"t=([0-9.]+) s: write \S+/time_sp <- '(\d+)'", before)]
+                t, left = timed[-1]
+                contact = t + left / 1000 - 0.5
+                delay.append((stops_after(log, 0)[-1] - contact) * 1000)
+        finally:
+            rig.close()
+    delay.sort()
+    print(f"| master silent: last contact -> both stops written (watchdog 500 ms) | {args.speed // 3} | "
+          f"{args.tick_ms} | {len(delay)} | {statistics.median(delay):.1f} / {delay[-1]:.1f} (max) ms |", flush=True)
+
+
 def ultrasonic(args) -> None:
     wall = 300.0
     with tempfile.TemporaryDirectory(prefix="robot_sim.") as d:
@@ -150,6 +189,7 @@ def main() -> int:
     ap.add_argument("--agent-prefix", default="", help="run the agent under this (qemu-arm)")
     ap.add_argument("--presses", type=int, default=30)
     ap.add_argument("--stops", type=int, default=3, help="ultrasonic runs per stop action")
+    ap.add_argument("--holds", type=int, default=10, help="watchdog holds (the master stopped)")
     ap.add_argument("--tick-ms", type=int, default=20)
     ap.add_argument("--speed", type=int, default=700)
     ap.add_argument("--seed", type=int, default=1)
@@ -165,6 +205,8 @@ def main() -> int:
         bumper(args)
     if args.stops > 0:
         ultrasonic(args)
+    if args.holds > 0:
+        watchdog(args)
     return 0
 
 

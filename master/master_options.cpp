@@ -7,8 +7,10 @@ using ev3proto::Timer;
 ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptions& out, std::string& message) {
   std::vector<ev3io::OptionSpec> sp = ev3io::common_specs();
   sp.insert(sp.begin() + 3, {
-      {"agent-timeout-ms", "N", "an agent not heard this long is lost and leaves the registry (default 10000)", false},
-      {"resend-ms", "N", "resend an unanswered command after N ms (default 500)", false},
+      {"agent-timeout-ms", "N", "an agent not heard this long is lost and leaves the registry (default " +
+                                std::to_string(ev3proto::Timers{}[Timer::drop]) + ")", false},
+      {"resend-ms", "N", "resend an unanswered command after N ms (default " +
+                         std::to_string(ev3proto::Timers{}[Timer::resend]) + ")", false},
       {"max-resends", "N", "a command unanswered after N resends times out (default 10)", false},
       {"status-json", "FILE", "write the fleet's state to FILE (atomically, twice a second)", false},
       {"script", "FILE", "console commands to run (with 'wait SECONDS' between them)", false},

@@ -40,7 +40,7 @@
                                                   no command from a stale master (fenced, newest epoch
                                                   told), lifecycle, no motion without a genuine master
                                                   datagram within MS (the agents' timeout, default
-                                                  3000), HANDOVER steps down
+                                                  800), HANDOVER steps down
     ev3-conformance mutate [--only NAME ...] [--list]
                                                   mutation score: seeded core faults vs these checks
 
@@ -278,8 +278,9 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             print(f"{'ok  ' if r.ok else 'FAIL'} {r.path}: {r.message}")
         print(f"validate --master: {len(rs) - bad} of {len(rs)} traces conform")
         return 1 if bad else 0
-    consts = {"TPing": args.heartbeat, "TLoss": args.loss, "TSync": args.sync,
-              "TPaused": args.paused if args.paused else 2 * args.loss}
+    loss = args.loss if args.loss else 8 * args.heartbeat  # ev3-agent's rule (timers.hpp)
+    consts = {"TPing": args.heartbeat, "TLoss": loss, "TSync": args.sync,
+              "TPaused": args.paused if args.paused else 2 * loss}
     if args.window:
         consts["Window"] = args.window
     if args.election is not None:
@@ -401,8 +402,8 @@ def _parser() -> argparse.ArgumentParser:
 
     vp = sub.add_parser("validate", help="check NDJSON traces of the programs against the spec (TLC)")
     vp.add_argument("traces", nargs="+", help="NDJSON trace files (--trace FILE of the programs)")
-    vp.add_argument("--heartbeat", type=int, default=1000, help="the run's --heartbeat-ms (TPing)")
-    vp.add_argument("--loss", type=int, default=3000, help="the run's --master-timeout-ms (TLoss)")
+    vp.add_argument("--heartbeat", type=int, default=100, help="the run's --heartbeat-ms (TPing)")
+    vp.add_argument("--loss", type=int, default=0, help="the run's --master-timeout-ms (TLoss; default 8 x heartbeat)")
     vp.add_argument("--paused", type=int, default=0, help="the run's --paused-timeout-ms (default 2 x loss)")
     vp.add_argument("--sync", type=int, default=10000, help="the run's --sync-timeout-ms (TSync)")
     vp.add_argument("--window", type=int, default=0, help="dedupe window entries (default 50)")
@@ -442,7 +443,7 @@ def _parser() -> argparse.ArgumentParser:
                          "it restarted from), e.g. master2.ndjson:master=2")
     gm.add_argument("--master-timeout-ms", type=int, metavar="MS", dest="loss",
                     help="the agents' heartbeat timeout, as given to ev3-agent (System's T for "
-                         "NoUnsupervisedMotionInv); default: ev3-agent's (3000)")
+                         "NoUnsupervisedMotionInv); default: ev3-agent's (800)")
     gm.set_defaults(run=_cmd_merged)
 
     mp = sub.add_parser("mutate", help="seeded faults in a copy of the core, each checked by replay/validate")

@@ -91,7 +91,8 @@ PC = 1
 LOSS = 100                      # the agents' heartbeat timeout (ms)
 TICK = LOSS - 1                 # one spec Tick (T = 1): a follower's timer is due, not fired
 AGENT_TIMERS = {"sync": 1000, "heartbeat": 10 ** 7, "loss": LOSS, "paused": 2 * LOSS, "relay_retry": 100,
-                "backoff": 1000, "backoff_step": 10, "candidate": 500}
+                "backoff": 1000, "backoff_step": 10, "candidate": 500, "leader_heartbeat": 1000,
+                "vouch": 0}  # vouch 0: the relay's timing rules, which the spec leaves out, off
 MASTER_TIMERS = {"resend": 10 ** 7, "drop": 10 ** 7, "leader_heartbeat": 50, "candidate": 500}
 MAX_WAKES = 60                  # deadlines a node's clock is advanced to for one spec step
 FOLLOWERS = ("ACTIVE", "WORKING", "PAUSED")

@@ -69,8 +69,27 @@ def model_a_behaviours() -> list[str]:
 
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
 # them passed (validate --timers). Behaviours, when not given: model_a_behaviours().
-DEFAULTS = {"TSync": 10000, "TPing": 1000, "TLoss": 3000, "TPaused": 6000, "Window": 50,
+DEFAULTS = {"TSync": 10000, "TPing": 100, "TLoss": 800, "TPaused": 1600, "Window": 50,
             "ModelName": "A", "Steps": 1000000000}
+
+# ev3-agent's timer flags and the spec constants they set.
+AGENT_TIMER_FLAGS = {"--heartbeat-ms": "TPing", "--master-timeout-ms": "TLoss", "--paused-timeout-ms": "TPaused",
+                     "--sync-timeout-ms": "TSync"}
+
+
+def agent_timer_consts(args: list[str]) -> dict:
+    """TPing, TLoss, TPaused and TSync of an ev3-agent started with @p args, by its own rule
+    (agent_options.cpp, timers.hpp Timers::for_heartbeat): the master timeout is 8 heartbeats and
+    the paused timeout twice the master timeout unless given; without --heartbeat-ms, the defaults."""
+    given = {}
+    for i, x in enumerate(args):
+        flag, eq, value = x.partition("=")
+        if flag in AGENT_TIMER_FLAGS and (eq or i + 1 < len(args)):
+            given[AGENT_TIMER_FLAGS[flag]] = int(value if eq else args[i + 1])
+    c = {"TPing": given.get("TPing", DEFAULTS["TPing"]), "TSync": given.get("TSync", DEFAULTS["TSync"])}
+    c["TLoss"] = given.get("TLoss", 8 * c["TPing"])
+    c["TPaused"] = given.get("TPaused", 2 * c["TLoss"])
+    return c
 
 
 @dataclass

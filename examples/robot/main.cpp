@@ -199,6 +199,7 @@ class Robot {
     c.agent.temp_id = ids.temp_id;
     c.agent.first_msgid = ids.first_msgid;
     c.agent.election.enabled = true;  // relay and election: a robot may become the fleet's master
+    c.agent.election.seed = static_cast<std::uint32_t>(r >> 32) | 1u;  // the back-off's random part
     c.agent.election.durable = d;
     return c;
   }

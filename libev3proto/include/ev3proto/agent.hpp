@@ -481,7 +481,7 @@ class Agent {
     switch (v.action) {
       case Action::TakeAck: TakeAck(m); break;
       case Action::OfferRelay: el_.OfferRelay(m, from, *this); break;
-      case Action::GrantPreVote: el_.GrantPreVote(m, from, *this); break;
+      case Action::GrantPreVote: el_.GrantPreVote(m, from, lifecycle(), *this); break;
       case Action::HandlePreVote: el_.HandlePreVote(m); break;
       case Action::AcceptRelay: Apply(el_.AcceptRelay(m, from, *this), v.action, from); break;
       case Action::HandleAccept: el_.HandleAccept(m, from, *this); break;
@@ -946,6 +946,8 @@ class Agent {
     l.id = id_;
     l.score = score();
     l.hears_master = el_.Following(state_) && now_ - heard_ < cfg_.timers[Timer::loss];
+    const Millis vouch = cfg_.timers[Timer::vouch];
+    l.vouches = el_.Following(state_) && (vouch == 0 || now_ - heard_ < vouch);
     l.now = now_;
     return l;
   }

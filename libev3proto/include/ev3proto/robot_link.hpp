@@ -8,6 +8,8 @@
 ///                    core pauses when it loses the master (WORKING -> PAUSED) and stops when it
 ///                    panics, so while the master is lost the motors are stopped, whatever the
 ///                    action was doing, within the call that delivers the core's event.
+///  node -> runtime   the time the agent core last heard a master -> contact() (the runtime's
+///                    contact watchdog holds turning wheels watchdog_ms after it).
 ///  runtime -> node   action results -> action_ok / action_interrupted(warning) / action_failed;
 ///                    events, each with the port from the device layer's address:
 ///                    DEVICE_DISCONNECTED -> device_unplugged(bits, port), DEVICE_CONNECTED ->
@@ -72,6 +74,7 @@ struct LinkNote {
     report,   ///< a sensor report (report)
     missing,  ///< after the first scan: model devices not found (bits)
     control,  ///< a behaviour control given to the runtime (control, name)
+    watchdog, ///< the runtime's contact watchdog began (taken) or ended (!taken) a hold
   } kind = Kind::result;
   bool taken = false;
   ActionResult result;
@@ -196,6 +199,14 @@ class RobotLink {
   /// outputs (@p write makes the device writes: the program's I/O), until neither has any left.
   template <typename Program, typename Write, typename Note>
   void exchange(NodeT& node, Runtime& rt, Millis now, Program&& program, Write&& write, Note&& note) {
+    rt.contact(node.agent().last_heard());
+    if (rt.held() != held_) {
+      held_ = rt.held();
+      LinkNote n;
+      n.kind = LinkNote::Kind::watchdog;
+      n.taken = held_;
+      note(n);
+    }
     for (int round = 0; round < 16; ++round) {
       bool any = false;
       NodeEvent e;
@@ -241,6 +252,7 @@ class RobotLink {
 
   std::uint32_t announced_;
   bool reported_ = false;  ///< report_missing() done (the agent synced once)
+  bool held_ = false;      ///< the watchdog hold last noted
 };
 
 }  // namespace ev3proto::robot

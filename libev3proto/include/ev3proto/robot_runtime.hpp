@@ -61,6 +61,9 @@ struct RuntimeConfig {
   std::int32_t battery_low_uv = 6200000;  ///< BATTERY_LOW below this (µV) ...
   Millis battery_low_ms = 3000;           ///< ... for this long
   Millis touch_release_ms = 50;           ///< a bumper release counts after this long
+  /// Contact watchdog: wheels turning this long after the last contact with a master are stopped
+  /// (0: no watchdog). Armed by the first contact() (see Runtime::contact).
+  Millis watchdog_ms = 500;
 };
 
 /// One read the device layer must take this tick.
@@ -308,8 +311,9 @@ class Runtime {
     if (off_) return;
     pump(now);
     retry_modes(now);
+    watchdog(now);
     if (runner_.active() && !runner_.paused()) {
-      Ctx c{body_, writes_, reports_, now};
+      Ctx c = ctx(now);
       outcome(runner_.tick(c), now);
     }
     if (behaviour_) {
@@ -318,16 +322,35 @@ class Runtime {
       auto_.tick(now, r);
       follow(now);
     }
+    watchdog(now);  // a step begun in this tick with the contact already too old is held at once
     next_tick_ = now + (runner_.moves_motors() && !runner_.paused() ? cfg_.tick_ms : cfg_.idle_tick_ms);
   }
 
   // ------------------------------------------------------------------ inputs: the agent core
 
+  /// The node last heard a master (directly or through a relay) at @p at (robot_link.hpp feeds
+  /// the agent core's last_heard() on every exchange). The first call arms the contact watchdog:
+  /// from then on, wheels that turn watchdog_ms after the last contact are held (stopped, the
+  /// action or behaviour paused as PAUSE would) until a contact comes, then they go on; a
+  /// RunForever is written as run-timed ending at the bound (ActionRunner::renew), so the motor
+  /// driver stops it there even when the program stalls. A runtime no node feeds (a test, a tool
+  /// running a plan) has no master to lose and no watchdog.
+  void contact(Millis at) noexcept {
+    if (armed_ && at <= contact_) return;
+    armed_ = true;
+    contact_ = at;
+    if (held_ && at < next_tick_) next_tick_ = at;  // let the wheels go on at the next call
+  }
+
   /// A behaviour control from the agent core (AgentEvent::Kind::control) for the loaded behaviour
   /// @p name with @p args. pause and stop stop the motors in this call ("at once"): the agent core
   /// pauses on losing the master, so while it is lost the motors are stopped whatever the action.
   void control(ControlKind k, std::string_view name, const std::string_view* args, std::size_t n, Millis now) noexcept {
-    Ctx c{body_, writes_, reports_, now};
+    if (held_) {  // the core's control takes over from the watchdog's hold
+      held_ = false;
+      if (k == ControlKind::pause) return;  // paused already
+    }
+    Ctx c = ctx(now);
     switch (k) {
       case ControlKind::start:
       case ControlKind::restart: {
@@ -384,6 +407,7 @@ class Runtime {
   /// left). The result comes through poll_result().
   void run(const action::Plan& plan, Millis now) noexcept {
     leave_behaviour();
+    held_ = false;  // a new plan: what was held is gone
     outcome(start_plan(plan, now), now);
   }
 
@@ -414,6 +438,8 @@ class Runtime {
     if (a < d) d = a;
     const Millis b = behaviour_ ? auto_.deadline() : kNever;
     if (b < d) d = b;
+    const Millis w = runner_.turns_motors() ? run_until() : kNever;
+    if (w < d) d = w;
     return d;
   }
 
@@ -427,6 +453,16 @@ class Runtime {
   bool off() const noexcept { return off_; }
   /// True while an action runs or is paused.
   bool busy() const noexcept { return runner_.active(); }
+  /// True while the contact watchdog holds the wheels.
+  bool held() const noexcept { return held_; }
+  /// Times the contact watchdog held the wheels.
+  std::uint32_t holds() const noexcept { return holds_; }
+  /// The last contact with a master (contact()); meaningful once armed.
+  Millis last_contact() const noexcept { return contact_; }
+  /// Until when the wheels may turn: the last contact + watchdog_ms (kNever: no watchdog armed).
+  Millis run_until() const noexcept {
+    return armed_ && cfg_.watchdog_ms != 0 ? contact_ + cfg_.watchdog_ms : kNever;
+  }
   const Body& body() const noexcept { return body_; }
   const ActionRunner& runner() const noexcept { return runner_; }
   /// The automaton of the behaviour started last (its phase is idle when none runs).
@@ -435,6 +471,52 @@ class Runtime {
   std::size_t dropped() const noexcept { return writes_.overflowed() + events_.dropped() + out_events_.dropped(); }
 
  private:
+  Ctx ctx(Millis now) noexcept {
+    Ctx c{body_, writes_, reports_, now};
+    c.run_until = run_until();
+    return c;
+  }
+
+  /// The contact watchdog at @p now: holds turning wheels once the bound has passed, lets them go
+  /// on when a contact came, and otherwise moves a RunForever's run-timed bound on.
+  void watchdog(Millis now) noexcept {
+    const Millis until = run_until();
+    if (until == kNever) return;
+    if (held_) {
+      if (now < until) {
+        held_ = false;
+        release(now);
+      }
+      return;
+    }
+    if (!runner_.turns_motors()) return;
+    if (now >= until) {
+      held_ = true;
+      ++holds_;
+      if (behaviour_) {
+        auto_.pause();
+        follow(now);
+      } else {
+        Ctx c = ctx(now);
+        runner_.pause(c);
+      }
+      return;
+    }
+    Ctx c = ctx(now);
+    if (!runner_.renew(c)) outcome(Outcome::failed, now);
+  }
+
+  /// The hold ends (a contact came, or the core resumes): what was paused goes on.
+  void release(Millis now) noexcept {
+    if (behaviour_) {
+      auto_.resume(now);
+      follow(now);
+    } else {
+      Ctx c = ctx(now);
+      result(runner_.resume(c));
+    }
+  }
+
   static Event event(EventKind k, Dev d, Millis now) noexcept {
     Event e;
     e.kind = k;
@@ -556,7 +638,7 @@ class Runtime {
   void pump(Millis now) noexcept {
     Event e;
     while (events_.pop(e)) {
-      Ctx c{body_, writes_, reports_, now};
+      Ctx c = ctx(now);
       switch (e.kind) {
         case EventKind::BATTERY_LOW:
           if (runner_.active())
@@ -602,7 +684,7 @@ class Runtime {
   }
 
   void fail_running(const ReasonText& why, Millis now) noexcept {
-    Ctx c{body_, writes_, reports_, now};
+    Ctx c = ctx(now);
     runner_.halt(c, cfg_.tuning.pause_stop);
     failed(why);
   }
@@ -702,6 +784,7 @@ class Runtime {
 
   /// The behaviour is over (stopped, replaced, or a plan run directly): its outputs are dropped.
   void leave_behaviour() noexcept {
+    held_ = false;  // what was held is gone
     if (!behaviour_) return;
     behaviour_ = false;
     auto_.stop();
@@ -713,7 +796,7 @@ class Runtime {
   /// running one: a Stop coast after a RunForever must coast, not brake first; a plan that starts
   /// with a Wait stops them).
   Outcome start_plan(const action::Plan& plan, Millis now) noexcept {
-    Ctx c{body_, writes_, reports_, now};
+    Ctx c = ctx(now);
     const bool takes_over = plan.count > 0 && plan.steps[0].kind != action::Kind::wait;
     if (takes_over)
       runner_.drop();
@@ -741,7 +824,7 @@ class Runtime {
   /// Carries out the automaton's outputs, in order (a plan that ends at once feeds it again).
   void follow(Millis now) noexcept {
     if (!behaviour_) return;
-    Ctx c{body_, writes_, reports_, now};
+    Ctx c = ctx(now);
     for (behaviour::Output o; auto_.poll(o);) {
       switch (o.kind) {
         case behaviour::Output::Kind::start: {
@@ -819,6 +902,10 @@ class Runtime {
   behaviour::Definition scratch_;  ///< where a behaviour is parsed and checked (on receipt, at START)
   behaviour::Automaton auto_;
   bool behaviour_ = false;         ///< the automaton drives the runner (a behaviour was started)
+  bool armed_ = false;             ///< the contact watchdog is armed (contact() was called)
+  bool held_ = false;              ///< the watchdog holds the wheels
+  std::uint32_t holds_ = 0;        ///< times it did
+  Millis contact_ = 0;             ///< the last contact with a master
 };
 
 }  // namespace ev3proto::robot

@@ -27,38 +27,53 @@ enum class Timer : std::uint8_t {
   resend,    ///< Master: a pending command is resent at this interval (spec: every tick).
   drop,      ///< Master: an agent not heard this long leaves the registry (spec TDrop).
   relay_retry, ///< Agent in PANIC: period of RELAY_REQ (Election RequestRelay).
-  backoff,     ///< Agent in PANIC: wait before standing (Election StartElection); grows with score.
-  backoff_step, ///< Agent: back-off added per score unit (weakest stands first).
+  backoff,     ///< Agent in PANIC: wait before standing (Election StartElection); grows with rank.
+  backoff_step, ///< Agent: back-off added per weaker peer heard asking (weakest stands first).
+  backoff_jitter, ///< Agent: a random back-off in [0, this) on top (raft's randomised timeout).
   candidate,   ///< Candidate without a majority this long stands again in epoch + 1.
   leader_heartbeat, ///< Master (PC or elected agent): period of LEADER (Election Heartbeat).
+  vouch,       ///< Agent: offers a relay only for a master heard this recently; refuses, this long
+               ///< after declaring its master lost, a relay to that master (0: neither rule).
 };
 
 /// Number of named timers.
-inline constexpr std::size_t kTimerCount = 11;
+inline constexpr std::size_t kTimerCount = 13;
 
 /// One row of the timer table: the timer, its name, the spec constant it stands for, its default.
 struct TimerSpec {
   Timer timer;                ///< Which timer.
   std::string_view name;      ///< Name used in configuration and docs ("loss").
   std::string_view spec_name; ///< The TLA+ constant it corresponds to ("TLoss").
-  Millis default_ms;          ///< Default in milliseconds.
+  Millis default_ms;          ///< Default in milliseconds (with the default heartbeat, 100 ms).
+  /// Hundredths of the heartbeat it is (800: 8 heartbeats); 0: fixed, not scaled
+  /// (Timers::for_heartbeat).
+  std::uint32_t heartbeat_pct;
   std::string_view meaning;   ///< One line of documentation.
 };
 
+/// The default heartbeat (agents' PING period), in milliseconds: etcd's 100 ms.
+inline constexpr Millis kDefaultHeartbeatMs = 100;
+
 /// The timer table: the single place where protocol timeouts are defined (docs/core.md prints it).
+/// Every timer but sync is a multiple of the heartbeat; docs/election.md "Timers" gives the reasons.
 inline constexpr std::array<TimerSpec, kTimerCount> kTimerTable{{
-    {Timer::sync, "sync", "TSync", 10000, "IDLE without MASTER -> PANIC (thesis: 10 s)"},
-    {Timer::heartbeat, "heartbeat", "TPing", 1000, "period of AGENT / PING / PANIC broadcasts"},
-    {Timer::loss, "loss", "TLoss", 3000, "master silent: ACTIVE -> PANIC, WORKING -> PAUSED"},
-    {Timer::paused, "paused", "TPaused", 6000, "master silent in PAUSED -> PANIC (> loss)"},
-    {Timer::resend, "resend", "1 tick", 500, "master resends a pending command"},
-    {Timer::drop, "drop", "TDrop", 10000, "master forgets an agent not heard for this long"},
-    {Timer::relay_retry, "relay_retry", "RequestRelay", 1000, "PANIC: RELAY_REQ period (first one at once)"},
-    {Timer::backoff, "backoff", "StartElection", 3000, "PANIC this long without relay -> stand (+ score)"},
-    {Timer::backoff_step, "backoff_step", "Score", 100, "back-off per score unit (weakest stands first)"},
-    {Timer::candidate, "candidate", "StartElection", 2000, "no majority this long -> stand again, epoch + 1"},
-    {Timer::leader_heartbeat, "leader_heartbeat", "Heartbeat", 1000, "period of a master's LEADER"},
+    {Timer::sync, "sync", "TSync", 10000, 0, "IDLE without MASTER -> PANIC (thesis: 10 s)"},
+    {Timer::heartbeat, "heartbeat", "TPing", 100, 100, "period of AGENT / PING / PANIC broadcasts"},
+    {Timer::loss, "loss", "TLoss", 800, 800, "master silent: ACTIVE -> PANIC, WORKING -> PAUSED"},
+    {Timer::paused, "paused", "TPaused", 1600, 1600, "master silent in PAUSED -> PANIC (> loss)"},
+    {Timer::resend, "resend", "1 tick", 500, 500, "master resends a pending command"},
+    {Timer::drop, "drop", "TDrop", 10000, 10000, "master forgets an agent not heard for this long"},
+    {Timer::relay_retry, "relay_retry", "RequestRelay", 200, 200, "PANIC: RELAY_REQ period (first one at once)"},
+    {Timer::backoff, "backoff", "StartElection", 200, 200, "PANIC this long without relay -> stand (+ rank, jitter)"},
+    {Timer::backoff_step, "backoff_step", "Score", 100, 100, "back-off per weaker peer heard (weakest stands first)"},
+    {Timer::backoff_jitter, "backoff_jitter", "StartElection", 50, 50, "random back-off on top, in [0, this)"},
+    {Timer::candidate, "candidate", "StartElection", 200, 200, "no majority this long -> stand again, epoch + 1"},
+    {Timer::leader_heartbeat, "leader_heartbeat", "Heartbeat", 100, 100, "period of a master's LEADER"},
+    {Timer::vouch, "vouch", "OfferRelay", 200, 200, "relay offered only for a master heard this recently (0: off)"},
 }};
+
+/// True for the timers 0 turns off (backoff_jitter, vouch); every other is at least 1 ms.
+constexpr bool zero_turns_off(Timer t) noexcept { return t == Timer::backoff_jitter || t == Timer::vouch; }
 
 /// Values of all timers, in milliseconds; default-constructed with kTimerTable's defaults.
 struct Timers {
@@ -70,16 +85,30 @@ struct Timers {
   }
   /// The value of timer @p t.
   constexpr Millis operator[](Timer t) const noexcept { return ms[static_cast<std::size_t>(t)]; }
-  /// Sets timer @p t to @p value (0 is replaced by 1: every timer is at least one tick).
+  /// Sets timer @p t to @p value (0 is replaced by 1: every timer is at least one tick), except
+  /// those 0 turns off (zero_turns_off).
   constexpr Timers& set(Timer t, Millis value) noexcept {
-    ms[static_cast<std::size_t>(t)] = value == 0 ? 1 : value;
+    ms[static_cast<std::size_t>(t)] = value == 0 && !zero_turns_off(t) ? 1 : value;
     return *this;
   }
-  /// True when the values satisfy the spec's assumptions (all > 0, paused > loss).
+  /// True when the values satisfy the spec's assumptions (all > 0 but those 0 turns off, paused >
+  /// loss).
   constexpr bool valid() const noexcept {
-    for (Millis v : ms)
-      if (v == 0) return false;
+    for (std::size_t i = 0; i < kTimerCount; ++i)
+      if (ms[i] == 0 && !zero_turns_off(kTimerTable[i].timer)) return false;
     return (*this)[Timer::paused] > (*this)[Timer::loss];
+  }
+  /// Every timer scaled to heartbeat @p heartbeat_ms by the table's heartbeat_pct (sync stays as
+  /// it is; each at least 1 ms): `--heartbeat-ms` moves them all.
+  static constexpr Timers for_heartbeat(Millis heartbeat_ms) noexcept {
+    Timers t;
+    for (std::size_t i = 0; i < kTimerCount; ++i) {
+      const TimerSpec& s = kTimerTable[i];
+      if (s.heartbeat_pct == 0) continue;
+      const Millis v = heartbeat_ms * s.heartbeat_pct / 100;
+      t.ms[i] = v == 0 ? 1 : v;
+    }
+    return t;
   }
   /// Timers equal to a model's constants with 1 tick = 1 ms (resend every tick, as Fleet.tla).
   static constexpr Timers from_ticks(Millis t_sync, Millis t_ping, Millis t_loss, Millis t_paused,
@@ -97,6 +126,16 @@ constexpr std::string_view to_string(Timer t) noexcept {
 }
 
 static_assert(Timers{}.valid(), "the default timers must satisfy the spec's assumptions");
+
+namespace detail {
+constexpr bool scaled_defaults() noexcept {
+  const Timers d, s = Timers::for_heartbeat(kDefaultHeartbeatMs);
+  for (std::size_t i = 0; i < kTimerCount; ++i)
+    if (d.ms[i] != s.ms[i]) return false;
+  return true;
+}
+}  // namespace detail
+static_assert(detail::scaled_defaults(), "the defaults are the table's multiples of the default heartbeat");
 
 /// A core's armed deadlines, one per kind (quinn-proto's TimerTable): an array indexed by @p Kind
 /// (an enum whose values are 0..N-1). Arming, stopping and reading a timer are O(1); the earliest

@@ -5,7 +5,9 @@
 //   agent [temp=N] [model=M] [behaviours=name:devbits,...] [devices=bits] [sync=ms] [heartbeat=ms]
 //         [loss=ms] [paused=ms] [at=ms] [window=N] [first_msgid=N]
 //         [election=1 score=N epoch=N voted=N relay_retry=ms
-//         backoff=ms backoff_step=ms candidate=ms]   (re)create the agent at time `at` (default 0)
+//         backoff=ms backoff_step=ms candidate=ms vouch=ms backoff_jitter=ms seed=N]
+//                                              (re)create the agent at time `at` (default 0); timers
+//                                              not given are fixed_timers.hpp's
 //   advance MS                                   time moves MS milliseconds
 //   recv DATAGRAM [from=PEER]                    a datagram arrives (symbolic: 1->7 START #3, or
 //                                                wire bytes: 1:7:3:8); PEER defaults to 1
@@ -30,6 +32,7 @@
 #include <string>
 #include <vector>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/agent.hpp"
 #include "ev3proto/trace.hpp"
 #include "symbolic.hpp"
@@ -163,6 +166,7 @@ class AgentDriver {
 
   void create(const std::vector<std::string>& w) {
     AgentConfig c;
+    c.timers = ev3test::fixed_timers();
     c.temp_id = 50001;
     names_.clear();
     behs_.clear();
@@ -188,6 +192,9 @@ class AgentDriver {
       else if (k == "backoff") c.timers.set(Timer::backoff, std::stoull(v));
       else if (k == "backoff_step") c.timers.set(Timer::backoff_step, std::stoull(v));
       else if (k == "candidate") c.timers.set(Timer::candidate, std::stoull(v));
+      else if (k == "vouch") c.timers.set(Timer::vouch, std::stoull(v));
+      else if (k == "backoff_jitter") c.timers.set(Timer::backoff_jitter, std::stoull(v));
+      else if (k == "seed") c.election.seed = static_cast<std::uint32_t>(std::stoul(v));
       else if (k == "election") c.election.enabled = v == "1";
       else if (k == "score") c.election.score = static_cast<std::uint32_t>(std::stoul(v));
       else if (k == "epoch") c.election.durable.epoch = static_cast<std::uint32_t>(std::stoul(v));

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <string_view>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/agent.hpp"
 #include "ev3proto/durable.hpp"
 
@@ -35,6 +36,7 @@ std::size_t drain(A& a, char (&last)[64]) {
 
 int main() {
   AgentConfig cfg;
+  cfg.timers = ev3test::fixed_timers();
   cfg.caps = Capabilities{"A", kBehaviours, 1, 1u};
   cfg.temp_id = 50007;
   Agent<> agent(cfg, 0);

@@ -13,6 +13,7 @@
 #include <string>
 #include <tuple>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/agent.hpp"
 #include "ev3proto/node.hpp"
 
@@ -158,6 +159,7 @@ constexpr BehaviourSpec kBehs[] = {{"explore", 1u}, {"wander", 0u}};
 
 AgentConfig config() {
   AgentConfig c;
+  c.timers = ev3test::fixed_timers();
   c.caps = Capabilities{"A", kBehs, 2, 1u};
   c.temp_id = 50001;
   return c;
@@ -342,9 +344,9 @@ TEST(AgentTime, PastTimeChangesNothingAndDeadlineIsExact) {
 TEST(Timers, DefaultsAndSpecMapping) {
   const Timers t;
   EXPECT_EQ(t[Timer::sync], 10000u);
-  EXPECT_EQ(t[Timer::heartbeat], 1000u);
-  EXPECT_EQ(t[Timer::loss], 3000u);
-  EXPECT_EQ(t[Timer::paused], 6000u);
+  EXPECT_EQ(t[Timer::heartbeat], 100u);
+  EXPECT_EQ(t[Timer::loss], 800u);
+  EXPECT_EQ(t[Timer::paused], 1600u);
   EXPECT_TRUE(t.valid());
   const Timers m = Timers::from_ticks(2, 1, 2, 3, 3);
   EXPECT_EQ(m[Timer::resend], 1u);
@@ -355,6 +357,57 @@ TEST(Timers, DefaultsAndSpecMapping) {
   EXPECT_EQ(bad[Timer::paused], 1u);
   EXPECT_FALSE(bad.valid());
   EXPECT_EQ(to_string(Timer::resend), "resend");
+}
+
+TEST(Timers, AllButSyncAreMultiplesOfTheHeartbeat) {
+  const Timers t = Timers::for_heartbeat(200);
+  EXPECT_EQ(t[Timer::heartbeat], 200u);
+  EXPECT_EQ(t[Timer::loss], 1600u);
+  EXPECT_EQ(t[Timer::paused], 3200u);
+  EXPECT_EQ(t[Timer::backoff], 400u);
+  EXPECT_EQ(t[Timer::backoff_step], 200u);
+  EXPECT_EQ(t[Timer::backoff_jitter], 100u);
+  EXPECT_EQ(t[Timer::sync], Timers{}[Timer::sync]);
+  EXPECT_EQ(Timers::for_heartbeat(1)[Timer::backoff_jitter], 1u);  // never 0
+  EXPECT_TRUE(Timers::for_heartbeat(1).valid());
+}
+
+// The back-off before standing: backoff (+ backoff_step per weaker peer heard asking: none here),
+// and with a seed a random part in [0, backoff_jitter), drawn anew at each PANIC.
+TEST(AgentElection, BackoffHasARandomPartOnlyWithASeed) {
+  auto stand_after = [](std::uint32_t seed, int panics) {
+    AgentConfig c = config();
+    c.timers = Timers::for_heartbeat(100);
+    c.election.enabled = true;
+    c.election.score = 10;
+    c.election.seed = seed;
+    Agent<> a(c, 0);
+    a.handle_datagram("1:7:1:2:50001", 1, 10);       // synced as 7
+    a.handle_datagram("1:0:2:29:1:1:7:8:9", 1, 20);  // LEADER: members 7, 8, 9
+    std::vector<Millis> out;
+    Millis now = 20;
+    for (int i = 0; i < panics; ++i) {
+      const Millis panic_at = now + 800;  // the master silent for 800 ms (loss): PANIC
+      now += 1000;
+      a.advance(now);
+      out.push_back(a.election().stand_at - panic_at);
+      a.handle_datagram("1:0:" + std::to_string(3 + i) + ":29:1:1:7:8:9", 1, now);  // the master back
+    }
+    return out;
+  };
+  const std::vector<Millis> fixed = stand_after(0, 3);
+  const Millis base = 200;
+  EXPECT_EQ(fixed, (std::vector<Millis>{base, base, base}));
+  const std::vector<Millis> a = stand_after(12345, 8), b = stand_after(777, 8);
+  EXPECT_EQ(a, stand_after(12345, 8));  // the seed decides
+  EXPECT_NE(a, b);
+  bool varied = false;
+  for (Millis v : a) {
+    EXPECT_GE(v, base);
+    EXPECT_LT(v, base + 50);
+    varied = varied || v != a[0];
+  }
+  EXPECT_TRUE(varied);
 }
 
 TEST(CheckReason, KeepsAShortReasonAndCutsALongOneAtACharacterWithDots) {

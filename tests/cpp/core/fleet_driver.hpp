@@ -40,6 +40,7 @@
 #include <utility>
 #include <vector>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/master.hpp"
 #include "ev3proto/node.hpp"
 #include "master_driver.hpp"
@@ -138,6 +139,7 @@ class FleetDriver {
 
   void make_pc(const std::vector<std::string>& w) {
     MasterConfig c;
+    c.timers = ev3test::fixed_timers();
     for (std::size_t i = 1; i < w.size(); ++i) {
       const auto [k, v] = kv(w[i]);
       if (k == "election") c.election = v == "1";
@@ -156,6 +158,7 @@ class FleetDriver {
   void make_agents(const std::vector<std::string>& w) {
     const std::size_t n = std::stoul(w[1]);
     AgentConfig c;
+    c.timers = ev3test::fixed_timers();
     c.caps = Capabilities{"A", kBehaviours, 1, 1u};
     std::vector<std::uint32_t> scores;
     for (std::size_t i = 2; i < w.size(); ++i) {

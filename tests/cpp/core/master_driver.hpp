@@ -19,6 +19,7 @@
 #include <string>
 #include <vector>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/master.hpp"
 #include "ev3proto/trace.hpp"
 #include "symbolic.hpp"
@@ -78,6 +79,7 @@ class MasterDriver {
       if (w.empty()) continue;
       if (w[0] == "master") {
         MasterConfig c;
+        c.timers = ev3test::fixed_timers();
         for (std::size_t i = 1; i < w.size(); ++i) {
           const auto eq = w[i].find('=');
           const std::string k = w[i].substr(0, eq), v = w[i].substr(eq + 1);

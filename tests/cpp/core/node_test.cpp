@@ -6,6 +6,7 @@
 #include <string>
 #include <vector>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/node.hpp"
 #include "symbolic.hpp"
 
@@ -16,6 +17,7 @@ constexpr BehaviourSpec kNodeBehs[] = {{"explore", 1u}};
 
 Node<>::Config config(bool election) {
   Node<>::Config c;
+  c.agent.timers = ev3test::fixed_timers();
   c.agent.caps = Capabilities{"A", kNodeBehs, 1, 1u};
   c.agent.temp_id = 50001;
   c.agent.election.enabled = election;

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/agent.hpp"
 #include "ev3proto/master.hpp"
 #include "ev3proto/record.hpp"
@@ -253,6 +254,7 @@ TEST(Record, ALineThatDoesNotFollowIsRefusedSayingWhy) {
 
 TEST(AgentReports, AFullBufferDropsAndTheMarkerReachesTheMasterFirst) {
   AgentConfig c;
+  c.timers = ev3test::fixed_timers();
   c.temp_id = 50001;
   Agent<NoTrace, 50, 8, 512, 16, kMaxDatagram, 4, 2, 1024> a(c, 0);  // 2 reports held at most
   a.handle_datagram("1:2:1:2:50001", 1, 0);  // MASTER: id 2

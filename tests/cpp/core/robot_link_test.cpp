@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "fixed_timers.hpp"
 #include "ev3proto/robot/behaviours.hpp"
 #include "ev3proto/robot_link.hpp"
 #include "../robot/fixtures.hpp"
@@ -28,6 +29,7 @@ struct Rig {
 
   static Node<>::Config make_config(bool ev3dev_tree) {
     Node<>::Config c;
+    c.agent.timers = ev3test::fixed_timers();
     c.agent.caps = Capabilities{"A", kLinkBehs, 2, robot::announced_devices(ev3dev_tree), robot::kModelADeviceNames,
                                 std::size(robot::kModelADeviceNames)};
     c.agent.temp_id = 50001;
@@ -45,6 +47,7 @@ struct Rig {
       case K::report: s = "report"; break;
       case K::missing: s = "missing " + std::to_string(n.bits); break;
       case K::control: s = "control " + std::string(to_string(n.control)) + " " + std::string(n.name); break;
+      case K::watchdog: s = "watchdog"; break;
     }
     notes.push_back(s + (n.taken ? " taken" : ""));
   }
@@ -97,6 +100,22 @@ TEST(RobotLink, DevicesMissingAtStartAreToldTheMasterOnceSynced) {
   r.datagram("1:7:2:7:wait:seconds=1", 20);
   EXPECT_EQ(r.sent(), std::vector<std::string>{
                           "7->1 NOT #3 2 \"missing device: the robot has no left motor (no behaviour runs until it is back)\""});
+}
+
+// The runtime's contact watchdog is fed the agent core's last contact with its master on every
+// exchange (robot_test's robot_watchdog transcript shows what it does with it).
+TEST(RobotLink, FeedsTheRuntimeTheLastContactWithTheMaster) {
+  Rig r(false);
+  r.exchange(0);
+  EXPECT_EQ(r.rt.run_until(), 500u);  // armed by the core's start (last heard: its creation)
+  r.datagram("1:7:1:2:50001", 10);    // MASTER
+  EXPECT_EQ(r.rt.last_contact(), 10u);
+  r.node.advance(90);
+  r.exchange(90);
+  EXPECT_EQ(r.rt.last_contact(), 10u);  // time alone is no contact
+  r.datagram("1:7:2:6:1", 95);          // PONG
+  EXPECT_EQ(r.rt.last_contact(), 95u);
+  EXPECT_EQ(r.rt.run_until(), 595u);
 }
 
 TEST(RobotLink, WithoutDevicesWaitRunsToActionOkAndDriveIsRefused) {

@@ -6,7 +6,7 @@
 // read or write, or by a rescan once a second. Time is simulated (1 ms steps).
 //
 // Commands (one per input line):
-//   model [ports=SPEC] [wheel=MM] [base=MM] [tick=MS]   a new brick and runtime (model A defaults)
+//   model [ports=SPEC] [wheel=MM] [base=MM] [tick=MS] [watchdog=MS]   a new brick and runtime (model A defaults)
 //   plug-all                      model A's five devices, the four LEDs and the battery
 //   plug PORT DRIVER [max_speed=N] [count_per_rot=N] [commands=a,b] [stop_actions=a,b]
 //        [garbage=max_speed] [mode=NAME]   a device appears and the device layer reports it
@@ -29,6 +29,9 @@
 //                                 between statements) is one argument
 //   led PATTERN                   the agent core's LED pattern (GREEN_BLINK ...)
 //   advance MS                    run the loop MS milliseconds
+//   contact                       the node heard a master now (Runtime::contact: arms the watchdog)
+//   heartbeat MS                  a contact every MS ms while the loop runs (0: none, the master is lost)
+//   stall MS                      the program stalls MS ms: the world goes on, the runtime is not called
 //   until result|event|write [max=MS]   run until the runtime gives one (default max 20000)
 //   where                         wheel travel, distance and heading since the last run / start / mark
 //   motor PORT                    the motor's state, position and speed as its files would say
@@ -38,7 +41,8 @@
 //   leds                          the LED files written
 //   modes PORT                    when the sensor's mode was written
 // Output: "<ms> write PORT ATTR VALUE", "<ms> event NAME PARAMS... [bits=N]", "<ms> result OUTCOME:
-// DETAIL", "<ms> report PORT MODE VALUES", "<ms> write-failed ...", and the answers of the queries.
+// DETAIL", "<ms> report PORT MODE VALUES", "<ms> write-failed ...", "<ms> watchdog: held (last contact
+// MS)" / "released" when the contact watchdog's hold changes, and the answers of the queries.
 #pragma once
 
 #include <cerrno>
@@ -76,6 +80,8 @@ class RobotDriver {
     known_.clear();
     tachos_.clear();
     sensors_.clear();
+    held_ = false;
+    heartbeat_ = 0;
   }
 
   static std::vector<std::string> words(const std::string& s) {
@@ -118,8 +124,10 @@ class RobotDriver {
           cfg.geo.wheel_base_mm = std::stod(v);
         } else if (kv(w[i], "tick", v)) {
           cfg.tick_ms = std::stoul(v);
+        } else if (kv(w[i], "watchdog", v)) {
+          cfg.watchdog_ms = std::stoul(v);
         } else {
-          return say("error: model takes ports=, wheel=, base=, tick=");
+          return say("error: model takes ports=, wheel=, base=, tick=, watchdog=");
         }
       }
       reset(cfg);
@@ -241,6 +249,20 @@ class RobotDriver {
       return say("error: led " + w[1]);
     }
     if (c == "advance" && w.size() == 2) return advance(now_ + std::stoul(w[1]), nullptr);
+    if (c == "contact" && w.size() == 1) {  // the node heard a master now (robot_link.hpp feeds it)
+      rt_->contact(now_);
+      return drain();
+    }
+    if (c == "heartbeat" && w.size() == 2) {  // a contact every MS ms from now on (0: none)
+      heartbeat_ = std::stoul(w[1]);
+      next_contact_ = now_ + heartbeat_;
+      return;
+    }
+    if (c == "stall" && w.size() == 2) {  // the program stalls: the world goes on, the runtime does not
+      const Millis to = now_ + std::stoul(w[1]);
+      while (now_ < to) world_.step(++now_);
+      return;
+    }
     if (c == "until" && w.size() >= 2) {
       Millis max = 20000;
       if (w.size() == 3 && kv(w[2], "max", v)) max = std::stoul(v);
@@ -521,6 +543,10 @@ class RobotDriver {
     while (now_ < to) {
       ++now_;
       world_.step(now_);
+      if (heartbeat_ != 0 && now_ >= next_contact_) {
+        next_contact_ = now_ + heartbeat_;
+        rt_->contact(now_);
+      }
       if (now_ >= next_rescan_) {
         next_rescan_ = now_ + 1000;
         for (auto& [d, present] : known_)
@@ -607,8 +633,14 @@ class RobotDriver {
       }
     }
     if (rt_->dropped() != 0) at("DROPPED " + std::to_string(rt_->dropped()));
+    if (rt_->held() != held_) {
+      held_ = rt_->held();
+      at(held_ ? "watchdog: held (last contact " + std::to_string(rt_->last_contact()) + ")" : "watchdog: released");
+    }
   }
 
+  bool held_ = false;  // the runtime's watchdog hold, as last printed
+  Millis heartbeat_ = 0, next_contact_ = 0;  // heartbeat MS: periodic contacts
   RuntimeConfig cfg_;
   World world_;
   std::unique_ptr<Runtime> rt_;

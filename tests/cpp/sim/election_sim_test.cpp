@@ -5,6 +5,7 @@
 
 #include <string>
 
+#include "../core/fixed_timers.hpp"
 #include "election_sim.hpp"
 
 namespace {
@@ -201,7 +202,10 @@ TEST(ElectionSim, CutAgentKeepsItsEpochAndIsRelayed) {
     // and its former relay still has it in its table. That relay must offer again (Election.tla's
     // OfferRelay has no "not already relayed" condition; the core had one, and the agent stayed in
     // PANIC), and the PC adopts the member again on the relay's RELAY_ROUTE.
-    ElectionFleet f(kElectionAgents, seed, net, Timers{});
+    // The timers of the transcripts (1 s heartbeat): the PC must still count the lonely agent as a
+    // member when it comes back (docs/election.md "The case left: an agent cut off past its
+    // removal"); with the defaults' pace it has removed it by then.
+    ElectionFleet f(kElectionAgents, seed, net, ev3test::fixed_timers());
     f.run_until(30000, check);
     const Peer lonely = ElectionFleet::agent_peer(0);
     f.cut(lonely, ElectionFleet::kPcPeer);

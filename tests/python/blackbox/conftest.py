@@ -129,10 +129,6 @@ _STATS = {"traces": 0, "records": 0, "master_traces": 0, "master_records": 0, "e
 _STATS_LOCK = _threading.Lock()
 _orig_init = _ev3net.Program.__init__
 
-_TIMER_FLAGS = {"--heartbeat-ms": "TPing", "--master-timeout-ms": "TLoss", "--paused-timeout-ms": "TPaused",
-                "--sync-timeout-ms": "TSync"}
-
-
 def _traced_init(self, exe, args, tmp, name, *a, **kw):
     args = list(args)
     self.trace_path = None
@@ -160,11 +156,8 @@ _ev3net.Program.__init__ = _traced_init
 
 
 def _consts(args: list[str], state: dict | None = None) -> dict:
-    c = {"TPing": 1000, "TLoss": 3000, "TSync": 10000}
-    for i, x in enumerate(args[:-1]):
-        if x in _TIMER_FLAGS:
-            c[_TIMER_FLAGS[x]] = int(args[i + 1])
-    c.setdefault("TPaused", 2 * c["TLoss"])
+    from ev3conformance import tracecheck
+    c = tracecheck.agent_timer_consts(args)
     if "--election" in args:
         # Election.tla's side: the agent's score (unknown without --score: both outcomes of a
         # comparison allowed) and the durable epoch / vote it starts from.
@@ -305,8 +298,8 @@ def _epoch_of(p) -> int:
 
 def _merged_inputs(started: list):
     """What the whole-run check of the programs @p started takes: (their trace files, each node's
-    epoch at start, the agents' --master-timeout-ms: the largest, if they differ; ev3-agent's
-    default if none), or None when there is no run to merge (fewer than two traced programs, none
+    epoch at start, the agents' master timeout (given, or ev3-agent's rule from its heartbeat): the
+    largest, if they differ), or None when there is no run to merge (fewer than two traced programs, none
     with --election)."""
     from ev3conformance import merged
     progs = [p for p in started if getattr(p, "trace_path", None) is not None]
@@ -315,8 +308,8 @@ def _merged_inputs(started: list):
     paths = list(dict.fromkeys(p.trace_path for p in progs))  # a program restarted on the same trace: once
     epochs = {f"{p.trace_path.name}:{'master' if p.trace_prog == 'ev3-master' else 'agent'}": _epoch_of(p)
               for p in progs}
-    losses = [int(p.trace_args[p.trace_args.index("--master-timeout-ms") + 1]) for p in progs
-              if p.trace_prog == "ev3-agent" and "--master-timeout-ms" in p.trace_args[:-1]]
+    from ev3conformance import tracecheck
+    losses = [tracecheck.agent_timer_consts(p.trace_args)["TLoss"] for p in progs if p.trace_prog == "ev3-agent"]
     return paths, epochs, max(losses, default=merged.TLOSS)
 
 

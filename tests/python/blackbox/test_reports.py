@@ -20,7 +20,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from ev3net import HB, Program, free_ports, read_status, wait_until
+from ev3net import HB, Program, free_ports, read_status, trace_records, wait_until
 
 WORLD = "bounds 0 0 800 600\nstart 100 150 0\n"
 POSES = [("robot1", "100,150,0"), ("robot2", "100,450,0")]
@@ -33,9 +33,8 @@ LOSS_MS = 4000  # the agents keep WORKING this long without their master
 def made(trace: Path) -> int:
     """The reports an agent made, as its trace says (Reports.tla's `made`, written when it grows)."""
     n = 0
-    for line in trace.read_text().splitlines():
-        if line.strip():
-            n = json.loads(line).get("changed", {}).get("made", n)
+    for r in trace_records(trace):
+        n = r.get("changed", {}).get("made", n)
     return n
 
 

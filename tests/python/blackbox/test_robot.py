@@ -3,7 +3,9 @@ driven through its console. The LEDs follow the lifecycle; `drive` moves the rob
 it within one control tick and the master hears OBSTACLE_DETECTED; an unplugged motor is
 DEVICE_DISCONNECTED at the master; a low battery is BATTERY_LOW at the master and a clean exit;
 the master killed while driving stops the motors; the robot's events outside an action reach the
-master as EVENT with their port. The armel agent under qemu-arm drives too. A custom behaviour
+master as EVENT with their port. The contact watchdog stops the wheels 500 ms after the master's
+last word, and a stalled agent's wheels are stopped by the motor driver. The armel agent under
+qemu-arm drives too. A custom behaviour
 paused in the middle of a drive and of a turn continues the same action on RESUME (the distance and
 the angle asked, not more); after ACTION_ERR (a wheel stalled against a wall), RESTART runs it again
 from its first state.
@@ -17,6 +19,7 @@ from __future__ import annotations
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import time
@@ -160,6 +163,59 @@ def test_lifecycle_leds_drive_pause_and_master_lost(sim_factory, fleet, agent_ex
     wait_until(lambda: stopped(sim), LOSS / 1000 + 1.0, "the motors stopped after the master was lost")
     wait_leds(sim, "RED_BLINK", PAUSED / 1000 + 2.0)
     assert stopped(sim)
+
+
+def test_the_watchdog_stops_the_wheels_before_the_core_notices(sim_factory, fleet, agent_exe):
+    """The contact watchdog (docs/devices.md): with a master timeout of 3 s, the core would pause the
+    robot 3 s after the master's last word; the watchdog stops the wheels 500 ms after it, while the
+    core is still WORKING, and says so in the log."""
+    sim = sim_factory(OPEN)
+    fleet.start_master(keep=False)
+    fleet.start_agent(agent_exe, sim.root(), "--master-timeout-ms", "3000", "--paused-timeout-ms", "6000")
+    try:
+        wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+        fleet.say("behaviour 2 drive speed=300")
+        fleet.heard(r"BEHAVIOUR acknowledged")
+        fleet.say("start 2")
+        wait_until(lambda: driving(sim), 3, "both wheels driving")
+        killed = time.monotonic()
+        fleet.master.proc.kill()  # SIGKILL: no goodbye
+        fleet.master.proc.wait()
+    finally:
+        fleet.master.close()
+    wait_until(lambda: stopped(sim), 2.0, "the wheels stopped by the watchdog")
+    held_after = time.monotonic() - killed
+    log = fleet.tmp / "agent.log"
+    wait_until(lambda: "watchdog: wheels held" in log.read_text(), 2, "the agent's log of the hold")
+    # Stopped well before the core's 3 s master timeout: the watchdog, not the core, stopped them.
+    assert held_after < 2.5, held_after
+    text = log.read_text()
+    assert "state PAUSED" not in text[:text.index("watchdog: wheels held")]
+
+
+def test_a_stalled_agent_has_its_wheels_stopped_by_the_motor_driver(sim_factory, fleet, agent_exe):
+    """SIGSTOP freezes the agent while `drive` runs: nothing in the program can stop the wheels, but
+    its RunForever was written as run-timed ending 500 ms after its last contact, so the (simulated)
+    motor driver stops them. SIGCONT after 1.2 s (within its master timeout of 3 s: still WORKING):
+    the agent hears its master again and the robot drives on."""
+    sim = sim_factory(OPEN)
+    fleet.start_master()
+    agent = fleet.start_agent(agent_exe, sim.root(), "--master-timeout-ms", "3000", "--paused-timeout-ms", "6000")
+    wait_until(lambda: fleet.agent_state("ACTIVE"), 5, "agent 2 ACTIVE")
+    fleet.say("behaviour 2 drive speed=300")
+    fleet.heard(r"BEHAVIOUR acknowledged")
+    fleet.say("start 2")
+    wait_until(lambda: driving(sim), 3, "both wheels driving")
+    agent.proc.send_signal(signal.SIGSTOP)
+    frozen = time.monotonic()
+    try:
+        wait_until(lambda: stopped(sim), 1.0, "the wheels stopped by run-timed's end while the agent is stopped")
+        x = sim.robot()["x"]
+        time.sleep(max(0.0, 1.2 - (time.monotonic() - frozen)))
+        assert abs(sim.robot()["x"] - x) < 0.5, "the robot moved while its agent was stopped"
+    finally:
+        agent.proc.send_signal(signal.SIGCONT)
+    wait_until(lambda: driving(sim), 5, "driving again once the agent runs and hears its master")
 
 
 def test_bumper_stops_the_drive_within_a_tick(sim_factory, fleet, agent_exe):

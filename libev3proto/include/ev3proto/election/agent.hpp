@@ -39,11 +39,12 @@ class AgentElection {
   static constexpr Millis kNever = ~Millis{0};
 
   /// From the configuration (epoch 0 counts as 1): the restored epoch, vote and membership; the
-  /// election's timers from @p t (relay_retry, backoff, backoff_step, candidate).
+  /// election's timers from @p t (relay_retry, backoff, backoff_step, backoff_jitter, candidate).
   AgentElection(const ElectionConfig& c, const Timers& t) noexcept
       : enabled(c.enabled), epoch(c.durable.epoch == 0 ? 1 : c.durable.epoch), voted_for(c.durable.voted_for),
         mepoch(c.durable.mepoch), floor(c.durable.floor), retry_(t[Timer::relay_retry]),
-        backoff_(t[Timer::backoff]), backoff_step_(t[Timer::backoff_step]), candidate_(t[Timer::candidate]) {
+        backoff_(t[Timer::backoff]), backoff_step_(t[Timer::backoff_step]), candidate_(t[Timer::candidate]),
+        jitter_(c.seed != 0 ? t[Timer::backoff_jitter] : 0), vouch_(t[Timer::vouch]), rng_(c.seed) {
     for (std::size_t i = 0; i < c.durable.member_count && i < kMaxMembership; ++i)
       if (is_assigned_id(c.durable.members[i]) && !members.contains(c.durable.members[i]))
         members.add(c.durable.members[i]);
@@ -150,11 +151,13 @@ class AgentElection {
     return enabled && s == State::PANIC && role != ElectionRole::master;
   }
   /// Election OfferRelayOk: a direct follower of the current epoch offers to relay (one hop), not to
-  /// an agent that has seen a newer epoch. An agent already in the table is offered to again.
+  /// an agent that has seen a newer epoch. An agent already in the table is offered to again. The
+  /// timing the spec leaves out (Timer::vouch, 0: off): only for a master heard within the vouch
+  /// time, so that a follower that has not yet noticed a dead master does not offer it.
   bool OfferRelayOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     return m.receiver == kBroadcastId && is_assigned_id(m.sender) && DirectFollower(me.state) && e &&
-           *e <= epoch;
+           *e <= epoch && me.vouches;
   }
   /// Election GrantPreVoteOk: no master here (PANIC or candidate), the asker's epoch not older than
   /// ours and its score (RELAY_REQ's second param) not higher than ours.
@@ -172,12 +175,18 @@ class AgentElection {
     return ToMe(m, me) && me.state == State::PANIC && role != ElectionRole::master && e && *e == epoch &&
            !prevotes.contains(m.sender) && members.contains(m.sender);
   }
-  /// Election AcceptRelayOk: PANIC (not standing), the offer's epoch not older.
+  /// Election AcceptRelayOk: PANIC (not standing), the offer's epoch not older. The timing the spec
+  /// leaves out (Timer::vouch, 0: off): not, within the vouch time of declaring it lost, an offer of
+  /// the master (and epoch) this agent has just lost (an offer late in the network).
   bool AcceptRelayOk(const Message& m, const LifecycleView& me) const noexcept {
     const auto e = m.param_u32(0);
     const auto x = m.param_u16(1);
     return ToMe(m, me) && me.state == State::PANIC && role == ElectionRole::none && e && x && *x != 0 &&
-           *x != me.id && *e >= epoch && is_assigned_id(m.sender);
+           *x != me.id && *e >= epoch && is_assigned_id(m.sender) && !JustLost(*x, *e, me.now);
+  }
+  /// Master @p x of epoch @p e is the one this agent declared lost less than the vouch time ago.
+  bool JustLost(std::uint16_t x, std::uint32_t e, Millis now) const noexcept {
+    return vouch_ != 0 && x == lost_leader_ && e == lost_epoch_ && now < lost_at_ + vouch_;
   }
   /// Election HandleAcceptOk: answers an offer made since the master last changed, and the relay
   /// still follows that master in that epoch directly (and has room).
@@ -335,10 +344,19 @@ class AgentElection {
     const Millis s = StandDeadline(me);
     return relay_at < s ? relay_at : s;
   }
-  /// Back-off before standing: backoff + score x backoff_step, spread by id (ties stand apart).
-  Millis Backoff(const LifecycleView& me) const noexcept {
-    const std::uint32_t sc = me.score < 1000u ? me.score : 1000u;
-    return backoff_ + sc * backoff_step_ + (me.id % 16u) * backoff_step_ / 16u;
+  /// Back-off before standing: backoff + backoff_step for each weaker peer heard asking in this
+  /// PANIC (its rank: the weakest stands first; GrantPreVote counts them and moves the standing on)
+  /// and, with a seed, a random part in [0, backoff_jitter) drawn anew each time (raft's
+  /// randomised election timeout: a split vote does not repeat). With the jitter below the step (the
+  /// defaults: half of it), of two agents that entered PANIC together the weaker stands first.
+  Millis Backoff(const LifecycleView&) noexcept { return backoff_ + weaker_.size() * backoff_step_ + Jitter(); }
+  /// A draw in [0, backoff_jitter) (xorshift32 on the seed); 0 without a seed.
+  Millis Jitter() noexcept {
+    if (jitter_ == 0) return 0;
+    rng_ ^= rng_ << 13;
+    rng_ ^= rng_ >> 17;
+    rng_ ^= rng_ << 5;
+    return rng_ % jitter_;
   }
 
   // ------------------------------------------------------------ transitions (XNext)
@@ -373,11 +391,18 @@ class AgentElection {
       stand_at = me.now + Backoff(me);
   }
 
-  /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else changes.
+  /// Spec GrantPreVote: PREVOTE_OK(epoch of the request) to the asker; nothing else of the spec's
+  /// changes. The timing the spec leaves out: an asker weaker than us (a lower score, or an equal
+  /// one and a lower id), counted once per PANIC, puts our standing one backoff_step later.
   template <class Net>
-  void GrantPreVote(const Message& m, Peer from, Net& n) noexcept {
+  void GrantPreVote(const Message& m, Peer from, const LifecycleView& me, Net& n) noexcept {
     const std::string_view p[1] = {m.param(0)};
     n.emit_to(from, m.sender, MsgType::PREVOTE_OK, p, 1);
+    const std::uint32_t sc = *m.param_u32(1);  // GrantPreVoteOk: present, not above ours
+    if ((sc < me.score || m.sender < me.id) && !weaker_.contains(m.sender) && weaker_.size() < kMaxMembership) {
+      weaker_.add(m.sender);
+      if (stand_at != kNever) stand_at += backoff_step_;
+    }
   }
 
   /// Spec HandlePreVote: one more pre-vote for standing in the next epoch.
@@ -430,6 +455,11 @@ class AgentElection {
   /// masterless (relay requests at once, standing after the back-off).
   template <class Net>
   void Panic(const LifecycleView& me, Net& n) noexcept {
+    if (leader != 0) {  // the master declared lost (JustLost)
+      lost_leader_ = leader;
+      lost_epoch_ = following;
+      lost_at_ = me.now;
+    }
     unfollow(n);
     become_masterless(me);
   }
@@ -534,6 +564,7 @@ class AgentElection {
   void become_masterless(const LifecycleView& me) noexcept {
     set_role(ElectionRole::none);
     prevotes.clear();
+    weaker_.clear();
     if (!enabled) return;
     const bool can = is_assigned_id(me.id);
     relay_at = can ? me.now : kNever;
@@ -610,7 +641,12 @@ class AgentElection {
     return v;
   }
 
-  Millis retry_, backoff_, backoff_step_, candidate_;  // the election's timers (Timers)
+  Millis retry_, backoff_, backoff_step_, candidate_, jitter_, vouch_;  // the election's timers (Timers)
+  std::uint32_t rng_;  // the back-off's random state (ElectionConfig::seed)
+  IdSet<kMaxMembership> weaker_;  // weaker peers heard asking in this PANIC (Backoff's rank)
+  std::uint16_t lost_leader_ = 0;  // the master last declared lost (Panic), in epoch lost_epoch_, at lost_at_
+  std::uint32_t lost_epoch_ = 0;
+  Millis lost_at_ = 0;
 };
 
 }  // namespace ev3proto

@@ -60,6 +60,9 @@ struct ElectionConfig {
   bool enabled = false;             ///< Relay and election on.
   Durable durable;                  ///< Restored from stable storage (a fresh agent: the defaults).
   std::uint32_t score = kAutoScore; ///< Election Score (lower = weaker, stands first, wins).
+  /// Seed of the back-off's random part (Timer::backoff_jitter): the program draws it at start
+  /// (msgids.hpp draw_start_ids' source). 0: no random part (deterministic: tests, replays).
+  std::uint32_t seed = 0;
 };
 
 /// Which handler takes a datagram and what the Step prelude must do first, decided before any state
@@ -184,6 +187,7 @@ struct LifecycleView {
   std::uint16_t id = 0;          ///< Its id.
   std::uint32_t score = 0;       ///< Its score (lower = weaker).
   bool hears_master = false;     ///< Follows a master heard within the loss timeout.
+  bool vouches = false;          ///< Follows a master directly, heard within the vouch time (Timer::vouch).
   Millis now = 0;                ///< Its time.
 };
 

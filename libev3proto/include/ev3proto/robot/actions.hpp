@@ -134,6 +134,10 @@ struct Ctx {
   Writes& writes;
   Reports& reports;
   Millis now;
+  /// The motors may turn until then (the runtime's contact watchdog); ~0: no bound. A RunForever
+  /// step under a bound is written as run-timed ending at it, so the motor driver stops the wheels
+  /// there by itself even when the program stalls.
+  Millis run_until = ~Millis{0};
 };
 
 namespace action {
@@ -388,6 +392,28 @@ class ActionRunner {
   bool moves_motors() const noexcept {
     return phase_ != Phase::idle && step().kind != action::Kind::wait;
   }
+  /// True when the running step turns the wheels towards something (DriveDistance, Turn,
+  /// RunForever): what the contact watchdog holds.
+  bool turns_motors() const noexcept {
+    if (phase_ != Phase::running || waiting_) return false;
+    const action::Kind k = step().kind;
+    return k == action::Kind::drive_distance || k == action::Kind::turn || k == action::Kind::run_forever;
+  }
+  /// When the watchdog's bound (c.run_until) moved on and less than half of the time to the bound
+  /// written last is left, a running RunForever is written again as run-timed to the new bound;
+  /// nothing else changes (its stall watch goes on). False when that
+  /// write was refused: the plan failed then (detail() says why).
+  bool renew(Ctx& c) noexcept {
+    if (phase_ != Phase::running || waiting_ || step().kind != action::Kind::run_forever) return true;
+    if (c.run_until == kNever || c.run_until <= bound_) return true;
+    if (!c.body.left.can_run_timed() || !c.body.right.can_run_timed()) return true;  // run-forever: no bound
+    // Written again once half the time to the bound written last is spent (not at every contact).
+    if (bound_ > c.now && 2 * (bound_ - c.now) >= c.run_until - c.now) return true;
+    ReasonText why;
+    if (run_wheels(c, why)) return true;
+    fail(c, why);
+    return false;
+  }
   /// The readings the running step needs.
   Needs needs() const noexcept {
     Needs n;
@@ -463,7 +489,7 @@ class ActionRunner {
           anchor_[w] = c.body.pos(w).position;
           progress_at_[w] = c.now;
         }
-        if (!both(c, RunForever{s.speed}, RunForever{s.speed_right}, why)) return fail(c, why, false);
+        if (!run_wheels(c, why)) return fail(c, why, false);
         return Outcome::running;
       }
       case action::Kind::stop: {
@@ -487,6 +513,19 @@ class ActionRunner {
         return Outcome::running;
     }
     return Outcome::running;
+  }
+
+  /// The wheels at the RunForever step's speeds: run-forever, or, under the watchdog's bound,
+  /// run-timed to that bound (a motor without run-timed gets run-forever).
+  bool run_wheels(Ctx& c, ReasonText& why) noexcept {
+    const action::Step& s = step();
+    const bool timed = c.run_until != kNever && c.body.left.can_run_timed() && c.body.right.can_run_timed();
+    bound_ = timed ? c.run_until : 0;  // 0: none written (renew() writes one once there is a bound)
+    if (!timed) return both(c, RunForever{s.speed}, RunForever{s.speed_right}, why);
+    const Millis left = c.run_until > c.now ? c.run_until - c.now : 0;
+    const std::int32_t ms = left > 0x7fffffff ? 0x7fffffff : static_cast<std::int32_t>(left);
+    const StopAction how = c.body.tuning.pause_stop;
+    return both(c, RunTimed{ms, s.speed, how}, RunTimed{ms, s.speed_right, how}, why);
   }
 
   bool motors_ready(Ctx& c, ReasonText& why) const noexcept {
@@ -745,6 +784,7 @@ class ActionRunner {
   std::uint16_t iteration_ = 0;
   Phase phase_ = Phase::idle;
   Millis started_ = 0, cmd_at_ = 0, due_ = 0, left_ = 0;
+  Millis bound_ = 0;  // the watchdog bound RunForever was last written run-timed to
   bool waiting_ = false;
   std::int32_t counts_[2] = {0, 0}, start_pos_[2] = {0, 0}, target_[2] = {0, 0};
   std::int32_t anchor_[2] = {0, 0};

@@ -121,6 +121,8 @@ class Tacho {
   /// The motor is gone.
   void detach() noexcept { present_ = false; }
   bool present() const noexcept { return present_; }
+  /// True when the motor is there and lists run-timed in its commands.
+  bool can_run_timed() const noexcept { return present_ && (info_.commands & bit(MotorCommand::run_timed)) != 0; }
   const MotorInfo& info() const noexcept { return info_; }
   /// The command written last (reset after attach).
   MotorCommand last_command() const noexcept { return last_; }
@@ -151,9 +153,12 @@ class Tacho {
       start(why).append("time_sp ").append_int(c.time_sp).append(" is negative");
       return false;
     }
-    w.push_int(port_, Attr::speed_sp, c.speed_sp);
+    // run-timed again at the same speed and stop action (a watchdog's renewal): time_sp and command
+    // only, the driver keeps the other setpoints
+    const bool again = last_ == MotorCommand::run_timed;
+    if (!again || last_speed_ != c.speed_sp) w.push_int(port_, Attr::speed_sp, c.speed_sp);
     w.push_int(port_, Attr::time_sp, c.time_sp);
-    w.push(port_, Attr::stop_action, to_string(c.stop_action));
+    if (!again || last_stop_ != c.stop_action) w.push(port_, Attr::stop_action, to_string(c.stop_action));
     command(MotorCommand::run_timed, w);
     last_speed_ = c.speed_sp;
     last_stop_ = c.stop_action;
