@@ -7,6 +7,7 @@
 #                  without TLC, one small TLA+ model per module
 #   make build     native build; programs land in build/bin/ (ev3-agent, ev3-master, ev3-codec, ev3-behaviour)
 #   make fuzz      long libFuzzer run (FUZZ_SECONDS per target, default 1800)
+#   make faults    the fault scenarios' full set, FAULT_SEEDS seeds each (default 100), and their summary
 #   make bench     codec benchmark: ratios over BENCH_RUNS (9) runs of bench_codec (docs/benchmarks.md)
 #   make bench-master  the master core per datagram at 100 and 10,000 agents, and a baseline's (MASTER_BASELINE)
 #   make arm       static armel (EV3) build in build/arm/
@@ -20,7 +21,7 @@
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
 .DEFAULT_GOAL := help
-.PHONY: help deps build demo test check conformance-agent-fleet conformance-master-system test-unit test-python test-python-quick spec-quick test-blackbox test-fuzz test-arm test-example fuzz fuzz-build \
+.PHONY: help deps build demo test check faults conformance-agent-fleet conformance-master-system test-unit test-python test-python-quick spec-quick test-blackbox test-fuzz test-arm test-example fuzz fuzz-build \
         bench bench-master arm conformance conformance-full mutate \
         spec spec-full spec-mutate diagrams clean
 
@@ -28,6 +29,7 @@ PY := $(CURDIR)/.venv/bin/python
 BIN := $(CURDIR)/build/bin
 JOBS ?= $(shell nproc)
 FUZZ_SECONDS ?= 1800
+FAULT_SEEDS ?= 100
 FUZZ_SMOKE_SECONDS ?= 30
 BENCH_RUNS ?= 9
 # The baseline of make bench-master: a commit whose master core finds its next deadline by walking
@@ -171,6 +173,16 @@ test-fuzz: fuzz-build
 
 fuzz: fuzz-build
 	@bash tools/fuzz.sh long $(FUZZ_SECONDS)
+
+# The seeded fault scenarios (tests/python/blackbox/test_fault_scenarios.py; make test runs one seed
+# of each), FAULT_SEEDS seeds each: every run's figures in build/faults/results.jsonl, then the
+# summary table of docs/faults.md. Fails when a run failed a check.
+faults: build
+	@mkdir -p build/faults && rm -f build/faults/results.jsonl
+	@set -o pipefail; rc=0; EV3_BIN=$(BIN) EV3_FAULT_SEEDS=$(FAULT_SEEDS) \
+	   EV3_FAULT_RESULTS=$(CURDIR)/build/faults/results.jsonl $(PY) -m pytest -q -rfE \
+	   tests/python/blackbox/test_fault_scenarios.py 2>&1 | tee build/faults/pytest.log || rc=$$?; \
+	 $(PY) tools/faults_summary.py build/faults/results.jsonl --pytest-log build/faults/pytest.log; exit $$rc
 
 bench: deps
 	@cmake -S . -B build/bench -G Ninja -DCMAKE_BUILD_TYPE=Release -DEV3_BENCH=ON -DEV3_TESTS=OFF \

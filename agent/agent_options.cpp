@@ -24,7 +24,8 @@ std::vector<ev3io::OptionSpec> specs() {
                             "(default " + dflt(Timer::heartbeat) + ")", false},
       {"master-timeout-ms", "N", "master silent this long: ACTIVE -> PANIC, WORKING -> PAUSED (default 8 x "
                                  "heartbeat: " + dflt(Timer::loss) + ")", false},
-      {"paused-timeout-ms", "N", "master silent this long in PAUSED -> PANIC (default 2 x master timeout)", false},
+      {"paused-timeout-ms", "N", "master silent this long in PAUSED -> PANIC (default 10 x heartbeat: " +
+                                 dflt(Timer::paused) + "; 2 x master timeout when that is given)", false},
       {"sync-timeout-ms", "N", "IDLE without MASTER this long -> PANIC (default " + dflt(Timer::sync) + ")", false},
       {"election", "", "relay and master election on (off by default: one master, the PC)", false},
       {"score", "N", "election score, lower = stands first and wins (default: from the capabilities)", false},

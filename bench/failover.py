@@ -43,53 +43,9 @@ sys.path.insert(0, str(ROOT / "tests" / "python" / "blackbox"))
 import netns  # noqa: E402
 from ev3net import Program, free_ports, read_status, wait_until  # noqa: E402
 from ev3net import trace_records as records  # noqa: E402
+from ev3net import false_master_lost, knows_members, timeline  # noqa: E402
 
 SCORES = (1, 20, 40)
-
-
-def knows_members(recs: list[dict]) -> bool:
-    return any(r["action"] == "HandleHeartbeat" and len(r.get("changed", {}).get("members", [])) == 3 for r in recs)
-
-
-def timeline(recs: list[dict], kill: int) -> dict:
-    """What one agent's trace says after the kill at @p kill (ms, CLOCK_MONOTONIC)."""
-    v: dict = {}
-    out = {"lost": None, "follows": None, "relays": 0, "relay_drops": 0, "first_relay": None}
-    for r in recs:
-        if r.get("node", "agent") != "agent":
-            continue  # an elected agent's Master core writes its own records into the same file
-        v.update(r.get("changed", {}))
-        if r["now"] < kill:
-            continue
-        if out["lost"] is None and r.get("changed", {}).get("state") in ("PANIC", "PAUSED"):
-            out["lost"] = r["now"] - kill
-        if r["action"] == "AcceptRelay":
-            out["relays"] += 1
-            if out["first_relay"] is None:
-                out["first_relay"] = r["now"] - kill
-        if r["action"] == "RelayDropped":
-            out["relay_drops"] += 1
-        new_master = (v.get("leader", 0) not in (0, 1) and v.get("following", 0) > 0) or v.get("life") == "MASTER"
-        if new_master and out["follows"] is None:
-            out["follows"] = r["now"] - kill
-        elif not new_master:
-            out["follows"] = None  # lost again: the failover is when it last found one
-    return out
-
-
-def false_master_lost(recs: list[dict], kill: int) -> int:
-    """An agent's "master lost" verdicts before the kill, once it was ACTIVE: state changes to
-    PANIC or PAUSED with the master alive."""
-    n, synced = 0, False
-    for r in recs:
-        if r.get("node", "agent") != "agent" or r["now"] >= kill:
-            continue
-        st = r.get("changed", {}).get("state")
-        if st == "ACTIVE":
-            synced = True
-        elif st in ("PANIC", "PAUSED") and synced:
-            n += 1
-    return n
 
 
 def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, settle: float, lan=None,

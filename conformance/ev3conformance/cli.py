@@ -278,9 +278,10 @@ def _cmd_validate(args: argparse.Namespace) -> int:
             print(f"{'ok  ' if r.ok else 'FAIL'} {r.path}: {r.message}")
         print(f"validate --master: {len(rs) - bad} of {len(rs)} traces conform")
         return 1 if bad else 0
-    loss = args.loss if args.loss else 8 * args.heartbeat  # ev3-agent's rule (timers.hpp)
+    # ev3-agent's rule (tracecheck.agent_timer_consts): a given master timeout doubled, else 10 heartbeats
+    loss = args.loss if args.loss else 8 * args.heartbeat
     consts = {"TPing": args.heartbeat, "TLoss": loss, "TSync": args.sync,
-              "TPaused": args.paused if args.paused else 2 * loss}
+              "TPaused": args.paused if args.paused else 2 * loss if args.loss else 10 * args.heartbeat}
     if args.window:
         consts["Window"] = args.window
     if args.election is not None:
@@ -404,7 +405,7 @@ def _parser() -> argparse.ArgumentParser:
     vp.add_argument("traces", nargs="+", help="NDJSON trace files (--trace FILE of the programs)")
     vp.add_argument("--heartbeat", type=int, default=100, help="the run's --heartbeat-ms (TPing)")
     vp.add_argument("--loss", type=int, default=0, help="the run's --master-timeout-ms (TLoss; default 8 x heartbeat)")
-    vp.add_argument("--paused", type=int, default=0, help="the run's --paused-timeout-ms (default 2 x loss)")
+    vp.add_argument("--paused", type=int, default=0, help="the run's --paused-timeout-ms (default: 2 x --loss when given, else 10 x heartbeat)")
     vp.add_argument("--sync", type=int, default=10000, help="the run's --sync-timeout-ms (TSync)")
     vp.add_argument("--window", type=int, default=0, help="dedupe window entries (default 50)")
     vp.add_argument("--jobs", type=int, default=2, help="TLC runs in parallel (default 2)")

@@ -74,6 +74,17 @@ class Stream:
     # a master's records that send again a msgid sent before (a MASTER re-sent to an agent that
     # announced itself again, a resend): (rec k, the node's epoch at it, the msgids pending in it)
     resends: list[tuple[int, int, set[int]]] = field(default_factory=list)
+    # the node's epoch from each record on: (rec k, epoch), the first (-1, its epoch at start)
+    epochs: list[tuple[int, int]] = field(default_factory=list)
+
+    def epoch_at(self, k: int) -> int:
+        """The node's epoch at its record @p k."""
+        e = self.epochs[0][1] if self.epochs else 1
+        for rk, ep in self.epochs:
+            if rk > k:
+                break
+            e = ep
+        return e
 
 
 @dataclass
@@ -164,6 +175,7 @@ def _streams(fi: int, recs: list[Rec], start) -> dict[str, Stream]:
         s = Stream(fi, node, ids)
         prev = None
         epoch = start(node)
+        s.epochs.append((-1, epoch))
         for x in mine:
             ch = x.r.get("changed", {})
             m = ch.get("msgid")
@@ -172,6 +184,7 @@ def _streams(fi: int, recs: list[Rec], start) -> dict[str, Stream]:
                 prev = m
             if isinstance(ch.get("epoch"), int):
                 epoch = ch["epoch"]
+                s.epochs.append((x.k, epoch))
             if kind in ("pc", "core") and x.r.get("action") in ("MasterSync", "MasterTick"):
                 again = {e["mid"] for e in ch.get("reg", ()) if isinstance(e, dict) and e.get("pending")
                          and isinstance(e.get("mid"), int)}
@@ -213,6 +226,8 @@ def _resent_at(s: Stream, k: int, d: wire.Message) -> int:
         e = int(d.params[0])
     except ValueError:
         return k
+    if s.epoch_at(k) == e:
+        return k  # first sent in that epoch: a receive may be of that first copy
     for rk, epoch, again in s.resends:
         if rk > k and epoch == e and d.msgid in again:
             return rk

@@ -69,7 +69,7 @@ def model_a_behaviours() -> list[str]:
 
 # The programs' defaults (docs/programs.md, timers.hpp); a trace of a run with other timers needs
 # them passed (validate --timers). Behaviours, when not given: model_a_behaviours().
-DEFAULTS = {"TSync": 10000, "TPing": 100, "TLoss": 800, "TPaused": 1600, "Window": 50,
+DEFAULTS = {"TSync": 10000, "TPing": 100, "TLoss": 800, "TPaused": 1000, "Window": 50,
             "ModelName": "A", "Steps": 1000000000}
 
 # ev3-agent's timer flags and the spec constants they set.
@@ -79,8 +79,9 @@ AGENT_TIMER_FLAGS = {"--heartbeat-ms": "TPing", "--master-timeout-ms": "TLoss", 
 
 def agent_timer_consts(args: list[str]) -> dict:
     """TPing, TLoss, TPaused and TSync of an ev3-agent started with @p args, by its own rule
-    (agent_options.cpp, timers.hpp Timers::for_heartbeat): the master timeout is 8 heartbeats and
-    the paused timeout twice the master timeout unless given; without --heartbeat-ms, the defaults."""
+    (agent_options.cpp, timers.hpp Timers::for_heartbeat): the master timeout is 8 heartbeats, the
+    paused timeout 10 heartbeats, or twice the master timeout when that is given; each flag given
+    wins."""
     given = {}
     for i, x in enumerate(args):
         flag, eq, value = x.partition("=")
@@ -88,7 +89,7 @@ def agent_timer_consts(args: list[str]) -> dict:
             given[AGENT_TIMER_FLAGS[flag]] = int(value if eq else args[i + 1])
     c = {"TPing": given.get("TPing", DEFAULTS["TPing"]), "TSync": given.get("TSync", DEFAULTS["TSync"])}
     c["TLoss"] = given.get("TLoss", 8 * c["TPing"])
-    c["TPaused"] = given.get("TPaused", 2 * c["TLoss"])
+    c["TPaused"] = given.get("TPaused", 2 * c["TLoss"] if "TLoss" in given else 10 * c["TPing"])
     return c
 
 

@@ -60,7 +60,7 @@ inline constexpr std::array<TimerSpec, kTimerCount> kTimerTable{{
     {Timer::sync, "sync", "TSync", 10000, 0, "IDLE without MASTER -> PANIC (thesis: 10 s)"},
     {Timer::heartbeat, "heartbeat", "TPing", 100, 100, "period of AGENT / PING / PANIC broadcasts"},
     {Timer::loss, "loss", "TLoss", 800, 800, "master silent: ACTIVE -> PANIC, WORKING -> PAUSED"},
-    {Timer::paused, "paused", "TPaused", 1600, 1600, "master silent in PAUSED -> PANIC (> loss)"},
+    {Timer::paused, "paused", "TPaused", 1000, 1000, "master silent in PAUSED -> PANIC (> loss)"},
     {Timer::resend, "resend", "1 tick", 500, 500, "master resends a pending command"},
     {Timer::drop, "drop", "TDrop", 10000, 10000, "master forgets an agent not heard for this long"},
     {Timer::relay_retry, "relay_retry", "RequestRelay", 200, 200, "PANIC: RELAY_REQ period (first one at once)"},

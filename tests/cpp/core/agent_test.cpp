@@ -346,7 +346,7 @@ TEST(Timers, DefaultsAndSpecMapping) {
   EXPECT_EQ(t[Timer::sync], 10000u);
   EXPECT_EQ(t[Timer::heartbeat], 100u);
   EXPECT_EQ(t[Timer::loss], 800u);
-  EXPECT_EQ(t[Timer::paused], 1600u);
+  EXPECT_EQ(t[Timer::paused], 1000u);
   EXPECT_TRUE(t.valid());
   const Timers m = Timers::from_ticks(2, 1, 2, 3, 3);
   EXPECT_EQ(m[Timer::resend], 1u);
@@ -363,7 +363,7 @@ TEST(Timers, AllButSyncAreMultiplesOfTheHeartbeat) {
   const Timers t = Timers::for_heartbeat(200);
   EXPECT_EQ(t[Timer::heartbeat], 200u);
   EXPECT_EQ(t[Timer::loss], 1600u);
-  EXPECT_EQ(t[Timer::paused], 3200u);
+  EXPECT_EQ(t[Timer::paused], 2000u);
   EXPECT_EQ(t[Timer::backoff], 400u);
   EXPECT_EQ(t[Timer::backoff_step], 200u);
   EXPECT_EQ(t[Timer::backoff_jitter], 100u);

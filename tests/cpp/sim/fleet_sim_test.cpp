@@ -5,6 +5,7 @@
 #include <set>
 #include <string>
 
+#include "../core/fixed_timers.hpp"
 #include "fleet_sim.hpp"
 
 namespace {
@@ -117,7 +118,10 @@ void reconcile_scenario(std::uint64_t seed, double loss) {
   NetConfig net;
   net.loss = loss;
   net.dup = 0.1;
-  Fleet f(kAgents, seed, net);
+  // The transcripts' timers (1 s heartbeat, master timeout 3 s, paused 6 s): a partition between
+  // the two timeouts is PAUSED for every agent whatever its last PONG's age (with the defaults'
+  // 800 ms and 1 s the window is two heartbeats wide).
+  Fleet f(kAgents, seed, net, ev3test::fixed_timers());
   Invariants inv;
   auto check = [&](Fleet& x) { inv(x); };
   auto partition = [&](Millis ms) {

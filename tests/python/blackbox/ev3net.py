@@ -13,7 +13,6 @@ the programs under test as subprocesses.
 from __future__ import annotations
 
 import json
-import os
 import selectors
 import shutil
 import signal
@@ -423,6 +422,54 @@ def trace_records(path: Path) -> list[dict]:
     text = path.read_text()
     lines = text.splitlines() if text.endswith("\n") else text.splitlines()[:-1]
     return [json.loads(x) for x in lines if x.strip()]
+
+
+# ---- a fleet's failover, as the agents' traces tell it (bench/failover.py, test_fault_scenarios.py)
+
+def knows_members(recs: list[dict]) -> bool:
+    """The agent's trace holds a LEADER that listed three members."""
+    return any(r["action"] == "HandleHeartbeat" and len(r.get("changed", {}).get("members", [])) == 3 for r in recs)
+
+
+def timeline(recs: list[dict], kill: int) -> dict:
+    """What one agent's trace says after the kill at @p kill (ms, CLOCK_MONOTONIC)."""
+    v: dict = {}
+    out = {"lost": None, "follows": None, "relays": 0, "relay_drops": 0, "first_relay": None}
+    for r in recs:
+        if r.get("node", "agent") != "agent":
+            continue  # an elected agent's Master core writes its own records into the same file
+        v.update(r.get("changed", {}))
+        if r["now"] < kill:
+            continue
+        if out["lost"] is None and r.get("changed", {}).get("state") in ("PANIC", "PAUSED"):
+            out["lost"] = r["now"] - kill
+        if r["action"] == "AcceptRelay":
+            out["relays"] += 1
+            if out["first_relay"] is None:
+                out["first_relay"] = r["now"] - kill
+        if r["action"] == "RelayDropped":
+            out["relay_drops"] += 1
+        new_master = (v.get("leader", 0) not in (0, 1) and v.get("following", 0) > 0) or v.get("life") == "MASTER"
+        if new_master and out["follows"] is None:
+            out["follows"] = r["now"] - kill
+        elif not new_master:
+            out["follows"] = None  # lost again: the failover is when it last found one
+    return out
+
+
+def false_master_lost(recs: list[dict], kill: int) -> int:
+    """An agent's "master lost" verdicts before the kill, once it was ACTIVE: state changes to
+    PANIC or PAUSED with the master alive."""
+    n, synced = 0, False
+    for r in recs:
+        if r.get("node", "agent") != "agent" or r["now"] >= kill:
+            continue
+        st = r.get("changed", {}).get("state")
+        if st == "ACTIVE":
+            synced = True
+        elif st in ("PANIC", "PAUSED") and synced:
+            n += 1
+    return n
 
 
 def read_status(path: Path) -> dict | None:

@@ -218,3 +218,20 @@ def test_a_restarted_pc_s_re_sends_are_in_the_epoch_it_restarted_in(tmp_path):
     start = lambda epochs: lambda n: merged._start_epoch(n, f"m.ndjson:{n}", epochs)
     assert [e for _, e, _ in merged._streams(0, recs, start({"m.ndjson:master": 3}))["master"].resends] == [3, 3]
     assert [e for _, e, _ in merged._streams(0, recs, start(None))["master"].resends] == [1, 1]
+
+
+def test_a_command_resent_in_its_own_epoch_may_be_received_from_its_first_send(tmp_path):
+    # An elected Master core (3, epoch 6) sends BEHAVIOUR #20 in EPOCH_CMD(6), answers agent 2's PING
+    # #7 (sent after the agent took #20), then resends #20 (MasterTick). The agent took the first
+    # copy: paired with the resend, its receive would come after the PONG's PING, a cycle (seen at
+    # 30 % duplication in a fault scenario); in its own epoch a copy pairs with its first send.
+    pending = {"reg": [{"ann": 2, "id": 2, "pending": True, "mid": 20}]}
+    write(tmp_path / "a.ndjson", [_rec("agent", "ApplyCommand", "3:2:20:31:6:3%3A2%3A20%3A7%3Adrive", {"id": 2}),
+                                  _rec("agent", "Tick", changed={"msgid": 8})])
+    write(tmp_path / "m.ndjson", [_rec("master:3:6", "MasterCommand", changed=dict(pending, msgid=21)),
+                                  _rec("master:3:6", "MasterPing", "2:3:7:5:WORKING", {"msgid": 22}),
+                                  _rec("master:3:6", "MasterTick", changed=pending)])
+    m = merged.merge([tmp_path])
+    order = [(m.files[x.file].name, x.k) for x in m.order]
+    assert order.index(("m.ndjson", 0)) < order.index(("a.ndjson", 0)) < order.index(("a.ndjson", 1)) \
+        < order.index(("m.ndjson", 1))
