@@ -104,8 +104,7 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
     const ev3proto::Millis sync = out.timers[Timer::sync];
     out.timers = ev3proto::Timers::for_heartbeat(h);
     out.timers.set(Timer::sync, sync);
-    if (!a.has("watchdog-ms") && out.watchdog_ms != 0 && out.watchdog_ms < 5 * h)
-      out.watchdog_ms = 5 * h < 600000 ? 5 * h : 600000;
+    if (!a.has("watchdog-ms")) out.watchdog_ms = ev3proto::robot::watchdog_for(h);
   }
   for (const auto& r : rows) {
     std::uint64_t v = out.timers[r.t];

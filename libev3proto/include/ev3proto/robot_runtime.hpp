@@ -66,6 +66,13 @@ struct RuntimeConfig {
   Millis watchdog_ms = 500;
 };
 
+/// The contact watchdog for heartbeat @p heartbeat_ms: the default (500 ms), or 5 heartbeats when
+/// that is longer (a contact every heartbeat, several of them lost, before a hold), at most 10 min.
+constexpr Millis watchdog_for(Millis heartbeat_ms) noexcept {
+  const Millis d = RuntimeConfig{}.watchdog_ms, five = 5 * heartbeat_ms;
+  return five <= d ? d : five < 600000 ? five : 600000;
+}
+
 /// One read the device layer must take this tick.
 struct Read {
   Dev dev = Dev::outA;
