@@ -43,7 +43,7 @@ sys.path.insert(0, str(ROOT / "tests" / "python" / "blackbox"))
 import netns  # noqa: E402
 from ev3net import Program, free_ports, read_status, wait_until  # noqa: E402
 from ev3net import trace_records as records  # noqa: E402
-from ev3net import false_master_lost, knows_members, timeline  # noqa: E402
+from ev3net import agent_lost as lost_verdicts, false_master_lost, knows_members, timeline  # noqa: E402
 
 SCORES = (1, 20, 40)
 
@@ -91,7 +91,7 @@ def one_run(bindir: Path, tmp: Path, agent_flags: list[str], timeout: float, set
         time.sleep(warm)
         master.stop(signal.SIGKILL)
         kill = int(time.monotonic() * 1000)
-        agent_lost = (tmp / "master.log").read_text(errors="replace").count("lost (not heard")
+        agent_lost = lost_verdicts(master.stdout())
         end = time.monotonic() + timeout
 
         def settled():

@@ -18,10 +18,24 @@ from collections import defaultdict
 from pathlib import Path
 
 
-def pct(xs: list[float], p: int) -> float:
-    """The p-th percentile by nearest rank."""
+def pct(xs: list[float], p: int) -> float | None:
+    """The p-th percentile by nearest rank (None of nothing)."""
+    if not xs:
+        return None
     xs = sorted(xs)
     return xs[min(len(xs) - 1, max(0, -(-p * len(xs) // 100) - 1))]
+
+
+def sec(x: float | None) -> str:
+    return "-" if x is None else f"{x:.2f}"
+
+
+def ms(x: float | None) -> str:
+    return "-" if x is None else f"{x * 1000:.0f} ms"
+
+
+def figures(rs: list[dict], key: str) -> list[float]:
+    return [r[key] for r in rs if r.get(key) is not None]
 
 
 def failures(log: Path) -> dict[str, int]:
@@ -53,20 +67,27 @@ def main() -> int:
     if a.pytest_log and not a.pytest_log.is_file():
         ap.error(f"{a.pytest_log}: no such file")
     failed = failures(a.pytest_log) if a.pytest_log else {}
-    print("| scenario | runs | faults | detection p50 | failover p50 / p99 / max | false verdicts | "
-          "watchdog: bound after the kill (max), stop after the bound (max) | runs failing a check |")
-    print("|---|---:|---|---|---|---|---|---:|")
+    print("| scenario | runs (signed) | faults | detection p50 | following a master again p50 / p99 / max | "
+          "false verdicts | watchdog: bound after the fault (max), stop after the bound (max) | "
+          "motors stopped after the fault (max) | others paused by the membership change (max) | "
+          "reports recorded (none lost) | BATTERY_LOW not heard | runs failing a check |")
+    print("|---|---:|---|---|---|---:|---|---|---|---:|---:|---:|")
     for name, rs in sorted(runs.items()):
-        fo = [r["failover"] for r in rs if r.get("failover") is not None]
-        de = [r["detection"] for r in rs if r.get("detection") is not None]
+        fo = figures(rs, "failover")
         false = sum(r.get("false_master_lost", 0) + r.get("false_agent_lost", 0) for r in rs)
-        bound = max((r["bound_after_kill"] for r in rs if r.get("bound_after_kill") is not None), default=None)
-        late = max((r["stop_after_bound"] for r in rs if r.get("stop_after_bound") is not None), default=None)
+        bound = max(figures(rs, "bound_after_kill"), default=None)
+        late = max(figures(rs, "stop_after_bound"), default=None)
+        stop = max(figures(rs, "unplug_to_stop") + figures(rs, "drop_to_stop"), default=None)
+        reports = figures(rs, "reports")
+        pause = max(figures(rs, "membership_pause"), default=None)
+        unheard = sum(1 for r in rs if r.get("battery_low_heard") is False)
         bad = failed.get(rs[0].get("test", ""), 0)
-        print(f"| {name} | {len(rs)} | {rs[0].get('faults', '')} | "
-              f"{pct(de, 50):.2f} s | {pct(fo, 50):.2f} / {pct(fo, 99):.2f} / {max(fo):.2f} s | {false} | "
-              f"{'-' if bound is None else f'{bound * 1000:.0f} ms'}, {'-' if late is None else f'{late * 1000:.0f} ms'} | "
-              f"{bad} |")
+        following = "-" if not fo else f"{sec(pct(fo, 50))} / {sec(pct(fo, 99))} / {sec(max(fo))} s"
+        detection = pct(figures(rs, "detection"), 50)
+        print(f"| {name} | {len(rs)} ({sum(1 for r in rs if r.get('signed'))}) | {rs[0].get('faults', '')} | "
+              f"{'-' if detection is None else sec(detection) + ' s'} | {following} | {false} | {ms(bound)}, {ms(late)} | "
+              f"{ms(stop)} | {ms(pause)} | {sum(reports) if reports else '-'} | "
+              f"{unheard if 'battery_low_heard' in rs[0] else '-'} | {bad} |")
     return 0
 
 

@@ -13,6 +13,7 @@ the programs under test as subprocesses.
 from __future__ import annotations
 
 import json
+import re
 import selectors
 import shutil
 import signal
@@ -458,8 +459,9 @@ def timeline(recs: list[dict], kill: int) -> dict:
 
 
 def false_master_lost(recs: list[dict], kill: int) -> int:
-    """An agent's "master lost" verdicts before the kill, once it was ACTIVE: state changes to
-    PANIC or PAUSED with the master alive."""
+    """An agent's "master lost" verdicts before the kill, once it was ACTIVE: its heartbeat timeout
+    (HeartbeatLost) or its relay's loss (RelayDropped) taking it to PANIC or PAUSED. A pause by a
+    newer epoch of its master (an election, a membership change) is no verdict."""
     n, synced = 0, False
     for r in recs:
         if r.get("node", "agent") != "agent" or r["now"] >= kill:
@@ -467,9 +469,16 @@ def false_master_lost(recs: list[dict], kill: int) -> int:
         st = r.get("changed", {}).get("state")
         if st == "ACTIVE":
             synced = True
-        elif st in ("PANIC", "PAUSED") and synced:
+        elif st in ("PANIC", "PAUSED") and synced and r["action"] in ("HeartbeatLost", "RelayDropped"):
             n += 1
     return n
+
+
+def agent_lost(console: str, ids=None) -> int:
+    """The master's "agent lost" verdicts in what it printed (its standard output) for the operator,
+    of the agents @p ids only when given."""
+    found = re.findall(r"agent (\d+) lost \(not heard", console)
+    return sum(1 for i in found if ids is None or int(i) in ids)
 
 
 def read_status(path: Path) -> dict | None:

@@ -1,7 +1,7 @@
 """A LAN of network namespaces for the black-box tests (root only): a bridge on the host and one
 namespace per node, each joined to the bridge by a veth pair, with an address in a /24 of its own,
 so that a broadcast reaches every node as on a Wi-Fi network. Partitions are made by taking a
-node's link down (its veth on the bridge side). Everything is set up and torn down by the test
+node's link down (its veth on the bridge side) or by splitting the bridge in two. Everything is set up and torn down by the test
 that uses it; names carry the process id, so runs side by side do not meet."""
 
 from __future__ import annotations
@@ -36,12 +36,16 @@ class Lan:
         self.tag = f"{os.getpid() % 100000:05d}{random.randrange(100):02d}"   # interface names <= 15 bytes
         self.subnet = f"10.{random.randrange(64, 250)}.{random.randrange(1, 250)}"
         self.bridge = f"eb{self.tag}"
+        self.other = f"ec{self.tag}"
         self.n = n
         self._made: list[tuple[str, str]] = []
         try:
             _ip("link", "add", self.bridge, "type", "bridge")
             self._made.append(("link", self.bridge))
             _ip("link", "set", self.bridge, "up")
+            _ip("link", "add", self.other, "type", "bridge")  # split() moves nodes onto it
+            self._made.append(("link", self.other))
+            _ip("link", "set", self.other, "up")
             for i in range(n):
                 ns, host, peer = self.ns(i), self.host_if(i), f"ep{self.tag}{i}"
                 _ip("netns", "add", ns)
@@ -77,6 +81,17 @@ class Lan:
     def link(self, i: int, up: bool) -> None:
         """Node i's link up or down (down: it hears nobody and nobody hears it)."""
         _ip("link", "set", self.host_if(i), "up" if up else "down")
+
+    def split(self, side: list[int]) -> None:
+        """The bridge split in two: the nodes @p side on a second bridge of their own, so each side
+        hears only itself (broadcast included), until heal()."""
+        for i in side:
+            _ip("link", "set", self.host_if(i), "master", self.other)
+
+    def heal(self) -> None:
+        """Every node back on the one bridge."""
+        for i in range(self.n):
+            _ip("link", "set", self.host_if(i), "master", self.bridge)
 
     def close(self) -> None:
         for kind, name in reversed(self._made):
