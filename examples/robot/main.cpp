@@ -138,7 +138,7 @@ int load_state(const std::string& path, Durable& d, ev3proto::DurableError& why)
 class Robot {
  public:
   Robot(const Options& o, const Durable& d, Millis now)
-      : opt_(o), rt_(robot::RuntimeConfig{}, now), link_(robot::announced_devices(false)), node_(config(d), now) {}
+      : opt_(o), rt_(runtime_config(o), now), link_(robot::announced_devices(false)), node_(config(d), now) {}
 
   int run() {
     fd_ = socket(AF_INET, SOCK_DGRAM | SOCK_CLOEXEC | SOCK_NONBLOCK, 0);
@@ -184,6 +184,13 @@ class Robot {
   }
 
  private:
+  /// The runtime's settings: the contact watchdog the library gives the heartbeat (`--timer heartbeat=MS`).
+  static robot::RuntimeConfig runtime_config(const Options& o) {
+    robot::RuntimeConfig r;
+    r.watchdog_ms = robot::watchdog_for(o.timers[ev3proto::Timer::heartbeat]);
+    return r;
+  }
+
   Node::Config config(const Durable& d) {
     Node::Config c;
     c.agent.caps = {"A", kBehaviours.data(), kBehaviours.size(), link_.announced(), robot::kModelADeviceNames,
