@@ -322,6 +322,9 @@ class Master {
       }
       if (el_.role != MasterRole::master) return ignored(MasterIgnored::not_master);
       if (Handler(m) == Action::PCTake) return TakeReport(m, from);  // Reports.tla: no registry change
+      // The route moves only with a datagram a MasterLogic handler takes (MasterElectionTrace's
+      // Route): one the master has no handler for (a peer's RELAY_REQ broadcast) leaves it.
+      if (Handler(m) == Action::Ignore) return ignored(MasterIgnored::unexpected_type);
       note_route(m, from, via);
     }
     switch (Handler(m)) {
