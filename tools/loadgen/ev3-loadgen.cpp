@@ -313,6 +313,7 @@ class LoadGen {
     Sim& s = sims_[i];
     {
       const ssize_t n = recv(s.fd, buf.data(), buf.size(), 0);
+      if (n >= 0 && measuring_) ++received_;
       if (n < 0 || !s.core) return;
       const Micros t = now_us();
       const std::string_view d(buf.data(), static_cast<std::size_t>(n));
@@ -381,6 +382,8 @@ class LoadGen {
   void send(int fd, std::string_view bytes) {
     if (sendto(fd, bytes.data(), bytes.size(), 0, reinterpret_cast<const sockaddr*>(&master_), sizeof master_) < 0)
       ++send_errors_;
+    else if (measuring_)
+      ++sent_;
   }
 
   /// CPU seconds of this process so far.
@@ -458,22 +461,24 @@ class LoadGen {
           "\"agents_lost\":%zu,\"heartbeat_losses\":%llu,\"pings\":%llu,\"pongs\":%llu,\"unanswered\":%llu,"
           "\"pong_ms\":{\"samples\":%zu,\"p50\":%.2f,\"p90\":%.2f,\"p99\":%.2f,\"max\":%.2f},"
           "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld,\"status_max_age_ms\":%.0f,"
-          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.2f}\n",
+          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.2f,\"sent\":%llu,\"received\":%llu}\n",
           o_.agents, static_cast<unsigned long long>(o_.heartbeat), secs, synced_at_window_, synced_now_, agents_lost_,
           static_cast<unsigned long long>(losses_), static_cast<unsigned long long>(pings_),
           static_cast<unsigned long long>(pongs_), static_cast<unsigned long long>(unanswered_), samples, p50, p90,
           p99, pmax, static_cast<unsigned long long>(send_errors_), m_agents, m_lost, status_max_age_,
-          cpu_self_ / secs, o_.master_pid ? cpu_master_ / secs : -1.0);
+          cpu_self_ / secs, o_.master_pid ? cpu_master_ / secs : -1.0, static_cast<unsigned long long>(sent_),
+          static_cast<unsigned long long>(received_));
     } else {
       std::printf("agents %zu (heartbeat %llu ms), window %.1f s: synced %zu at start, %zu at end; %zu agents lost "
                   "the master (%llu heartbeat losses)\n",
                   o_.agents, static_cast<unsigned long long>(o_.heartbeat), secs, synced_at_window_, synced_now_,
                   agents_lost_, static_cast<unsigned long long>(losses_));
       std::printf("PINGs %llu, PONGs %llu, unanswered %llu; PONG latency ms: p50 %.2f p90 %.2f p99 %.2f max %.2f "
-                  "(%zu samples); send errors %llu\n",
+                  "(%zu samples); send errors %llu; datagrams sent %llu, received %llu (copies included)\n",
                   static_cast<unsigned long long>(pings_), static_cast<unsigned long long>(pongs_),
                   static_cast<unsigned long long>(unanswered_), p50, p90, p99, pmax, samples,
-                  static_cast<unsigned long long>(send_errors_));
+                  static_cast<unsigned long long>(send_errors_), static_cast<unsigned long long>(sent_),
+                  static_cast<unsigned long long>(received_));
       std::printf("CPU over the window, in cores: ev3-loadgen %.2f", cpu_self_ / secs);
       if (o_.master_pid != 0) std::printf(", master %.2f", cpu_master_ / secs);
       std::printf("\n");
@@ -496,6 +501,7 @@ class LoadGen {
   bool measuring_ = false;
   std::size_t synced_now_ = 0, synced_at_window_ = 0, agents_lost_ = 0;
   std::uint64_t pings_ = 0, pongs_ = 0, unanswered_ = 0, losses_ = 0, send_errors_ = 0;
+  std::uint64_t sent_ = 0, received_ = 0;  // datagrams (copies included) sent and received in the window
   std::vector<std::uint32_t> latencies_;  // microseconds
   double status_max_age_ = 0;            // ms
   double cpu_self_ = 0, cpu_master_ = 0; // CPU seconds in the window
