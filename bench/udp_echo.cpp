@@ -96,7 +96,7 @@ int main(int argc, char** argv) {
         if (k <= 0) break;
         sent += k;
       }
-      echoed += static_cast<unsigned long long>(n);
+      echoed += static_cast<unsigned long long>(sent);
       if (n < static_cast<int>(kBatch)) break;
     }
   }

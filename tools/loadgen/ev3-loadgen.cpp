@@ -457,11 +457,11 @@ class LoadGen {
     master_view(m_agents, m_lost);
     if (o_.json) {
       std::printf(
-          "{\"agents\":%zu,\"heartbeat_ms\":%llu,\"window_s\":%.1f,\"synced_at_start\":%zu,\"synced_at_end\":%zu,"
+          "{\"agents\":%zu,\"heartbeat_ms\":%llu,\"window_s\":%.3f,\"synced_at_start\":%zu,\"synced_at_end\":%zu,"
           "\"agents_lost\":%zu,\"heartbeat_losses\":%llu,\"pings\":%llu,\"pongs\":%llu,\"unanswered\":%llu,"
           "\"pong_ms\":{\"samples\":%zu,\"p50\":%.2f,\"p90\":%.2f,\"p99\":%.2f,\"max\":%.2f},"
           "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld,\"status_max_age_ms\":%.0f,"
-          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.2f,\"sent\":%llu,\"received\":%llu}\n",
+          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.4f,\"sent\":%llu,\"received\":%llu}\n",
           o_.agents, static_cast<unsigned long long>(o_.heartbeat), secs, synced_at_window_, synced_now_, agents_lost_,
           static_cast<unsigned long long>(losses_), static_cast<unsigned long long>(pings_),
           static_cast<unsigned long long>(pongs_), static_cast<unsigned long long>(unanswered_), samples, p50, p90,
