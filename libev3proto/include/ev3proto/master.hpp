@@ -267,7 +267,8 @@ class Master {
   MasterReceipt take(const Message& m, std::string_view bytes, Peer from) {
     Snapshot s = snap();
     const MasterReceipt r = Dispatch(m, from, 0);
-    if (r.action != Action::Ignore) record(r.action, s, bytes);
+    // A relay's RELAY(master, datagram) is taken as the datagram inside: the record is of that one.
+    if (r.action != Action::Ignore) record(r.action, s, m.type == MsgType::RELAY ? m.param(1) : bytes);
     while (take_role_steps()) {
     }
     return r;

@@ -437,13 +437,20 @@ class AgentElection {
     n.emit(Dest::master, leader, MsgType::RELAY_ROUTE, p, 2);
   }
 
-  /// Spec Forward: the inner datagram goes on unchanged (sender, msgid: dedupe end to end).
+  /// Spec Forward: the inner datagram goes on unchanged (sender, msgid: dedupe end to end). To the
+  /// relayed agent it goes bare; to the master inside RELAY(master, datagram) from the relay, with
+  /// the inner msgid (as the master wraps its own to a relayed agent), so that what the relay sends
+  /// under its id is its own datagram: in signed mode the relay signs it, and the relayed agent's
+  /// counter at the master stays the agent's own. An envelope over the datagram limit: dropped.
   template <class Net>
   void Forward(const Message& m, Net& n) noexcept {
     if (m.sender == leader) {
       n.emit_raw(Dest::peer, relays.find(*m.param_u16(0))->peer, m.param(1));
     } else {
-      n.emit_raw(Dest::master, 0, m.param(1));
+      char out[kMaxDatagram];
+      const EncodeResult r = encode_envelope(m.receiver, leader, m.msgid, MsgType::RELAY, leader, m.param(1), out,
+                                             sizeof out);
+      if (r.ok()) n.emit_raw(Dest::master, 0, std::string_view(out, r.size));
     }
   }
 
