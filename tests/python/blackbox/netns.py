@@ -10,6 +10,8 @@ import os
 import random
 import subprocess
 
+import pytest
+
 
 def available() -> str | None:
     """None when namespaces can be made here, else why not."""
@@ -21,6 +23,18 @@ def available() -> str | None:
         return f"ip netns add failed: {p.stderr.strip()}"
     subprocess.run(["ip", "netns", "del", name], capture_output=True)
     return None
+
+
+def lan_or_skip(n: int):
+    """A pytest fixture's body: a Lan of @p n nodes, closed afterwards. Only a user who cannot make
+    namespaces (not root) is skipped, saying so; as root (CI) a failure to make them fails."""
+    if os.geteuid() != 0:
+        pytest.skip("network namespaces need root")
+    why = available()
+    assert why is None, why
+    lan = Lan(n)
+    yield lan
+    lan.close()
 
 
 def _ip(*args: str) -> None:

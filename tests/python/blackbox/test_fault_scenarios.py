@@ -572,13 +572,7 @@ def test_a_battery_drop_stops_the_robot_and_its_agent(fleet):
 def lan4():
     """The PC and the three robots' agents each in a network namespace on one bridge (root only, as
     test_netns.py: another user is skipped, saying so; as root a failure to make them fails)."""
-    if os.geteuid() != 0:
-        pytest.skip("network namespaces need root")
-    why = netns.available()
-    assert why is None, why
-    lan = netns.Lan(4)
-    yield lan
-    lan.close()
+    yield from netns.lan_or_skip(4)
 
 
 @pytest.mark.parametrize("seed", SEEDS)

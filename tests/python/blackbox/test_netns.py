@@ -7,7 +7,6 @@ saying so; as root, namespaces that cannot be made fail the tests. conftest vali
 
 from __future__ import annotations
 
-import os
 import re
 import signal
 from pathlib import Path
@@ -21,25 +20,14 @@ PORT = 12345
 HB, LOSS = 100, 600
 
 
-def _lan(n: int):
-    # Only a user who cannot make namespaces is skipped; as root (CI) a failure to make them fails.
-    if os.geteuid() != 0:
-        pytest.skip("network namespaces need root")
-    why = netns.available()
-    assert why is None, why
-    lan = netns.Lan(n)
-    yield lan
-    lan.close()
-
-
 @pytest.fixture
 def lan():
-    yield from _lan(3)
+    yield from netns.lan_or_skip(3)
 
 
 @pytest.fixture
 def lan4():
-    yield from _lan(4)
+    yield from netns.lan_or_skip(4)
 
 
 def log(tmp: Path, name: str) -> str:
