@@ -887,7 +887,7 @@ class Agent {
     }
     record(Action::Tick, before, {}, {}, ticks);
   }
-  /// Spec Periodic(a): AGENT (IDLE), PANIC (PANIC) or PING(state).
+  /// Spec Periodic(a): AGENT (IDLE), PANIC (PANIC; a candidate repeats its ELECT too) or PING(state).
   void Periodic() noexcept {
     if (el_.role == ElectionRole::master) return;  // the Master core run for it sends LEADER
     if (state_ == State::IDLE) {
@@ -895,6 +895,7 @@ class Agent {
       emit(Dest::broadcast, kBroadcastId, MsgType::AGENT, p, 1);
     } else if (state_ == State::PANIC) {
       emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
+      el_.RepeatElect(lifecycle(), *this);
     } else {
       const std::string_view p[1] = {to_string(wire_state(state_))};
       emit(Dest::master, master_id(), MsgType::PING, p, 1);

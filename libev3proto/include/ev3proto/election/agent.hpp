@@ -475,9 +475,15 @@ class AgentElection {
   template <class Net>
   void StartElection(const LifecycleView& me, Net& n) noexcept {
     become_candidate(me);
-    char e[10], sc[10], mk[10];
-    const std::string_view p[3] = {decimal(epoch, e), decimal(me.score, sc), decimal(mepoch, mk)};
-    n.emit(Dest::broadcast, kBroadcastId, MsgType::ELECT, p, 3);
+    emit_elect(me, n);
+  }
+  /// A candidate's ELECT once more, each heartbeat of its candidacy (the spec's network duplicates
+  /// it; docs/core.md, election deviation 9): a voter that missed it votes, one that voted votes
+  /// again (deviation 2), so a lost ELECT or VOTE costs a heartbeat, not a new epoch after the
+  /// candidate period and a back-off.
+  template <class Net>
+  void RepeatElect(const LifecycleView& me, Net& n) noexcept {
+    if (role == ElectionRole::candidate) emit_elect(me, n);
   }
 
   /// Spec HandleElect (a newer epoch was adopted by the prelude): grant the one vote of the epoch
@@ -576,6 +582,13 @@ class AgentElection {
     const bool can = is_assigned_id(me.id);
     relay_at = can ? me.now : kNever;
     stand_at = can && members.size() > 0 ? me.now + Backoff(me) : kNever;
+  }
+  /// ELECT(epoch, score, mepoch) broadcast: the candidacy of the current epoch.
+  template <class Net>
+  void emit_elect(const LifecycleView& me, Net& n) noexcept {
+    char e[10], sc[10], mk[10];
+    const std::string_view p[3] = {decimal(epoch, e), decimal(me.score, sc), decimal(mepoch, mk)};
+    n.emit(Dest::broadcast, kBroadcastId, MsgType::ELECT, p, 3);
   }
   /// Stand in the next epoch: vote for itself, count its own vote, ask again (pre-votes for the
   /// epoch after) if this candidacy stalls, then stand again after the back-off.
