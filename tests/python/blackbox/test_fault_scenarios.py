@@ -25,7 +25,7 @@ turning when its robot lost contact stopped at its contact watchdog's bound at t
 log: the `time_sp` of the last run-timed written ends there, and the agent's `stop` comes at it); no
 report lost (Fleet.no_report_lost); the robots driving again when told.
 
-EV3_FAULT_SEEDS (default 1) seeds per scenario: `make test` runs one, `make faults` 100 and writes
+EV3_FAULT_SEEDS (default 1) seeds per scenario: `make test` runs one, `make faults` 15 (105 runs) and writes
 each run's figures to EV3_FAULT_RESULTS (JSON lines; tools/faults_summary.py makes docs/faults.md's
 table of them)."""
 
