@@ -12,6 +12,8 @@
 // BM_MasterReport: the same fleet reporting instead (docs/reports.md): REPORTs round robin at the
 // same rate, each the next number of its agent, recorded (PCTake) and acknowledged (PCAck); not in
 // the baseline, whose headers predate them.
+// BM_MasterPingElection: BM_MasterPing with the election on (the PC's membership of the first 30
+// agents, one per epoch as they sync; LEADER every 100 ms; commands in EPOCH_CMD); not in the baseline.
 #include <benchmark/benchmark.h>
 
 #include <cstdint>
@@ -64,10 +66,30 @@ struct Feed {
   }
 };
 
-void BM_MasterPing(benchmark::State& state) {
+#ifndef EV3_BENCH_BASELINE
+/// With the election on, the PC adds each agent that syncs to its membership (up to kMaxMembership),
+/// one per epoch: it stands (ELECT) and the members of the list it counts against vote for it.
+void elect(Master<>& m, std::vector<std::uint32_t>& msgid, Millis now) {
+  char buf[64];
+  for (int round = 0; round < 4 && m.role() == MasterRole::candidate; ++round) {
+    for (std::uint16_t id : m.members()) {
+      const std::size_t i = id - 2;
+      std::snprintf(buf, sizeof buf, "%u:1:%u:28:%u:1", id, ++msgid[i], m.epoch());
+      m.handle_datagram(buf, static_cast<Peer>(i + 1), now);
+      drain(m, nullptr);
+    }
+  }
+}
+#else
+void elect(Master<>&, std::vector<std::uint32_t>&, Millis) {}
+#endif
+
+void PingFleet(benchmark::State& state, bool election) {
   const auto n = static_cast<std::size_t>(state.range(0));
   const Millis t0 = 1000;
-  Master<> m(MasterConfig{}, t0);
+  MasterConfig cfg;
+  cfg.election = election;
+  Master<> m(cfg, t0);
   std::vector<std::uint32_t> msgid(n, 1);
   char buf[64];
   // Sync every agent: AGENT from temporary id 50000 + i at peer i + 1 (id 2 + i), ACK of MASTER.
@@ -80,6 +102,7 @@ void BM_MasterPing(benchmark::State& state) {
     std::snprintf(buf, sizeof buf, "%u:1:%u:5:ACTIVE", id, ++msgid[i]);
     m.handle_datagram(buf, static_cast<Peer>(i + 1), t0);
     drain(m, nullptr);
+    if (election) elect(m, msgid, t0);
   }
   if (m.registry().size() != n) state.SkipWithError("not every agent registered");
   const Command behaviour = Command::assign("wait", {"seconds=3"});
@@ -95,8 +118,17 @@ void BM_MasterPing(benchmark::State& state) {
   state.counters["agents"] = static_cast<double>(n);
   state.counters["sent_per_datagram"] = static_cast<double>(sent) / static_cast<double>(k);
   state.counters["core_seconds"] = static_cast<double>(now - t0) / 1000.0;
+  state.counters["members"] = static_cast<double>(m.members().size());
 }
+void BM_MasterPing(benchmark::State& state) { PingFleet(state, false); }
 BENCHMARK(BM_MasterPing)->Arg(100)->Arg(10000)->Unit(benchmark::kNanosecond);
+
+#ifndef EV3_BENCH_BASELINE
+// The same with the election on: the PC's membership (30 of the agents), its LEADER every 100 ms,
+// the commands in EPOCH_CMD. Not in the baseline, whose core predates the election.
+void BM_MasterPingElection(benchmark::State& state) { PingFleet(state, true); }
+BENCHMARK(BM_MasterPingElection)->Arg(100)->Arg(10000)->Unit(benchmark::kNanosecond);
+#endif
 
 #ifndef EV3_BENCH_BASELINE
 void BM_MasterReport(benchmark::State& state) {

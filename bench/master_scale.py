@@ -1,9 +1,10 @@
 #!/usr/bin/env python3
-"""The master core's CPU per datagram with 100 and with 10,000 registered agents (bench_master), now
-and, when built, with an earlier commit's core (bench_master_baseline): docs/benchmarks.md, "Master
-at scale". Each round runs both binaries (in alternating order) once; a run measures each case 3
-times (the median counts). Ratios are taken within one run (10,000 / 100) or one round (now /
-before); the table gives their median and range over the rounds, and the load average around them.
+"""The master core's CPU per datagram with 100 and with 10,000 registered agents (bench_master), now,
+with the election on (BM_MasterPingElection), and, when built, with an earlier commit's core
+(bench_master_baseline): docs/benchmarks.md, "Master at scale". Each round runs both binaries (in
+alternating order) once; a run measures each case 3 times (the median counts). Ratios are taken
+within one run (10,000 / 100) or one round (now / before); the table gives their median and range
+over the rounds, and the load average around them.
 
     make bench-master                      # builds build/bench with EV3_MASTER_BASELINE, runs this
     python3 bench/master_scale.py --rounds 7 --bin build/bench/bin
@@ -20,18 +21,20 @@ import sys
 from pathlib import Path
 
 CASES = ("BM_MasterPing/100", "BM_MasterPing/10000")
+# The same fleet with the election on (the PC's membership, its LEADERs, EPOCH_CMD): this core only.
+ELECTION = ("BM_MasterPingElection/100", "BM_MasterPingElection/10000")
 
 
-def run(binary: Path, min_time: float) -> dict[str, float]:
-    """CPU ns per datagram of each case (median of 3) in one run of @binary."""
+def run(binary: Path, min_time: float, cases: tuple[str, ...]) -> dict[str, float]:
+    """CPU ns per datagram of each of @cases (median of 3) in one run of @binary."""
     out = subprocess.run([str(binary), "--benchmark_format=json", "--benchmark_repetitions=3",
                           f"--benchmark_min_time={min_time}", "--benchmark_report_aggregates_only=true"],
                          check=True, capture_output=True, text=True).stdout
     got = {}
     for b in json.loads(out)["benchmarks"]:
-        if b.get("aggregate_name") == "median" and b["run_name"] in CASES:
+        if b.get("aggregate_name") == "median" and b["run_name"] in cases:
             got[b["run_name"]] = b["cpu_time"]
-    missing = [c for c in CASES if c not in got]
+    missing = [c for c in cases if c not in got]
     if missing:
         sys.exit(f"master_scale: {binary.name} did not report {missing}")
     return got
@@ -59,7 +62,7 @@ def main() -> None:
     for r in range(a.rounds):
         order = list(bins) if r % 2 == 0 else list(reversed(bins))
         for k in order:
-            res[k].append(run(bins[k], a.min_time))
+            res[k].append(run(bins[k], a.min_time, CASES + ELECTION if k == "now" else CASES))
         print(f"round {r + 1}: " + "; ".join(
             f"{k} " + " ".join(f"{c.split('/')[1]}={res[k][-1][c]:.0f}ns" for c in CASES) for k in bins),
               file=sys.stderr)
@@ -67,11 +70,13 @@ def main() -> None:
     print(f"load average (1 min) {load0[0]:.1f} before, {load1[0]:.1f} after; {a.rounds} rounds\n")
     print("| core | 100 agents, ns/datagram | 10,000 agents, ns/datagram | 10,000 / 100 |")
     print("|---|---|---|---|")
-    for k in bins:
-        small = [x[CASES[0]] for x in res[k]]
-        big = [x[CASES[1]] for x in res[k]]
-        ratio = [x[CASES[1]] / x[CASES[0]] for x in res[k]]
-        print(f"| {k} | {spread(small, '{:.0f}')} | {spread(big, '{:.0f}')} | {spread(ratio, '{:.2f}')}x |")
+    rows = [(k, k, CASES) for k in bins]
+    rows.insert(1, ("now, election on", "now", ELECTION))
+    for name, k, cases in rows:
+        small = [x[cases[0]] for x in res[k]]
+        big = [x[cases[1]] for x in res[k]]
+        ratio = [x[cases[1]] / x[cases[0]] for x in res[k]]
+        print(f"| {name} | {spread(small, '{:.0f}')} | {spread(big, '{:.0f}')} | {spread(ratio, '{:.2f}')}x |")
     if "before" in bins:
         for c in CASES:
             r = [b[c] / n[c] for n, b in zip(res["now"], res["before"])]
