@@ -1,7 +1,8 @@
 // ev3-master: the fleet's master. The I/O around the master core (libev3proto master.hpp): a UDP
-// socket, one event loop (ppoll) over the socket and the console's stdin that sleeps until the next
-// datagram, command line or deadline (core resends and drops, copy sends, script waits, status JSON,
-// table refresh). On a terminal: a live table refreshed in place and a prompt; otherwise answers
+// socket, one event loop (ppoll) over the socket, the console's stdin and the control socket's
+// connections (--control) that sleeps until the next datagram, command line or deadline (core
+// resends and drops, copy sends, script waits, status JSON, table refresh, a control command's time
+// to wait for its robots). On a terminal: a live table refreshed in place and a prompt; otherwise answers
 // and events are log lines on stdout. docs/programs.md describes it.
 #include <fcntl.h>
 #include <sys/ioctl.h>
@@ -22,10 +23,12 @@
 #include <ev3proto/trace.hpp>
 
 #include "ev3prog/console.hpp"
+#include "ev3prog/control.hpp"
 #include "ev3prog/program.hpp"
 #include "ev3prog/script.hpp"
 #include "ev3prog/trace_file.hpp"
 #include "driver.hpp"
+#include "ev3io/line_server.hpp"
 #include "ev3io/log.hpp"
 #include "ev3io/loop.hpp"
 #include "ev3io/udp.hpp"
@@ -74,6 +77,14 @@ class Program {
     std::string restored, recorded;
     if (!load_state(cfg, restored)) return 2;
     if (!load_record(cfg, recorded)) return 2;
+    if (!opt_.control.empty()) {
+      const std::string err = control_.open(opt_.control, opt_.control_group);
+      if (!err.empty()) {
+        std::fprintf(stderr, "ev3-master: %s\n", err.c_str());
+        return 2;
+      }
+      control_.on_close = [this](ev3io::LineServer::Client c) { answers_.forget(c); };
+    }
     master_.emplace(cfg, start_, sh_.trace_file.is_open() ? &trace_ : nullptr);
     ready(start_);  // the state file written at once (nothing is queued yet)
     if (sh_.state_failed) return 1;
@@ -111,14 +122,80 @@ class Program {
         next_redraw_ = now + kRedrawEveryMs;
       }
       if (quit_) break;
-      Millis deadline = std::min(master_->next_deadline(), sh_.script.deadline());
+      for (const auto& a : answers_.expire(now)) control_.send(a.client, a.line);
+      Millis deadline = std::min({master_->next_deadline(), sh_.script.deadline(), answers_.deadline()});
       if (!opt_.status_json.empty()) deadline = std::min(deadline, next_status_);
       if (tty_) deadline = std::min(deadline, next_redraw_);
-      pollfd in{0, POLLIN, 0};
-      if (sh_.wait(now, deadline, more, &in, stdin_open_ ? 1 : 0) > 0 && stdin_open_ &&
-          (in.revents & (POLLIN | POLLHUP | POLLERR)) != 0)
+      pollfd fds[ev3prog::Shell::kMaxExtra];
+      std::size_t n = 0;
+      if (stdin_open_) fds[n++] = pollfd{0, POLLIN, 0};
+      const std::size_t first_control = n;
+      n += control_.fds(fds + n);
+      if (sh_.wait(now, deadline, more, fds, n) <= 0) continue;
+      if (stdin_open_ && first_control == 1 && (fds[0].revents & (POLLIN | POLLHUP | POLLERR)) != 0)
         read_stdin(ev3io::monotonic_ms());
+      control_.serve(fds + first_control, n - first_control,
+                     [this](ev3io::LineServer::Client c, const std::string& line) {
+                       control_line(c, line, ev3io::monotonic_ms());
+                     },
+                     [this] { return ev3prog::control_error(opt_.json, "line too long (at most 65536 bytes)"); });
     }
+  }
+
+  /// A line from a control connection: the console language, one answer per line (docs/programs.md
+  /// "The control socket"). A command to robots is answered when they have answered it.
+  void control_line(ev3io::LineServer::Client client, const std::string& text, Millis now) {
+    const ev3prog::ControlLine l = ev3prog::parse_control_line(text, opt_.json);
+    ev3prog::ConsoleCommand c;
+    const std::string err = ev3prog::console_command(l.command, c);
+    if (!err.empty()) {
+      control_.send(client, ev3prog::control_error(l.json, err));
+      return;
+    }
+    using K = ev3prog::ConsoleCommand::Kind;
+    switch (c.kind) {
+      case K::none: return;  // an empty line or a comment: no answer
+      case K::help: control_.send(client, ev3prog::control_ok(l.json, ev3prog::console_help())); return;
+      case K::list:
+        control_.send(client, ev3prog::control_list(
+                                  l.json, view_.table(master_->registry(), sh_.drops, now, master_->report_records()),
+                                  view_.status_json(master_->registry(), sh_.drops, listening_, master_->next_id(), now,
+                                                    start_, master_->report_records())));
+        return;
+      case K::quit:
+        say("quit (control socket)");
+        control_.send(client, ev3prog::control_ok(l.json, "quit"));
+        quit_ = true;
+        return;
+      case K::rule: {
+        const std::string said = view_.set_rule(c);
+        say(said);
+        const bool failed = said.rfind("error: ", 0) == 0;
+        control_.send(client, failed ? ev3prog::control_error(l.json, said.substr(7)) : ev3prog::control_ok(l.json, said));
+        return;
+      }
+      case K::wait: control_.send(client, ev3prog::control_error(l.json, "wait is for scripts (--script)")); return;
+      case K::send:
+        say("> " + l.command + " (control socket)");
+        send_command(client, l.json, c.agent, c.command, now);
+        return;
+    }
+  }
+
+  /// The operator's command to agent @p agent (0: all), from the console, a script or a rule (client
+  /// 0) or a control connection, noted so that its robots' answers go back to whoever asked.
+  void send_command(ev3io::LineServer::Client client, bool json, std::uint16_t agent, const ev3proto::Command& cmd,
+                    Millis now) {
+    std::vector<std::uint16_t> to;
+    if (agent == 0)
+      for (const auto& kv : master_->registry()) to.push_back(kv.first);
+    else
+      to.push_back(agent);
+    // Every resend unanswered, then the drop timeout: the core has answered by then.
+    const Millis limit = (opt_.max_resends + 2) * opt_.timers[ev3proto::Timer::resend] + opt_.timers[ev3proto::Timer::drop];
+    for (const auto& a : answers_.sent(client, json, cmd.type, agent, to, now, limit)) control_.send(a.client, a.line);
+    master_->command(agent, cmd, now);
+    pump(now);
   }
 
 
@@ -168,14 +245,14 @@ class Program {
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (master_->poll_event(e)) {
       say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, sh_.net), now));
+      for (const auto& a : answers_.on_event(e)) control_.send(a.client, a.line);
       if (auto r = view_.follow_rules(e, master_->registry())) ruled.push_back(std::move(*r));
       dirty_ = true;
     }
     for (const ev3prog::FleetView::RuleCommand& r : ruled) {
       say(r.say);
-      master_->command(r.agent, r.command, now);
+      send_command(0, false, r.agent, r.command, now);
     }
-    if (!ruled.empty()) pump(now);
     if (dirty_ && tty_) {
       redraw(now);
       dirty_ = false;
@@ -226,8 +303,7 @@ class Program {
         return;
       case K::send:
         say("> " + line);
-        master_->command(c.agent, c.command, now);
-        pump(now);
+        send_command(0, false, c.agent, c.command, now);
         return;
     }
   }
@@ -305,6 +381,7 @@ class Program {
       say("stopped");
     }
     if (record_fd_ >= 0) ::close(record_fd_);
+    control_.close();
     sh_.close();
   }
 
@@ -434,6 +511,8 @@ class Program {
   ev3prog::Shell sh_;  // log, signals, socket, trace file, script, drop counters, state-file writes
   ev3proto::NdjsonTrace trace_{"master"};
   std::optional<MasterCore> master_;
+  ev3io::LineServer control_;        // --control
+  ev3prog::ControlAnswers answers_;  // the commands waiting for their robots' answers
   ev3prog::FleetView view_;
   std::string inbuf_;
   std::string listening_;

@@ -19,6 +19,10 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
                              "continues them and (with --election) stands to take the fleet back (default: none)", false},
       {"record", "FILE", "append every report the agents number to FILE before acknowledging it; restarted "
                          "with it, the master continues each agent's record (default: none)", false},
+      {"control", "PATH", "take console commands on a Unix socket at PATH, one per line, one answer per line "
+                          "(mode 0600; default: none)", false},
+      {"control-group", "GROUP", "the control socket 0660, owned by group GROUP", false},
+      {"json", "", "answer on the control socket in JSON (else a line asks for it: --json COMMAND)", false},
   });
   ev3io::ParsedArgs a;
   message = ev3io::parse_args(argc, argv, sp, "master", a);
@@ -65,6 +69,21 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
   out.record = a.get("record");
   if (a.has("record") && out.record.empty()) {
     message = "bad value for --record: empty path";
+    return ParseOutcome::error;
+  }
+  out.control = a.get("control");
+  if (a.has("control") && out.control.empty()) {
+    message = "bad value for --control: empty path";
+    return ParseOutcome::error;
+  }
+  out.control_group = a.get("control-group");
+  if (a.has("control-group") && (out.control_group.empty() || out.control.empty())) {
+    message = out.control.empty() ? "--control-group needs --control" : "bad value for --control-group: empty name";
+    return ParseOutcome::error;
+  }
+  out.json = a.has("json");
+  if (out.json && out.control.empty()) {
+    message = "--json needs --control (it is how the control socket answers)";
     return ParseOutcome::error;
   }
   return ParseOutcome::run;

@@ -19,6 +19,9 @@ struct MasterOptions {
   bool election = false;         ///< --election: LEADER heartbeats, epochs, relay routes (MasterConfig::election)
   std::string state_file;        ///< --state-file FILE: next id, msgid, epoch, members across restarts
   std::string record;            ///< --record FILE: the record of reports, appended, read back at a restart
+  std::string control;           ///< --control PATH: the console language over a Unix socket
+  std::string control_group;     ///< --control-group GROUP: the socket 0660 for GROUP (else 0600)
+  bool json = false;             ///< --json: the control socket answers in JSON
 };
 
 using ParseOutcome = ev3io::ParseOutcome;

@@ -130,7 +130,7 @@ class Shell {
   /// trace file's next flush, a datagram, a signal, or one of @p extra's @p n_extra descriptors
   /// (their revents set; at most kMaxExtra, checked where it is called); not at all when @p more
   /// (receive() stopped at its bound). Returns poll's count.
-  static constexpr std::size_t kMaxExtra = 3;
+  static constexpr std::size_t kMaxExtra = 10;  // stdin, a control socket and its 8 connections
   int wait(Millis now, Millis deadline, bool more, pollfd* extra = nullptr, std::size_t n_extra = 0);
 
   /// The stop line: why (the state file, @p why when given, else the signal) and the drop

@@ -5,12 +5,13 @@ stopped (SIGTERM, must exit 0) at the end of each test."""
 from __future__ import annotations
 
 import os
+import subprocess
 import sys
 from pathlib import Path
 
 import pytest
 
-from ev3net import HB, LOSS, PAUSED, SYNC, Program, TestMaster, free_ports
+from ev3net import HB, LOSS, PAUSED, SYNC, FakeAgent, Program, TestMaster, free_ports, read_status, wait_until
 
 REPO = Path(__file__).resolve().parents[3]
 sys.path.insert(0, str(REPO / "tests" / "python" / "sim"))
@@ -62,6 +63,37 @@ def programs():
             p.close()
     bad = {n: c for n, c in codes.items() if c != 0}
     assert not bad, f"programs did not exit 0 on SIGTERM: {bad}"
+
+
+@pytest.fixture
+def start_master(master_exe, programs, tmp_path):
+    """Starts ev3-master on a free loopback port with --status-json and short timers, for Python
+    test agents (FakeAgent): start(*extra, name=...); p.port, p.status; with control=True also
+    --control on p.sock (its control socket)."""
+    def start(*extra: str, stdin=subprocess.PIPE, name: str = "master", control: bool = False):
+        port = free_ports(1)[0]
+        status = tmp_path / f"{name}.json"
+        sock = tmp_path / f"{name}.sock"
+        if control:
+            extra = ("--control", str(sock), *extra)
+        p = Program(master_exe, ["--port", str(port), "--bind", "127.0.0.1", "--status-json", str(status),
+                                 "--agent-timeout-ms", "1000", "--resend-ms", "150", "--log-level", "3",
+                                 "--log-file", str(tmp_path / f"{name}.log"), *extra],
+                    tmp_path, name, stdin=stdin)
+        programs.append(p)
+        p.port, p.status, p.sock = port, status, sock
+        wait_until(lambda: read_status(status), 3, "the first status JSON")
+        return p
+    return start
+
+
+@pytest.fixture
+def agents():
+    """Python test agents (FakeAgent) of a test, closed at its end."""
+    made: list[FakeAgent] = []
+    yield made
+    for a in made:
+        a.close()
 
 
 @pytest.fixture

@@ -12,32 +12,8 @@ import time
 
 import pytest
 
-from ev3net import HB, T, FakeAgent, Program, free_ports, read_status, wait_until
+from ev3net import T, FakeAgent, free_ports, read_status, wait_until
 from ev3conformance.wire import Message
-
-
-@pytest.fixture
-def start_master(master_exe, programs, tmp_path):
-    def start(*extra: str, stdin=subprocess.PIPE, name: str = "master"):
-        port = free_ports(1)[0]
-        status = tmp_path / f"{name}.json"
-        p = Program(master_exe, ["--port", str(port), "--bind", "127.0.0.1", "--status-json", str(status),
-                                 "--agent-timeout-ms", "1000", "--resend-ms", "150", "--log-level", "3",
-                                 "--log-file", str(tmp_path / f"{name}.log"), *extra],
-                    tmp_path, name, stdin=stdin)
-        programs.append(p)
-        p.port, p.status = port, status
-        wait_until(lambda: read_status(status), 3, "the first status JSON")
-        return p
-    return start
-
-
-@pytest.fixture
-def agents():
-    made: list[FakeAgent] = []
-    yield made
-    for a in made:
-        a.close()
 
 
 def agent(agents, master, temp_id, **kw) -> FakeAgent:

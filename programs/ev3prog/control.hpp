@@ -1,0 +1,89 @@
+/// @file control.hpp
+/// @brief The control socket's answers, without I/O: ev3-master's `--control` socket takes the
+///        console language, one command per line, and gives one answer per line (docs/programs.md,
+///        "The control socket"). A command to robots is answered once each robot has answered it
+///        (acked, refused, or no answer after the resends); what the master answers at once (list,
+///        help, rule, an error) is formatted here too. The program does the socket I/O.
+#pragma once
+
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <string_view>
+#include <utility>
+#include <vector>
+
+#include <ev3proto/master.hpp>
+
+namespace ev3prog {
+
+using ev3proto::Millis;
+
+/// A line from a control client: `--json` as its first word asks for a JSON answer.
+struct ControlLine {
+  bool json = false;
+  std::string command;  ///< the console line, `--json` taken off
+};
+/// Splits @p line (no newline) into its JSON flag and its console command; @p json_default is the
+/// master's `--json`.
+ControlLine parse_control_line(std::string_view line, bool json_default);
+
+/// An answer given at once: @p text (`ok` when empty), as text or as {"ok":true,"answer":...}.
+std::string control_ok(bool json, const std::string& text);
+/// An error answer: "error: TEXT" or {"ok":false,"error":TEXT}.
+std::string control_error(bool json, const std::string& text);
+/// The answer to `list`: the table's lines joined by " | " (text), or {"ok":true,"status":STATUS}
+/// with the master's status JSON (the document `--status-json` writes).
+std::string control_list(bool json, const std::vector<std::string>& table, const std::string& status_json);
+
+/// The commands sent to robots that wait for their answers, in the order sent. Every command the
+/// master sends for the operator is noted here, also the console's, the script's and the rules'
+/// (client 0, answered to nobody): the core answers each agent's commands in the order it queued
+/// them, so an answer belongs to the oldest command of its agent and type still waiting.
+class ControlAnswers {
+ public:
+  using Client = std::uint32_t;  ///< a control connection; 0: the console, a script or a rule
+  struct Answer {
+    Client client = 0;
+    std::string line;  ///< the whole answer, no newline
+  };
+
+  /// A command of type @p type sent at @p now for @p client (who asked in JSON or not) to agent
+  /// @p agent, or with @p agent 0 to all: @p agents, the ids the core queued it for (none: answered
+  /// at once, returned). An agent that has not answered within @p limit_ms is reported as giving
+  /// no answer.
+  std::vector<Answer> sent(Client client, bool json, ev3proto::MsgType type, std::uint16_t agent,
+                           const std::vector<std::uint16_t>& agents, Millis now, Millis limit_ms);
+  /// An operator event: the answers it completes (a command's last robot answered).
+  std::vector<Answer> on_event(const ev3proto::OperatorEvent& e);
+  /// The answers of the commands whose time ran out by @p now.
+  std::vector<Answer> expire(Millis now);
+  /// When expire() next has something to do (kNever: nothing is waiting).
+  Millis deadline() const noexcept;
+  /// Client @p c is gone: its commands wait no more for answers nobody reads.
+  void forget(Client c);
+  /// Commands waiting for an answer.
+  std::size_t waiting() const noexcept { return waiting_.size(); }
+
+  static constexpr Millis kNever = ~Millis{0};
+
+ private:
+  struct Reply {
+    std::uint16_t agent = 0;
+    std::string answer;  ///< "" while waiting, else "acked", "refused", "timed_out", "unknown_agent", "no_answer"
+    std::string reason;  ///< a refusal's reason
+  };
+  struct Waiting {
+    Client client = 0;
+    bool json = false;
+    ev3proto::MsgType type = ev3proto::MsgType::START;
+    bool all = false;
+    Millis until = 0;
+    std::vector<Reply> replies;
+    bool done() const;
+  };
+  static Answer format(const Waiting& w);
+  std::deque<Waiting> waiting_;
+};
+
+}  // namespace ev3prog
