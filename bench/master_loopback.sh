@@ -4,23 +4,26 @@
 # before and after, ev3-loadgen's summary (JSON: cpu_master is the master's share of a core in the
 # measurement window), and the master's CPU seconds over the whole run.
 #
-#   bench/master_loopback.sh [--master-bin PATH] [--port P] AGENTS HEARTBEAT_MS [DURATION_S]
+#   bench/master_loopback.sh [--master-bin PATH] [--port P] [--db] AGENTS HEARTBEAT_MS [DURATION_S]
 #
+# --db: the master keeps its record in SQLite too (--db, with the --state-file it needs; docs/record.md).
 # --master-bin: the ev3-master to measure (default build/bin/ev3-master; for "before", one built
 # from an earlier commit). ev3-loadgen is build/bin/ev3-loadgen. Files go to build/loopback/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 MASTER=build/bin/ev3-master
 PORT=24555
+DB=0
 while [[ $# -gt 0 && $1 == --* ]]; do
   case $1 in
     --master-bin) MASTER=$2; shift 2 ;;
     --port) PORT=$2; shift 2 ;;
+    --db) DB=1; shift ;;
     *) echo "master_loopback.sh: unknown option $1" >&2; exit 2 ;;
   esac
 done
 if [[ $# -lt 2 ]]; then
-  echo "usage: bench/master_loopback.sh [--master-bin PATH] [--port P] AGENTS HEARTBEAT_MS [DURATION_S]" >&2
+  echo "usage: bench/master_loopback.sh [--master-bin PATH] [--port P] [--db] AGENTS HEARTBEAT_MS [DURATION_S]" >&2
   exit 2
 fi
 AGENTS=$1 HB=$2 DURATION=${3:-30}
@@ -29,7 +32,9 @@ mkdir -p "$OUT"
 TAG="$AGENTS-$HB-$(date +%s)"
 STATUS=$OUT/status-$TAG.json
 rm -f "$STATUS"
-"$MASTER" --port "$PORT" --bind 127.0.0.1 --status-json "$STATUS" >"$OUT/master-$TAG.out" 2>&1 &
+EXTRA=()
+if [[ $DB == 1 ]]; then EXTRA=(--db "$OUT/record-$TAG.db" --state-file "$OUT/state-$TAG"); fi
+"$MASTER" --port "$PORT" --bind 127.0.0.1 --status-json "$STATUS" "${EXTRA[@]}" >"$OUT/master-$TAG.out" 2>&1 &
 MPID=$!
 trap 'kill $MPID 2>/dev/null || true' EXIT
 sleep 0.5

@@ -45,10 +45,18 @@ std::string LineServer::open(const std::string& path, const std::string& group) 
   struct stat st {};
   if (lstat(path.c_str(), &st) == 0) {
     if (!S_ISSOCK(st.st_mode)) return "--control " + path + ": the file exists and is not a socket";
-    const int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_CLOEXEC, 0);
-    const bool live = probe >= 0 && connect(probe, reinterpret_cast<const sockaddr*>(&a), sizeof a) == 0;
-    if (probe >= 0) ::close(probe);
-    if (live) return "--control " + path + ": another program is listening on it";
+    // Stale only when nobody listens (ECONNREFUSED); a socket we may not connect to is not ours.
+    const int probe = socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
+    if (probe < 0) return sys_error("--control: socket() for", path);
+    const int rc = connect(probe, reinterpret_cast<const sockaddr*>(&a), sizeof a);
+    const int why = errno;
+    ::close(probe);
+    if (rc == 0 || why == EAGAIN || why == EINPROGRESS)
+      return "--control " + path + ": another program is listening on it";
+    if (why != ECONNREFUSED) {
+      errno = why;
+      return sys_error("--control: cannot tell whether a program listens on", path);
+    }
     if (unlink(path.c_str()) != 0) return sys_error("--control: cannot remove the stale socket", path);
   }
   fd_ = socket(AF_UNIX, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0);
@@ -83,9 +91,9 @@ void LineServer::close() {
 std::size_t LineServer::fds(pollfd* out) const {
   if (fd_ < 0) return 0;
   std::size_t n = 0;
-  out[n++] = pollfd{fd_, static_cast<short>(conns_.size() < kMaxClients ? POLLIN : 0), 0};
+  out[n++] = pollfd{fd_, POLLIN, 0};
   for (const Conn& c : conns_)
-    out[n++] = pollfd{c.fd, static_cast<short>(POLLIN | (c.out.empty() ? 0 : POLLOUT)), 0};
+    out[n++] = pollfd{c.fd, static_cast<short>((c.eof ? 0 : POLLIN) | (c.out.empty() ? 0 : POLLOUT)), 0};
   return n;
 }
 
@@ -98,15 +106,21 @@ void LineServer::serve(const pollfd* p, std::size_t n, const std::function<void(
     while (i < conns_.size() && conns_[i].fd != p[k].fd) ++i;
     if (i == conns_.size() || p[k].revents == 0) continue;
     if (p[k].revents & POLLOUT) flush(conns_[i]);
-    if (!(p[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
+    if (reap(i)) continue;
+    if (conns_[i].eof || !(p[k].revents & (POLLIN | POLLHUP | POLLERR))) continue;
     char buf[4096];
     const ssize_t got = read(conns_[i].fd, buf, sizeof buf);
-    if (got <= 0) {
-      if (got < 0 && (errno == EAGAIN || errno == EINTR)) continue;
+    if (got < 0 && (errno == EAGAIN || errno == EINTR)) continue;
+    if (got < 0) {
       drop(i);
       continue;
     }
     const Client id = conns_[i].id;
+    if (got == 0) {
+      // The client closed its side: a last line without its newline counts, then the answers owed.
+      conns_[i].eof = true;
+      if (!conns_[i].in.empty() && !conns_[i].skipping) conns_[i].in += '\n';
+    }
     conns_[i].in.append(buf, static_cast<std::size_t>(got));
     for (;;) {
       // Looked up again each turn: on_line may send to (and so drop) connections.
@@ -137,14 +151,33 @@ void LineServer::serve(const pollfd* p, std::size_t n, const std::function<void(
       }
       on_line(id, line);
     }
+    for (std::size_t j = 0; j < conns_.size(); ++j)
+      if (conns_[j].id == id) {
+        reap(j);
+        break;
+      }
   }
   if (p[0].revents & POLLIN) {
-    while (conns_.size() < kMaxClients) {
+    for (;;) {
       const int c = accept4(fd_, nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC);
       if (c < 0) break;
-      conns_.push_back(Conn{c, next_++, {}, {}, false});
+      if (conns_.size() >= kMaxClients) {
+        static const char kFull[] = "error: too many control connections (at most 8)\n";
+        static_assert(kMaxClients == 8, "the message names the limit");
+        (void)!::send(c, kFull, sizeof kFull - 1, MSG_NOSIGNAL | MSG_DONTWAIT);
+        ::close(c);
+        continue;
+      }
+      conns_.push_back(Conn{c, next_++, {}, {}, false, false});
     }
   }
+}
+
+bool LineServer::reap(std::size_t i) {
+  const Conn& c = conns_[i];
+  const bool done = c.fd < 0 || (c.eof && c.out.empty() && !(busy && busy(c.id)));
+  if (done) drop(i);
+  return done;
 }
 
 void LineServer::send(Client id, const std::string& line) {
@@ -153,7 +186,8 @@ void LineServer::send(Client id, const std::string& line) {
     conns_[i].out += line;
     conns_[i].out += '\n';
     flush(conns_[i]);
-    if (conns_[i].fd < 0 || conns_[i].out.size() > kMaxPending) drop(i);
+    if (conns_[i].out.size() > kMaxPending) drop(i);
+    else reap(i);
     return;
   }
 }

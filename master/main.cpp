@@ -33,6 +33,7 @@
 #include "ev3io/loop.hpp"
 #include "ev3io/udp.hpp"
 #include "master_options.hpp"
+#include "record_db.hpp"
 
 namespace {
 
@@ -77,6 +78,13 @@ class Program {
     std::string restored, recorded;
     if (!load_state(cfg, restored)) return 2;
     if (!load_record(cfg, recorded)) return 2;
+    if (!opt_.db.empty()) {
+      const std::string err = db_.open(opt_.db);
+      if (!err.empty()) {
+        std::fprintf(stderr, "ev3-master: %s\n", err.c_str());
+        return 2;
+      }
+    }
     if (!opt_.control.empty()) {
       const std::string err = control_.open(opt_.control, opt_.control_group);
       if (!err.empty()) {
@@ -84,6 +92,7 @@ class Program {
         return 2;
       }
       control_.on_close = [this](ev3io::LineServer::Client c) { answers_.forget(c); };
+      control_.busy = [this](ev3io::LineServer::Client c) { return answers_.waiting(c) != 0; };
     }
     master_.emplace(cfg, start_, sh_.trace_file.is_open() ? &trace_ : nullptr);
     ready(start_);  // the state file written at once (nothing is queued yet)
@@ -95,6 +104,7 @@ class Program {
     else say("listening on " + listening_);
     if (!restored.empty()) say(restored);
     if (!recorded.empty()) say(recorded);
+    if (db_.is_open()) say("record " + opt_.db + ": " + db_.opened());
     election_changes();
     loop();
     shutdown();
@@ -121,6 +131,7 @@ class Program {
         redraw(now);
         next_redraw_ = now + kRedrawEveryMs;
       }
+      if (db_.is_open()) commit_db(now);
       if (quit_) break;
       for (const auto& a : answers_.expire(now)) control_.send(a.client, a.line);
       Millis deadline = std::min({master_->next_deadline(), sh_.script.deadline(), answers_.deadline()});
@@ -145,6 +156,7 @@ class Program {
   /// A line from a control connection: the console language, one answer per line (docs/programs.md
   /// "The control socket"). A command to robots is answered when they have answered it.
   void control_line(ev3io::LineServer::Client client, const std::string& text, Millis now) {
+    if (quit_) return;  // after a quit, nothing more is sent
     const ev3prog::ControlLine l = ev3prog::parse_control_line(text, opt_.json);
     ev3prog::ConsoleCommand c;
     const std::string err = ev3prog::console_command(l.command, c);
@@ -183,21 +195,38 @@ class Program {
   }
 
   /// The operator's command to agent @p agent (0: all), from the console, a script or a rule (client
-  /// 0) or a control connection, noted so that its robots' answers go back to whoever asked.
-  void send_command(ev3io::LineServer::Client client, bool json, std::uint16_t agent, const ev3proto::Command& cmd,
+  /// 0) or a control connection: tagged, so that its robots' answers go back to whoever asked and
+  /// to its row of the record (--db).
+  void send_command(ev3io::LineServer::Client client, bool json, std::uint16_t agent, ev3proto::Command cmd,
                     Millis now) {
+    master_->advance(now);  // the drops due first: `all` is every robot the core still has
+    cmd.tag = ++last_tag_;
     std::vector<std::uint16_t> to;
-    if (agent == 0)
-      for (const auto& kv : master_->registry()) to.push_back(kv.first);
-    else
-      to.push_back(agent);
-    // Every resend unanswered, then the drop timeout: the core has answered by then.
-    const Millis limit = (opt_.max_resends + 2) * opt_.timers[ev3proto::Timer::resend] + opt_.timers[ev3proto::Timer::drop];
-    for (const auto& a : answers_.sent(client, json, cmd.type, agent, to, now, limit)) control_.send(a.client, a.line);
+    std::size_t queued = 0;
+    for (const auto& kv : master_->registry())
+      if (agent == 0 || kv.first == agent) {
+        to.push_back(kv.first);
+        queued = std::max(queued, kv.second.queue.size());
+      }
+    if (agent != 0 && to.empty()) to.push_back(agent);  // unknown: the core answers unknown_agent
+    if (client != 0) {
+      // The commands queued ahead each take their resends first; then the agent timeout.
+      const Millis resends = (opt_.max_resends + 1) * opt_.timers[ev3proto::Timer::resend];
+      const Millis limit = (queued + 1) * resends + opt_.timers[ev3proto::Timer::drop];
+      for (const auto& a : answers_.sent(client, json, cmd.tag, cmd.type, agent, to, now, limit))
+        control_.send(a.client, a.line);
+    }
+    if (db_.is_open()) {
+      std::string args = cmd.name;
+      for (const std::string& x : cmd.args) args += (args.empty() ? "" : " ") + x;
+      const auto t = static_cast<std::int64_t>(ev3io::wall_ms());
+      for (std::uint16_t a : to)
+        if (master_->registry().count(a) != 0)
+          db_commands_[{cmd.tag, a}] = db_.command_sent(a, std::string(to_string(cmd.type)), args, t);
+    }
     master_->command(agent, cmd, now);
     pump(now);
   }
-
 
   /// A datagram for the core; what it ignored (or took without effect) is counted by the reason
   /// the core gives.
@@ -245,6 +274,7 @@ class Program {
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
     while (master_->poll_event(e)) {
       say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, sh_.net), now));
+      if (db_.is_open()) record_event(e);
       for (const auto& a : answers_.on_event(e)) control_.send(a.client, a.line);
       if (auto r = view_.follow_rules(e, master_->registry())) ruled.push_back(std::move(*r));
       dirty_ = true;
@@ -381,6 +411,11 @@ class Program {
       say("stopped");
     }
     if (record_fd_ >= 0) ::close(record_fd_);
+    if (db_.is_open()) {
+      last_seen(now);
+      commit_db(now);
+      db_.close();
+    }
     control_.close();
     sh_.close();
   }
@@ -490,6 +525,55 @@ class Program {
   }
 
   /// Election observers (role, epoch, handover): one console line per change.
+  /// --db: the rows of an operator event (docs/record.md).
+  void record_event(const ev3proto::OperatorEvent& e) {
+    using K = ev3proto::OperatorEvent::Kind;
+    const auto t = static_cast<std::int64_t>(ev3io::wall_ms());
+    const std::string type(to_string(e.command));
+    switch (e.kind) {
+      case K::registered: {
+        const auto it = master_->registry().find(e.agent);
+        db_.robot_seen(e.agent, it == master_->registry().end() ? 0 : it->second.ann,
+                       ev3prog::agent_address(master_->registry(), e.agent, sh_.net), t);
+        db_.state(e.agent, "SYNCED", t);
+        return;
+      }
+      case K::state: db_.state(e.agent, e.text, t); return;
+      case K::dropped: db_.state(e.agent, "LOST", t); return;
+      case K::acked:
+      case K::refused:
+      case K::timed_out: {
+        const auto it = db_commands_.find({e.tag, e.agent});
+        if (it == db_commands_.end()) return;  // a command the core made itself (reconcile's)
+        db_.command_answered(it->second, std::string(to_string(e.kind)), e.kind == K::refused ? e.text : "", t);
+        db_commands_.erase(it);
+        return;
+      }
+      case K::unknown_agent: return;  // no row was written for a command to no agent
+      case K::report: db_.report(e.agent, e.seq, type, e.text, t); return;
+      case K::reports_dropped: db_.reports_missing(e.agent, e.seq, e.last, "dropped", t); return;
+      case K::reports_skipped: db_.reports_missing(e.agent, e.seq, e.last, "skipped", t); return;
+    }
+  }
+  /// --db: when each registered robot was last heard (every 5 s, and at exit).
+  void last_seen(Millis now) {
+    const auto wall = static_cast<std::int64_t>(ev3io::wall_ms());
+    for (const auto& kv : master_->registry())
+      db_.robots_heard(kv.first, wall - static_cast<std::int64_t>(now > kv.second.heard ? now - kv.second.heard : 0));
+    next_seen_ = now + 5000;
+  }
+  /// --db: the loop turn's rows in one transaction. A failed write is said (once per cause) and the
+  /// master goes on: the record file (--record) is what the acknowledgements wait for.
+  void commit_db(Millis now) {
+    if (now >= next_seen_) last_seen(now);
+    const std::string err = db_.commit();
+    if (!err.empty() && err != db_failed_) {
+      sh_.log.log(kError, "--db %s: %s", opt_.db.c_str(), err.c_str());
+      say("error: --db " + opt_.db + ": " + err);
+    }
+    db_failed_ = err;
+  }
+
   void election_changes() {
     if (!opt_.election) return;
     const ev3proto::MasterRole r = master_->role();
@@ -500,6 +584,9 @@ class Program {
       for (std::uint16_t m : master_->members()) members += " " + std::to_string(m);
       say("election: " + std::string(to_string(r)) + " of epoch " + std::to_string(seen_epoch_) + " (members" +
           (members.empty() ? " none" : members) + " of epoch " + std::to_string(master_->members_epoch()) + ")");
+      if (db_.is_open())
+        db_.epoch(seen_epoch_, std::string(to_string(r)), members.empty() ? "" : members.substr(1),
+                  static_cast<std::int64_t>(ev3io::wall_ms()));
     }
     if (handovers_ != seen_handovers_) {  // (handed_over() is an elected agent's side: never the PC's)
       seen_handovers_ = handovers_;
@@ -511,8 +598,13 @@ class Program {
   ev3prog::Shell sh_;  // log, signals, socket, trace file, script, drop counters, state-file writes
   ev3proto::NdjsonTrace trace_{"master"};
   std::optional<MasterCore> master_;
-  ev3io::LineServer control_;        // --control
+  ev3master::RecordDb db_;           // --db
+  std::map<std::pair<std::uint32_t, std::uint16_t>, std::int64_t> db_commands_;  // (tag, agent) -> row
+  std::uint32_t last_tag_ = 0;       // the operator's commands, numbered (Command::tag)
+  Millis next_seen_ = 0;             // --db: the robots' last_seen_ms written next
+  std::string db_failed_;            // --db: the last write error said
   ev3prog::ControlAnswers answers_;  // the commands waiting for their robots' answers
+  ev3io::LineServer control_;        // --control (after answers_: its on_close uses them)
   ev3prog::FleetView view_;
   std::string inbuf_;
   std::string listening_;

@@ -23,6 +23,8 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
                           "(mode 0600; default: none)", false},
       {"control-group", "GROUP", "the control socket 0660, owned by group GROUP", false},
       {"json", "", "answer on the control socket in JSON (else a line asks for it: --json COMMAND)", false},
+      {"db", "FILE", "keep robots, state changes, commands and answers, reports and epochs in the SQLite "
+                     "database FILE (created, or continued; needs --state-file)", false},
   });
   ev3io::ParsedArgs a;
   message = ev3io::parse_args(argc, argv, sp, "master", a);
@@ -79,6 +81,12 @@ ParseOutcome parse_master_options(int argc, const char* const* argv, MasterOptio
   out.control_group = a.get("control-group");
   if (a.has("control-group") && (out.control_group.empty() || out.control.empty())) {
     message = out.control.empty() ? "--control-group needs --control" : "bad value for --control-group: empty name";
+    return ParseOutcome::error;
+  }
+  out.db = a.get("db");
+  if (a.has("db") && (out.db.empty() || out.state_file.empty())) {
+    message = out.db.empty() ? "bad value for --db: empty path"
+                             : "--db needs --state-file (the record names robots by id: ids must never be handed out twice)";
     return ParseOutcome::error;
   }
   out.json = a.has("json");

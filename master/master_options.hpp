@@ -22,6 +22,7 @@ struct MasterOptions {
   std::string control;           ///< --control PATH: the console language over a Unix socket
   std::string control_group;     ///< --control-group GROUP: the socket 0660 for GROUP (else 0600)
   bool json = false;             ///< --json: the control socket answers in JSON
+  std::string db;                ///< --db FILE: the mission's record in SQLite (docs/record.md)
 };
 
 using ParseOutcome = ev3io::ParseOutcome;

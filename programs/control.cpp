@@ -1,6 +1,7 @@
 #include "ev3prog/control.hpp"
 
 #include <algorithm>
+#include <iterator>
 
 #include <ev3proto/json.hpp>
 
@@ -48,17 +49,19 @@ bool ControlAnswers::Waiting::done() const {
   return std::all_of(replies.begin(), replies.end(), [](const Reply& r) { return !r.answer.empty(); });
 }
 
-std::vector<ControlAnswers::Answer> ControlAnswers::sent(Client client, bool json, ev3proto::MsgType type,
-                                                         std::uint16_t agent, const std::vector<std::uint16_t>& agents,
-                                                         Millis now, Millis limit_ms) {
+std::vector<ControlAnswers::Answer> ControlAnswers::sent(Client client, bool json, std::uint32_t tag,
+                                                         ev3proto::MsgType type, std::uint16_t agent,
+                                                         const std::vector<std::uint16_t>& agents, Millis now,
+                                                         Millis limit_ms) {
   Waiting w;
   w.client = client;
   w.json = json;
+  w.tag = tag;
   w.type = type;
   w.all = agent == 0;
   w.until = now + limit_ms;
   for (std::uint16_t a : agents) w.replies.push_back(Reply{a, {}, {}});
-  if (w.done()) return client == 0 ? std::vector<Answer>{} : std::vector<Answer>{format(w)};
+  if (w.done()) return {format(w)};
   waiting_.push_back(std::move(w));
   return {};
 }
@@ -71,20 +74,26 @@ std::vector<ControlAnswers::Answer> ControlAnswers::on_event(const OperatorEvent
     case OperatorEvent::Kind::refused: answer = "refused"; break;
     case OperatorEvent::Kind::timed_out: answer = "timed_out"; break;
     case OperatorEvent::Kind::unknown_agent: answer = "unknown_agent"; break;
+    case OperatorEvent::Kind::dropped: answer = "lost"; break;
     default: return out;
   }
-  for (auto it = waiting_.begin(); it != waiting_.end(); ++it) {
-    if (it->type != e.command) continue;
-    auto r = std::find_if(it->replies.begin(), it->replies.end(),
-                          [&](const Reply& x) { return x.agent == e.agent && x.answer.empty(); });
-    if (r == it->replies.end()) continue;
-    r->answer = answer;
-    if (e.kind == OperatorEvent::Kind::refused) r->reason = e.text;
-    if (it->done()) {
-      if (it->client != 0) out.push_back(format(*it));
-      waiting_.erase(it);
+  for (auto it = waiting_.begin(); it != waiting_.end();) {
+    // An answer names its command by tag; a robot lost answers every command it still owed.
+    if (e.kind != OperatorEvent::Kind::dropped && (e.tag == 0 || it->tag != e.tag)) {
+      ++it;
+      continue;
     }
-    break;  // the oldest command of this agent and type takes the answer
+    for (Reply& r : it->replies)
+      if (r.agent == e.agent && r.answer.empty()) {
+        r.answer = answer;
+        if (e.kind == OperatorEvent::Kind::refused) r.reason = e.text;
+      }
+    if (it->done()) {
+      out.push_back(format(*it));
+      it = waiting_.erase(it);
+    } else {
+      ++it;
+    }
   }
   return out;
 }
@@ -98,7 +107,7 @@ std::vector<ControlAnswers::Answer> ControlAnswers::expire(Millis now) {
     }
     for (Reply& r : it->replies)
       if (r.answer.empty()) r.answer = "no_answer";
-    if (it->client != 0) out.push_back(format(*it));
+    out.push_back(format(*it));
     it = waiting_.erase(it);
   }
   return out;
@@ -111,9 +120,12 @@ Millis ControlAnswers::deadline() const noexcept {
 }
 
 void ControlAnswers::forget(Client c) {
-  // Kept as the console's (client 0): they still take their agents' answers in order.
-  for (Waiting& w : waiting_)
-    if (w.client == c) w.client = 0;
+  for (auto it = waiting_.begin(); it != waiting_.end();) it = it->client == c ? waiting_.erase(it) : std::next(it);
+}
+
+std::size_t ControlAnswers::waiting(Client c) const noexcept {
+  return static_cast<std::size_t>(
+      std::count_if(waiting_.begin(), waiting_.end(), [c](const Waiting& w) { return w.client == c; }));
 }
 
 ControlAnswers::Answer ControlAnswers::format(const Waiting& w) {

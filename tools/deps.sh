@@ -26,6 +26,7 @@ apt_pkgs=(
   "pkgconf:/usr/bin/pkg-config"
   "tao-pegtl-dev:/usr/include/tao/pegtl.hpp"
   "libsodium-dev:/usr/include/sodium.h"
+  "libsqlite3-dev:/usr/include/sqlite3.h"
 )
 missing=()
 for entry in "${apt_pkgs[@]}"; do

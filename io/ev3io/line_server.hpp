@@ -40,6 +40,9 @@ class LineServer {
              const std::function<std::string()>& too_long);
   /// Client @p c is gone (closed by it, or by us). Called from serve().
   std::function<void(Client)> on_close;
+  /// Whether client @p c still waits for answers: a client that closed its side of the connection
+  /// (`echo cmd | socat ...`) keeps it until they are written.
+  std::function<bool(Client)> busy;
 
   /// Queues @p line and a newline for @p c (dropped when @p c is gone).
   void send(Client c, const std::string& line);
@@ -50,8 +53,11 @@ class LineServer {
     Client id = 0;
     std::string in, out;
     bool skipping = false;  ///< inside a line over kMaxLine: dropped up to its newline
+    bool eof = false;       ///< the client closed its side: no more lines, answers still go out
   };
   void drop(std::size_t i);
+  /// Drops connection @p i if it is done: broken, or closed by the client with nothing owed.
+  bool reap(std::size_t i);
   void flush(Conn& c);
   int fd_ = -1;
   std::string path_;

@@ -36,25 +36,26 @@ std::string control_error(bool json, const std::string& text);
 /// with the master's status JSON (the document `--status-json` writes).
 std::string control_list(bool json, const std::vector<std::string>& table, const std::string& status_json);
 
-/// The commands sent to robots that wait for their answers, in the order sent. Every command the
-/// master sends for the operator is noted here, also the console's, the script's and the rules'
-/// (client 0, answered to nobody): the core answers each agent's commands in the order it queued
-/// them, so an answer belongs to the oldest command of its agent and type still waiting.
+/// The control clients' commands to robots that wait for their answers. Each carries a tag
+/// (Command::tag) that the master core gives back in the OperatorEvent of each robot's answer, so
+/// an answer is never taken for another command's: not the console's, nor one the core made itself
+/// (reconcile's).
 class ControlAnswers {
  public:
-  using Client = std::uint32_t;  ///< a control connection; 0: the console, a script or a rule
+  using Client = std::uint32_t;  ///< a control connection
   struct Answer {
     Client client = 0;
     std::string line;  ///< the whole answer, no newline
   };
 
-  /// A command of type @p type sent at @p now for @p client (who asked in JSON or not) to agent
+  /// Command @p tag of type @p type sent at @p now for @p client (who asked in JSON or not) to agent
   /// @p agent, or with @p agent 0 to all: @p agents, the ids the core queued it for (none: answered
   /// at once, returned). An agent that has not answered within @p limit_ms is reported as giving
   /// no answer.
-  std::vector<Answer> sent(Client client, bool json, ev3proto::MsgType type, std::uint16_t agent,
+  std::vector<Answer> sent(Client client, bool json, std::uint32_t tag, ev3proto::MsgType type, std::uint16_t agent,
                            const std::vector<std::uint16_t>& agents, Millis now, Millis limit_ms);
-  /// An operator event: the answers it completes (a command's last robot answered).
+  /// An operator event: the answers it completes (a command's last robot answered). A robot
+  /// dropped from the registry (lost) answers what it still owed as `lost`.
   std::vector<Answer> on_event(const ev3proto::OperatorEvent& e);
   /// The answers of the commands whose time ran out by @p now.
   std::vector<Answer> expire(Millis now);
@@ -62,20 +63,21 @@ class ControlAnswers {
   Millis deadline() const noexcept;
   /// Client @p c is gone: its commands wait no more for answers nobody reads.
   void forget(Client c);
-  /// Commands waiting for an answer.
-  std::size_t waiting() const noexcept { return waiting_.size(); }
+  /// Commands of client @p c waiting for an answer.
+  std::size_t waiting(Client c) const noexcept;
 
   static constexpr Millis kNever = ~Millis{0};
 
  private:
   struct Reply {
     std::uint16_t agent = 0;
-    std::string answer;  ///< "" while waiting, else "acked", "refused", "timed_out", "unknown_agent", "no_answer"
+    std::string answer;  ///< "" while waiting, else "acked", "refused", "timed_out", "unknown_agent", "lost", "no_answer"
     std::string reason;  ///< a refusal's reason
   };
   struct Waiting {
     Client client = 0;
     bool json = false;
+    std::uint32_t tag = 0;
     ev3proto::MsgType type = ev3proto::MsgType::START;
     bool all = false;
     Millis until = 0;

@@ -126,7 +126,7 @@ class Master {
     if (MasterCommandOk(agent))
       MasterCommand(agent, c);
     else
-      push(OperatorEvent::Kind::unknown_agent, agent, c.type, {});
+      push(OperatorEvent::Kind::unknown_agent, agent, c.type, {}, c.tag);
     record(Action::MasterCommand, s, {});
   }
 
@@ -464,9 +464,9 @@ class Master {
           e.behaviour = c.name;
           e.behaviour_args = c.args;
         }
-        push(OperatorEvent::Kind::acked, e.id, c.type, {});
+        push(OperatorEvent::Kind::acked, e.id, c.type, {}, c.tag);
       } else {
-        push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)));
+        push(OperatorEvent::Kind::refused, e.id, c.type, std::string(m.param(1)), c.tag);
         // Do not insist on a state the robot cannot reach (spec PermanentRefusal: every reason but
         // the transient ones, "wrong state" and "no behaviour", which leave the desired state for
         // reconcile; a robot's check on receipt refuses in its own words).
@@ -641,7 +641,7 @@ class Master {
       }
       if (e.pending && now_ - e.sent_at >= cfg_.timers[Timer::resend]) {
         if (e.synced && e.resends >= cfg_.max_resends) {
-          push(OperatorEvent::Kind::timed_out, e.id, e.queue.front().type, {});
+          push(OperatorEvent::Kind::timed_out, e.id, e.queue.front().type, {}, e.queue.front().tag);
           e.queue.erase(e.queue.begin());
           e.pending = false;
           start_next(e);
@@ -803,7 +803,7 @@ class Master {
 
   void fail_queue(RegistryEntry& e) {
     if (!e.synced) return;
-    for (const Command& c : e.queue) push(OperatorEvent::Kind::timed_out, e.id, c.type, {});
+    for (const Command& c : e.queue) push(OperatorEvent::Kind::timed_out, e.id, c.type, {}, c.tag);
     e.queue.clear();
     e.pending = false;
   }
@@ -834,8 +834,10 @@ class Master {
     return r.ok() ? std::string(buf, r.size) : std::string();
   }
 
-  void push(OperatorEvent::Kind k, std::uint16_t agent, MsgType t, std::string text) {
-    ev_.push_back(OperatorEvent{k, agent, t, std::move(text)});
+  void push(OperatorEvent::Kind k, std::uint16_t agent, MsgType t, std::string text, std::uint32_t tag = 0) {
+    OperatorEvent e{k, agent, t, std::move(text)};
+    e.tag = tag;
+    ev_.push_back(std::move(e));
   }
 
   // ------------------------------------------------------------------ trace

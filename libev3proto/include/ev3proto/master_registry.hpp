@@ -27,6 +27,8 @@ struct Command {
   MsgType type = MsgType::START;  ///< BEHAVIOUR, START, STOP, PAUSE, RESUME, STANDBY, CONTINUE, RESTART.
   std::string name;               ///< BEHAVIOUR: behaviour name.
   std::vector<std::string> args;  ///< BEHAVIOUR: key=value arguments.
+  std::uint32_t tag = 0;          ///< The caller's number for the command, given back in the
+                                  ///< OperatorEvent of its answer (0: one the core made itself).
 
   /// BEHAVIOUR(name, args...).
   static Command assign(std::string behaviour, std::vector<std::string> arguments = {}) {

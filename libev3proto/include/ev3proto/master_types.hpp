@@ -93,6 +93,8 @@ struct OperatorEvent {
   std::uint32_t seq = 0;               ///< A recorded report's number (0: not numbered), or the
                                        ///< first number of reports_dropped / reports_skipped.
   std::uint32_t last = 0;              ///< The last number of reports_dropped / reports_skipped.
+  std::uint32_t tag = 0;               ///< acked, refused, timed_out, unknown_agent: the command's
+                                       ///< Command::tag (0: a command the core made, reconcile's).
   /// Part of the record of reports (a numbered report, a drop, a skip): what a PC master keeps.
   bool recorded() const noexcept {
     return (kind == Kind::report && seq != 0) || kind == Kind::reports_dropped || kind == Kind::reports_skipped;

@@ -14,6 +14,7 @@
 
 #include "ev3io/state_file.hpp"
 #include "ev3prog/console.hpp"
+#include "ev3prog/control.hpp"
 #include "ev3prog/program.hpp"
 #include "ev3prog/script.hpp"
 #include "ev3prog/trace_file.hpp"
@@ -473,3 +474,47 @@ TEST(Shell, StateWriteFlushesTheTraceFirst) {
 
 }  // namespace
 
+
+// The control socket's answers (ev3prog/control.hpp): by tag, never another command's answer.
+TEST(Control, AnswersGoToTheirCommandByTag) {
+  using ev3proto::MsgType;
+  using ev3proto::OperatorEvent;
+  ev3prog::ControlAnswers w;
+  auto ev = [](OperatorEvent::Kind k, std::uint16_t agent, MsgType t, std::uint32_t tag, std::string text = {}) {
+    OperatorEvent e{k, agent, t, std::move(text)};
+    e.tag = tag;
+    return e;
+  };
+  EXPECT_TRUE(w.sent(1, false, 7, MsgType::PAUSE, 3, {3}, 0, 1000).empty());
+  EXPECT_TRUE(w.sent(2, true, 8, MsgType::PAUSE, 0, {3, 4}, 0, 1000).empty());
+  // The core's own PAUSE (tag 0) and another command's answer are nobody's here.
+  EXPECT_TRUE(w.on_event(ev(OperatorEvent::Kind::acked, 3, MsgType::PAUSE, 0)).empty());
+  EXPECT_TRUE(w.on_event(ev(OperatorEvent::Kind::acked, 3, MsgType::PAUSE, 99)).empty());
+  auto a = w.on_event(ev(OperatorEvent::Kind::acked, 3, MsgType::PAUSE, 8));
+  EXPECT_TRUE(a.empty());  // robot 4 still owes its answer
+  a = w.on_event(ev(OperatorEvent::Kind::refused, 3, MsgType::PAUSE, 7, "busy"));
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_EQ(a[0].client, 1u);
+  EXPECT_EQ(a[0].line, "error: 3 PAUSE refused (busy)");
+  a = w.on_event(ev(OperatorEvent::Kind::dropped, 4, MsgType::START, 0));  // robot 4 lost
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_EQ(a[0].line,
+            "{\"ok\":false,\"command\":\"PAUSE\",\"agent\":\"all\",\"answers\":[{\"agent\":3,\"answer\":\"acked\"},"
+            "{\"agent\":4,\"answer\":\"lost\"}]}");
+  EXPECT_EQ(w.waiting(1) + w.waiting(2), 0u);
+  // No answer in time; a client gone waits no more.
+  EXPECT_TRUE(w.sent(1, false, 9, MsgType::STOP, 5, {5}, 100, 50).empty());
+  EXPECT_TRUE(w.sent(2, false, 10, MsgType::STOP, 5, {5}, 100, 50).empty());
+  EXPECT_EQ(w.deadline(), 150u);
+  w.forget(2);
+  a = w.expire(150);
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_EQ(a[0].line, "error: 5 STOP no_answer");
+  EXPECT_EQ(w.deadline(), ev3prog::ControlAnswers::kNever);
+  a = w.sent(1, false, 11, MsgType::START, 0, {}, 0, 50);  // all, to no robot: answered at once
+  ASSERT_EQ(a.size(), 1u);
+  EXPECT_EQ(a[0].line, "ok: all START: no agents");
+  EXPECT_EQ(ev3prog::parse_control_line("  --json  list\r", false).command, "list");
+  EXPECT_TRUE(ev3prog::parse_control_line("--json list", false).json);
+  EXPECT_FALSE(ev3prog::parse_control_line("--jsonx", false).json);
+}

@@ -79,7 +79,8 @@ def test_the_control_socket_drives_a_fleet(start_master, agents):
     st = c.ask_json("list")
     assert st["ok"] and sorted(x["id"] for x in st["status"]["agents"]) == sorted([a.id, b.id])
     assert c.ask(f"pause {a.id}") == f"ok: {a.id} PAUSE acked"
-    assert [x.type for x in a.commands] == [T["PAUSE"]] and not b.commands
+    # (a fake robot stays ACTIVE: the core sends PAUSE again itself, reconcile, answered to nobody)
+    assert {x.type for x in a.commands} == {T["PAUSE"]} and not b.commands
     r = c.ask_json("behaviour all wait seconds=3")
     assert r == {"ok": True, "command": "BEHAVIOUR", "agent": "all",
                  "answers": [{"agent": min(a.id, b.id), "answer": "acked"},
@@ -126,8 +127,48 @@ def test_each_client_gets_its_own_answers(start_master, agents):
     c3.send(f"stop {a.id}")
     c3.close()
     assert c1.ask(f"start {a.id}") == f"ok: {a.id} START acked"
-    m.write(f"pause {a.id}")  # the console's own command: its answer goes to nobody on the socket
-    assert c1.ask(f"resume {a.id}") == f"ok: {a.id} RESUME acked"
+    # The console's command of the same type, queued ahead: its answer is not taken for c1's.
+    quiet, = fleet(agents, m, 1, answer=False)
+    m.write(f"stop {quiet.id}")
+    c1.send(f"stop {quiet.id}")
+    wait_until(lambda: len({x.msgid for x in quiet.commands if x.type == T["STOP"]}) == 1, 2, "the console's STOP")
+    first = next(x for x in quiet.commands if x.type == T["STOP"])
+    quiet.send(Message(quiet.id, 1, quiet.next_msgid(), T["ACK"], (str(first.msgid).encode(),)), m.port)
+    wait_until(lambda: len({x.msgid for x in quiet.commands if x.type == T["STOP"]}) == 2, 2, "c1's STOP")
+    second = [x for x in quiet.commands if x.type == T["STOP"] and x.msgid != first.msgid][0]
+    quiet.send(Message(quiet.id, 1, quiet.next_msgid(), T["NOT"], (str(second.msgid).encode(), b"busy")), m.port)
+    assert c1.line() == f"error: {quiet.id} STOP refused (busy)"
+
+
+def test_a_client_that_closes_its_side_still_gets_its_answers(start_master, agents):
+    m = start_master(control=True)
+    a, b = fleet(agents, m, 2)
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    _OPEN.append(s)
+    s.settimeout(5)
+    s.connect(str(m.sock))
+    s.sendall(b"pause all\nhelp")  # as `printf 'pause all\nhelp' | socat - UNIX-CONNECT:...` does
+    s.shutdown(socket.SHUT_WR)
+    got = b""
+    while True:
+        x = s.recv(65536)
+        if not x:
+            break  # the master closes once the answers are out
+        got += x
+    lines = got.decode().splitlines()
+    assert lines[0].startswith("commands: list") and lines[1].startswith("ok: all PAUSE: ") and len(lines) == 2
+
+
+@pytest.mark.empty_trace  # no agent: the master's trace has no record
+def test_a_ninth_client_is_told_there_are_too_many(start_master):
+    m = start_master(control=True)
+    clients = [Client(m.sock) for _ in range(8)]
+    assert all(c.ask("help").startswith("commands:") for c in clients)
+    extra = Client(m.sock)
+    assert extra.line() == "error: too many control connections (at most 8)"
+    clients[0].close()
+    time.sleep(0.2)
+    assert Client(m.sock).ask("help").startswith("commands:")
 
 
 @pytest.mark.empty_trace  # no agent: the master's trace has no record

@@ -1,0 +1,116 @@
+"""ev3-master's record in SQLite (`--db FILE`, docs/record.md): robots, state changes, commands and
+their answers, every report once with its number, drops; what survives a killed master; which files
+it refuses."""
+
+from __future__ import annotations
+
+import sqlite3
+import subprocess
+
+import pytest
+
+from ev3net import T, FakeAgent, free_ports, read_status, wait_until
+from ev3conformance.wire import Message, encode
+
+
+def db_rows(path, sql: str, *args) -> list[tuple]:
+    c = sqlite3.connect(f"file:{path}?mode=ro", uri=True)
+    try:
+        return c.execute(sql, args).fetchall()
+    finally:
+        c.close()
+
+
+def report(a: FakeAgent, m, seq: int, value: int, copies: int = 3) -> None:
+    """REPORT(seq, first 1, SENSOR_VALUE in4 US-DIST-CM value) from agent @a."""
+    inner = Message(a.id, 1, a.next_msgid(), T["SENSOR_VALUE"], (b"in4", b"US-DIST-CM", str(value).encode()))
+    a.send(Message(a.id, 1, inner.msgid, T["REPORT"], (str(seq).encode(), b"1", encode(inner))), m.port, copies)
+
+
+def registered(agents, m, n: int) -> list[FakeAgent]:
+    out = []
+    for i in range(n):
+        a = FakeAgent(m.port, 50200 + i)
+        agents.append(a)
+        a.register()
+        a.pinging = True
+        out.append(a)
+    wait_until(lambda: all(x["state"] == "ACTIVE" for x in (read_status(m.status) or {}).get("agents", [{}]))
+               and len(read_status(m.status)["agents"]) == n, 3, "the agents ACTIVE")
+    return out
+
+
+def test_the_record_holds_robots_states_commands_and_each_report_once(start_master, agents, tmp_path):
+    db = tmp_path / "mission.db"
+    m = start_master("--db", str(db), "--state-file", str(tmp_path / "m.state"), control=True)
+    a, b = registered(agents, m, 2)
+    m.write(f"behaviour {a.id} wait seconds=3")
+    m.write(f"start {a.id}")
+    # The robot pings ACTIVE, not WORKING, so the core sends BEHAVIOUR and START again itself
+    # (reconcile): only the operator's two are rows, each with the answer to it.
+    wait_until(lambda: [x.type for x in a.commands][:2] == [T["BEHAVIOUR"], T["START"]], 3, "BEHAVIOUR and START")
+    wait_until(lambda: len([x for x in a.commands if x.type == T["START"]]) >= 3, 3, "reconcile's own STARTs")
+    for seq in (1, 2, 3):
+        report(a, m, seq, 40 + seq)
+    report(a, m, 2, 42)  # a resending of 2: recorded once
+    report(b, m, 1, 7)
+    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 4, 3, "4 reports in the record")
+    assert db_rows(db, "SELECT agent, seq, type, text FROM reports ORDER BY agent, seq") == sorted([
+        (a.id, 1, "SENSOR_VALUE", "in4:US-DIST-CM:41"), (a.id, 2, "SENSOR_VALUE", "in4:US-DIST-CM:42"),
+        (a.id, 3, "SENSOR_VALUE", "in4:US-DIST-CM:43"), (b.id, 1, "SENSOR_VALUE", "in4:US-DIST-CM:7")])
+    assert db_rows(db, "SELECT agent, command, args, answer FROM commands ORDER BY row") == [
+        (a.id, "BEHAVIOUR", "wait seconds=3", "acked"), (a.id, "START", "", "acked")]
+    assert sorted(r[0] for r in db_rows(db, "SELECT id FROM robots")) == sorted([a.id, b.id])
+    assert {(r[0], r[1]) for r in db_rows(db, "SELECT agent, state FROM states")} >= {
+        (a.id, "SYNCED"), (a.id, "ACTIVE"), (b.id, "SYNCED"), (b.id, "ACTIVE")}
+    assert db_rows(db, "PRAGMA user_version") == [(1,)]
+    assert db_rows(db, "PRAGMA journal_mode") == [("wal",)]
+
+
+@pytest.mark.empty_trace  # the restarted master hears nobody: its trace has no record
+def test_a_killed_master_loses_no_committed_row_and_continues_the_file(start_master, agents, programs, tmp_path):
+    db, state = tmp_path / "mission.db", tmp_path / "m.state"
+    m = start_master("--db", str(db), "--state-file", str(state))
+    a, = registered(agents, m, 1)
+    for seq in range(1, 6):
+        report(a, m, seq, seq)
+    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 5, 3, "5 reports in the record")
+    m.proc.kill()  # SIGKILL: no chance to close the file
+    m.proc.wait()
+    m.close()
+    programs.remove(m)
+    assert len(db_rows(db, "SELECT * FROM reports")) == 5
+    m2 = start_master("--db", str(db), "--state-file", str(state), name="again")
+    wait_until(lambda: "continued (schema 1, 5 reports)" in m2.stdout(), 3, "the record continued")
+
+
+@pytest.mark.empty_trace  # refused at start: no record in the trace
+def test_files_that_are_not_a_record_are_refused(master_exe, tmp_path):
+    def run(db, *extra):
+        return subprocess.run([str(master_exe), "--port", str(free_ports(1)[0]), "--bind", "127.0.0.1",
+                               "--db", str(db), *extra], capture_output=True, text=True, timeout=5,
+                              stdin=subprocess.DEVNULL)
+    state = ("--state-file", str(tmp_path / "m.state"))
+    garbage = tmp_path / "garbage.db"
+    garbage.write_bytes(b"this is not a database at all\n" * 200)
+    r = run(garbage, *state)
+    assert r.returncode == 2 and f"--db: {garbage} is not a record" in r.stderr
+    assert garbage.read_bytes().startswith(b"this is not")
+    foreign = tmp_path / "foreign.db"
+    c = sqlite3.connect(foreign)
+    c.execute("CREATE TABLE t (x)")
+    c.commit()
+    c.close()
+    r = run(foreign, *state)
+    assert r.returncode == 2 and "another program's SQLite database" in r.stderr
+    newer = tmp_path / "newer.db"
+    c = sqlite3.connect(newer)
+    c.execute("CREATE TABLE t (x)")
+    c.execute(f"PRAGMA application_id = {0x45563352}")
+    c.execute("PRAGMA user_version = 99")
+    c.commit()
+    c.close()
+    r = run(newer, *state)
+    assert r.returncode == 2 and "has schema 99, newer than this ev3-master's 1" in r.stderr
+    r = run(tmp_path / "fine.db")
+    assert r.returncode == 2 and "--db needs --state-file" in r.stderr
