@@ -88,7 +88,7 @@ fi
 venv="$root/.venv"
 req="$root/tools/requirements.txt"
 stamp="$venv/.deps-stamp"
-want=$(cat "$req" "$root/conformance/pyproject.toml" | sha256sum | cut -d' ' -f1)
+want=$(cat "$req" "$root/conformance/pyproject.toml" "$root/fleet/pyproject.toml" | sha256sum | cut -d' ' -f1)
 if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; then
   echo "deps: setting up the Python venv in .venv"
   [ -x "$venv/bin/python" ] || python3 -m venv "$venv" \
@@ -99,6 +99,8 @@ if [ ! -x "$venv/bin/python" ] || [ "$(cat "$stamp" 2>/dev/null)" != "$want" ]; 
     "$venv/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$root/conformance" \
       || { echo "deps: error: pip could not install conformance/ editable" >&2; exit 1; }
   fi
+  "$venv/bin/pip" install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$root/fleet" \
+    || { echo "deps: error: pip could not install fleet/ editable" >&2; exit 1; }
   echo "$want" > "$stamp"
 fi
 echo "deps: all present"

@@ -5,6 +5,7 @@ it refuses."""
 from __future__ import annotations
 
 import sqlite3
+import sys
 import subprocess
 
 import pytest
@@ -114,3 +115,45 @@ def test_files_that_are_not_a_record_are_refused(master_exe, tmp_path):
     assert r.returncode == 2 and "has schema 99, newer than this ev3-master's 1" in r.stderr
     r = run(tmp_path / "fine.db")
     assert r.returncode == 2 and "--db needs --state-file" in r.stderr
+
+
+def test_ev3_fleet_answers_questions_of_a_record(start_master, agents, tmp_path):
+    db = tmp_path / "mission.db"
+    m = start_master("--db", str(db), "--state-file", str(tmp_path / "m.state"))
+    a, b = registered(agents, m, 2)
+    for seq in range(1, 21):
+        report(a, m, seq, 100 - 3 * seq)
+    b.send_master("REPORT_DROPPED", "1", "2")
+    report(b, m, 3, 5)
+    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 21
+               and db_rows(db, "SELECT count(*) FROM reports_missing") == [(1,)], 3, "the reports in the record")
+
+    def fleet(*args):
+        return subprocess.run([sys.executable, "-m", "ev3fleet.cli", *args], capture_output=True, text=True,
+                              timeout=60, cwd=tmp_path)
+    r = fleet("summary", str(db))
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert lines[0].startswith("2 robots, 21 reports")
+    row_a = next(x for x in lines[2:] if x.split()[0] == str(a.id))
+    row_b = next(x for x in lines[2:] if x.split()[0] == str(b.id))
+    assert " 20  1-20 " in row_a and " 1  3-3 " in row_b and "2 dropped" in row_b
+    r = fleet("export", str(db), "--table", "reports", "--format", "csv", "--out", "r.csv")
+    assert r.returncode == 0, r.stderr
+    rows = (tmp_path / "r.csv").read_text().splitlines()
+    assert rows[0] == "row,t_ms,agent,seq,type,text" and len(rows) == 22
+    r = fleet("export", str(db), "--table", "reports", "--format", "parquet")
+    assert r.returncode == 0, r.stderr
+    import pyarrow.parquet as pq
+    t = pq.read_table(tmp_path / "reports.parquet")
+    assert t.num_rows == 21 and sorted(t.column("seq").to_pylist()) == sorted([*range(1, 21), 3])
+    for out in ("a.png", "a.svg"):
+        r = fleet("plot", str(db), "--robot", str(a.id), "--sensor", "in4", "--out", out)
+        assert r.returncode == 0, r.stderr
+    assert (tmp_path / "a.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert b"<svg" in (tmp_path / "a.svg").read_bytes()[:400]
+    r = fleet("plot", str(db), "--robot", str(a.id), "--sensor", "in1")
+    assert r.returncode == 2 and "no SENSOR_VALUE of in1" in r.stderr and "in4" in r.stderr
+    (tmp_path / "junk.db").write_text("junk\n" * 100)
+    r = fleet("summary", str(tmp_path / "junk.db"))
+    assert r.returncode == 2 and "is not a record" in r.stderr

@@ -1,0 +1,139 @@
+"""ev3-fleet: questions to a mission record (ev3-master --db FILE, docs/record.md).
+
+    ev3-fleet summary DB
+    ev3-fleet export DB --table reports --format csv|parquet [--out FILE]
+    ev3-fleet plot DB --robot ID --sensor PORT [--out FILE.png|FILE.svg]
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+from pathlib import Path
+
+from .record import TABLES, NotARecord, open_record
+
+
+def summary(db) -> str:
+    """Per robot: reports and their numbers, what is missing, states, commands and answers."""
+    out = []
+    robots = db.execute("SELECT id, announced, address, first_seen_ms, last_seen_ms FROM robots ORDER BY id").fetchall()
+    span = db.execute("SELECT min(t_ms), max(t_ms) FROM (SELECT t_ms FROM states UNION ALL SELECT t_ms FROM reports)"
+                      ).fetchone()
+    seconds = (span[1] - span[0]) / 1000 if span[0] is not None else 0.0
+    total = db.execute("SELECT count(*) FROM reports").fetchone()[0]
+    out.append(f"{len(robots)} robots, {total} reports, {seconds:.1f} s of mission")
+    out.append("robot  address               reports  numbers   missing            last state  commands (answered)")
+    for rid, _ann, address, _first, _last in robots:
+        n, lo, hi = db.execute("SELECT count(seq), min(seq), max(seq) FROM reports WHERE agent = ?", (rid,)).fetchone()
+        unnumbered = db.execute("SELECT count(*) FROM reports WHERE agent = ? AND seq IS NULL", (rid,)).fetchone()[0]
+        miss = db.execute("SELECT kind, sum(last - first + 1) FROM reports_missing WHERE agent = ? GROUP BY kind",
+                          (rid,)).fetchall()
+        gone = ", ".join(f"{c} {k}" for k, c in miss) or "-"
+        # A hole: a number up to the highest recorded that is neither a report nor missing.
+        covered = n + sum(c for _, c in miss if c)
+        if hi is not None and covered < hi:
+            gone += f", {hi - covered} not yet"
+        state = db.execute("SELECT state FROM states WHERE agent = ? ORDER BY row DESC LIMIT 1", (rid,)).fetchone()
+        cmds, answered = db.execute("SELECT count(*), count(answer) FROM commands WHERE agent = ?", (rid,)).fetchone()
+        numbers = f"{lo}-{hi}" if hi is not None else "-"
+        reports = f"{n + unnumbered}"
+        out.append(f"{rid:<6} {address:<21} {reports:>7}  {numbers:<9} {gone:<18} {state[0] if state else '-':<11} "
+                   f"{cmds} ({answered})")
+    epochs = db.execute("SELECT epoch, role FROM epochs ORDER BY row").fetchall()
+    if epochs:
+        out.append("epochs: " + ", ".join(f"{e} {r}" for e, r in epochs))
+    return "\n".join(out)
+
+
+def export(db, table: str, fmt: str, out: Path | None) -> Path:
+    cur = db.execute(f"SELECT * FROM {table} ORDER BY rowid")  # table checked against TABLES
+    names = [d[0] for d in cur.description]
+    rows = cur.fetchall()
+    target = out or Path(f"{table}.{fmt}")
+    if fmt == "csv":
+        with open(target, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(names)
+            w.writerows(rows)
+    else:
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+        columns = {n: [r[i] for r in rows] for i, n in enumerate(names)}
+        pq.write_table(pa.table(columns), target)
+    return target
+
+
+def plot(db, robot: int, sensor: str, out: Path | None) -> Path:
+    rows = db.execute("SELECT t_ms, text FROM reports WHERE agent = ? AND type = 'SENSOR_VALUE' ORDER BY t_ms",
+                      (robot,)).fetchall()
+    points: dict[str, list[tuple[float, float]]] = {}
+    t0 = rows[0][0] if rows else 0
+    for t, text in rows:
+        f = text.split(":")  # port, mode, value...
+        if len(f) < 3 or f[0] != sensor:
+            continue
+        try:
+            points.setdefault(f[1], []).append(((t - t0) / 1000, float(f[2])))
+        except ValueError:
+            continue
+    if not points:
+        ports = sorted({r[1].split(":")[0] for r in rows})
+        raise NotARecord(f"robot {robot} has no SENSOR_VALUE of {sensor} in the record"
+                         + (f" (it reported {', '.join(ports)})" if ports else " (no sensor reports at all)"))
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(8, 3.5))
+    for mode, pts in sorted(points.items()):
+        ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=".", linewidth=1, label=mode)
+    ax.set_xlabel("time since its first sensor report (s)")
+    ax.set_ylabel(sensor)
+    ax.set_title(f"robot {robot}, {sensor}")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    target = out or Path(f"robot{robot}-{sensor}.png")
+    fig.tight_layout()
+    fig.savefig(target)
+    plt.close(fig)
+    return target
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="ev3-fleet", description="Questions to a mission record (ev3-master --db).")
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    s = sub.add_parser("summary", help="robots, reports, what is missing, states, commands")
+    s.add_argument("db")
+    e = sub.add_parser("export", help="one table as CSV or Parquet")
+    e.add_argument("db")
+    e.add_argument("--table", required=True, choices=TABLES)
+    e.add_argument("--format", required=True, choices=("csv", "parquet"))
+    e.add_argument("--out", type=Path, help="the file to write (default: TABLE.FORMAT)")
+    p = sub.add_parser("plot", help="a robot's sensor values over time, as PNG or SVG")
+    p.add_argument("db")
+    p.add_argument("--robot", type=int, required=True)
+    p.add_argument("--sensor", required=True, help="its port, e.g. in4")
+    p.add_argument("--out", type=Path, help="FILE.png or FILE.svg (default: robotID-PORT.png)")
+    a = ap.parse_args(argv)
+    if a.cmd == "plot" and a.out is not None and a.out.suffix not in (".png", ".svg"):
+        ap.error(f"--out {a.out}: a plot is written as .png or .svg")
+    try:
+        db = open_record(a.db)
+        try:
+            if a.cmd == "summary":
+                print(summary(db))
+            elif a.cmd == "export":
+                print(export(db, a.table, a.format, a.out))
+            else:
+                print(plot(db, a.robot, a.sensor, a.out))
+        finally:
+            db.close()
+    except NotARecord as err:
+        print(f"ev3-fleet: {err}", file=sys.stderr)
+        return 2
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
