@@ -267,18 +267,24 @@ class Program {
                    });
   }
 
+  /// The core's events (console, --db, control answers, rules), then its ready(). A report the
+  /// core recorded is committed to --db before ready() sends the REPORT_ACK that covers it; the
+  /// other rows wait for the end of the loop turn.
   void pump(Millis now) {
     election_changes();
-    ready(now);
     ev3proto::OperatorEvent e;
     std::vector<ev3prog::FleetView::RuleCommand> ruled;
+    bool recorded = false;
     while (master_->poll_event(e)) {
       say(view_.on_event(e, ev3prog::agent_address(master_->registry(), e.agent, sh_.net), now));
       if (db_.is_open()) record_event(e);
+      recorded = recorded || e.recorded();
       for (const auto& a : answers_.on_event(e)) control_.send(a.client, a.line);
       if (auto r = view_.follow_rules(e, master_->registry())) ruled.push_back(std::move(*r));
       dirty_ = true;
     }
+    if (recorded && db_.is_open()) commit_db(now);
+    ready(now);
     for (const ev3prog::FleetView::RuleCommand& r : ruled) {
       say(r.say);
       send_command(0, false, r.agent, r.command, now);

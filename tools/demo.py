@@ -253,7 +253,7 @@ class Demo:
             [str(self.bin / "ev3-master"), "--port", str(self.mport), "--bind", "127.0.0.1",
              *sum((["--broadcast", f"127.0.0.1:{p}"] for p in self.aports), []),
              "--agent-timeout-ms", "5000", "--status-json", str(self.dir / "status.json"),
-             "--election", "--state-file", str(self.dir / "master.state"),
+             "--election", "--state-file", str(self.dir / "master.state"), "--db", str(self.dir / "mission.db"),
              "--trace", str(self.dir / out.replace(".out", ".ndjson")),
              "--log-file", str(self.dir / out.replace(".out", ".log")), *self.key],
             stdin=subprocess.PIPE, stdout=open(self.dir / out, "wb"), stderr=subprocess.STDOUT)
@@ -582,6 +582,37 @@ class Demo:
             print(f"  signed mode: datagrams refused (unsigned, wrong key, bad MAC, replay): {'; '.join(said)}")
 
 
+def check_record(d: Demo) -> bool:
+    """The mission record (the master's --db, docs/record.md) against the agents' own traces: every
+    report each agent made (its trace's `made`, Reports.tla) is in the record once, as a report or
+    within a run the robot dropped, numbers 1..made with no hole."""
+    import sqlite3
+    d.heading(f"the mission record ({d.dir / 'mission.db'}, ev3-master --db) against the agents' traces")
+    db = sqlite3.connect(f"file:{d.dir / 'mission.db'}?mode=ro", uri=True)
+    ok = True
+    try:
+        for i in range(len(d.agents)):
+            made, agent = 0, None
+            for line in (d.dir / f"agent{i + 1}.ndjson").read_text().splitlines():
+                r = json.loads(line)
+                if r.get("node", "agent") != "agent":
+                    continue
+                made = r.get("changed", {}).get("made", made)
+                agent = r.get("changed", {}).get("id", agent)
+            seqs = sorted(x[0] for x in db.execute("SELECT seq FROM reports WHERE agent = ? AND seq IS NOT NULL",
+                                                    (agent,)))
+            missing = db.execute("SELECT first, last FROM reports_missing WHERE agent = ?", (agent,)).fetchall()
+            covered = set(seqs) | {n for a, b in missing for n in range(a, b + 1)}
+            good = len(seqs) == len(set(seqs)) and covered == set(range(1, made + 1))
+            ok = ok and good
+            print(f"  {d.name(i)}: made {made} reports; the record holds {len(seqs)} "
+                  f"and {sum(b - a + 1 for a, b in missing)} dropped: {'every one, once' if good else 'NOT THE SAME'}",
+                  flush=True)
+    finally:
+        db.close()
+    return ok
+
+
 def master_consts(state: dict[str, str]) -> dict:
     """validate --master's constants for a run of the demo's ev3-master: its timers (--agent-timeout-ms
     5000, resend and max resends: the program's defaults) and, restarted from its --state-file, the
@@ -681,6 +712,8 @@ def main() -> int:
     finally:
         d.stop_all()
     d.summary()
+    if ok and not check_record(d):
+        ok = False
     if not validate_traces(d):
         ok = False
     return 0 if ok else 1

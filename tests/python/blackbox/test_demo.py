@@ -4,7 +4,9 @@ the fleet back) must complete every phase, and every trace it leaves (three agen
 runs, the elected agent's Master core) must be validated by TLC as conforming (docs/spec.md
 "Election traces", "Election master traces"), and so must the whole run, all of them merged ("Whole-run
 traces": System.tla's and Election.tla's invariants, the agents' timeout the demo's).
-The demo exits 1 on a failed phase or a trace that does not conform; its output names which."""
+The demo also checks its mission record (the master's --db) against the agents' traces: every report
+each agent made is in it once. The demo exits 1 on a failed phase, a record that differs or a trace
+that does not conform; its output names which."""
 
 from __future__ import annotations
 
@@ -28,3 +30,5 @@ def test_demo_runs_and_its_traces_conform(agent_exe: Path, tmp_path: Path):
     assert any(line.lstrip().startswith("the whole run (5 traces merged): conforms: ") for line in verdicts), \
         "\n".join(verdicts)
     assert "DEMO FAILED" not in out
+    record = [line for line in out.splitlines() if "reports; the record holds" in line]
+    assert len(record) == 3 and all(line.endswith("every one, once") for line in record), "\n".join(record)
