@@ -69,7 +69,7 @@ def test_agents_in_namespaces_sync_by_broadcast_and_a_partition_heals(lan, maste
 def test_the_master_killed_agents_in_namespaces_elect_one(lan4, master_exe, agent_exe, programs, tmp_path):
     """The PC master and three agents with --election, each in its namespace: once every agent
     knows the membership the PC is killed (SIGKILL); over the bridge the agents elect exactly one of
-    them (the lowest score), and the others follow it."""
+    them (the lowest score, when they noticed the loss together), and the others follow it."""
     bcast = f"{lan4.broadcast()}:{PORT}"
     status = tmp_path / "status.json"
     master = Program(Path("ip"), lan4.argv(0, [str(master_exe), "--port", str(PORT), "--broadcast", bcast,
@@ -95,9 +95,18 @@ def test_the_master_killed_agents_in_namespaces_elect_one(lan4, master_exe, agen
         master.close()  # killed above; stopped here if the test failed before
     won = wait_until(lambda: [i for i in (1, 2, 3) if "election: won epoch" in log(tmp_path, f"agent{i}")], 15,
                      "an agent to win an election")
-    assert won == [1], won  # the lowest score stands first
-    leader = int(re.search(r"state ACTIVE \(id (\d+)\)", log(tmp_path, "agent1")).group(1))
-    for i in (2, 3):
+    assert len(won) == 1, won
+    # The lowest score stands first when the three noticed the loss within half a heartbeat of each
+    # other (the back-off's step less its jitter: docs/election.md "Timers"); one that noticed it a
+    # heartbeat later (its last PONG came later) may be beaten to it. The logs' times count from each
+    # program's start, and the three started within milliseconds.
+    panic = {i: float(re.search(r"\[\s*([\d.]+)\] I agent: state PANIC", log(tmp_path, f"agent{i}")).group(1))
+             for i in (1, 2, 3)}
+    if max(panic.values()) - min(panic.values()) < HB / 2000:
+        assert won == [1], (won, panic)
+    w = won[0]
+    leader = int(re.search(r"state ACTIVE \(id (\d+)\)", log(tmp_path, f"agent{w}")).group(1))
+    for i in {1, 2, 3} - {w}:
         wait_until(lambda: re.search(rf"following master {leader} \(epoch \d+\)", log(tmp_path, f"agent{i}")), 5,
                    f"agent {i} to follow agent {leader}")
-    assert all("election: won epoch" not in log(tmp_path, f"agent{i}") for i in (2, 3))
+    assert all("election: won epoch" not in log(tmp_path, f"agent{i}") for i in {1, 2, 3} - {w})
