@@ -586,6 +586,7 @@ class Program {
     if (r != seen_role_ || master_->epoch() != seen_epoch_) {
       seen_role_ = r;
       seen_epoch_ = master_->epoch();
+      view_.set_election(std::string(to_string(r)), seen_epoch_);
       std::string members;
       for (std::uint16_t m : master_->members()) members += " " + std::to_string(m);
       say("election: " + std::string(to_string(r)) + " of epoch " + std::to_string(seen_epoch_) + " (members" +

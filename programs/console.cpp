@@ -258,7 +258,11 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
                                    Millis now, Millis start,
                                    const std::map<std::uint16_t, ev3proto::ReportRecord>& records) const {
   std::string s = "{\"uptime_ms\":" + std::to_string(now - start) + ",\"listening\":" + ev3proto::json_quote(listening) +
-                  ",\"next_id\":" + std::to_string(next_id) + ",\"agents\":[";
+                  ",\"next_id\":" + std::to_string(next_id) + ",\"election\":" +
+                  (election_role_.empty() ? std::string("null")
+                                          : "{\"role\":" + ev3proto::json_quote(election_role_) +
+                                                ",\"epoch\":" + std::to_string(election_epoch_) + "}") +
+                  ",\"agents\":[";
   bool first = true;
   for (const auto& kv : reg) {
     const ev3proto::RegistryEntry& e = kv.second;
@@ -269,7 +273,10 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
     first = false;
     s += "{\"id\":" + std::to_string(kv.first) + ",\"announced\":" + std::to_string(e.ann) +
          ",\"address\":" + ev3proto::json_quote(i.address) + ",\"synced\":" + (e.synced ? "true" : "false") +
-         ",\"state\":" + ev3proto::json_quote(state_text(e)) +
+         ",\"state\":" + ev3proto::json_quote(state_text(e)) + ",\"led\":" +
+         (e.synced && e.has_state ? ev3proto::json_quote(ev3proto::to_string(ev3proto::led_of(ev3proto::state_of(e.state))))
+                                  : std::string("null")) +
+         ",\"via\":" + (e.via == 0 ? std::string("null") : std::to_string(e.via)) +
          ",\"last_heard_ms_ago\":" + std::to_string(now > e.heard ? now - e.heard : 0) +
          ",\"behaviour\":" + (e.behaviour.empty() ? std::string("null") : ev3proto::json_quote(e.behaviour)) +
          ",\"action\":" + ev3proto::json_quote(i.action.empty() ? "-" : i.action) +

@@ -27,6 +27,8 @@ apt_pkgs=(
   "tao-pegtl-dev:/usr/include/tao/pegtl.hpp"
   "libsodium-dev:/usr/include/sodium.h"
   "libsqlite3-dev:/usr/include/sqlite3.h"
+  "chromium:/usr/bin/chromium"
+  "chromium-driver:/usr/bin/chromedriver"
 )
 missing=()
 for entry in "${apt_pkgs[@]}"; do

@@ -3,6 +3,7 @@
     ev3-fleet summary DB
     ev3-fleet export DB --table reports --format csv|parquet [--out FILE]
     ev3-fleet plot DB --robot ID --sensor PORT [--out FILE.png|FILE.svg]
+    ev3-fleet serve --db DB --control PATH [--bind HOST:PORT] [--world FILE] [--token-file FILE]
 """
 
 from __future__ import annotations
@@ -65,7 +66,8 @@ def export(db, table: str, fmt: str, out: Path | None) -> Path:
     return target
 
 
-def plot(db, robot: int, sensor: str, out: Path | None) -> Path:
+def sensor_figure(db, robot: int, sensor: str):
+    """A matplotlib figure of robot @robot's SENSOR_VALUE reports of port @sensor over time."""
     rows = db.execute("SELECT t_ms, text FROM reports WHERE agent = ? AND type = 'SENSOR_VALUE' ORDER BY t_ms",
                       (robot,)).fetchall()
     points: dict[str, list[tuple[float, float]]] = {}
@@ -93,8 +95,14 @@ def plot(db, robot: int, sensor: str, out: Path | None) -> Path:
     ax.set_title(f"robot {robot}, {sensor}")
     ax.legend()
     ax.grid(alpha=0.3)
-    target = out or Path(f"robot{robot}-{sensor}.png")
     fig.tight_layout()
+    return fig
+
+
+def plot(db, robot: int, sensor: str, out: Path | None) -> Path:
+    import matplotlib.pyplot as plt
+    fig = sensor_figure(db, robot, sensor)
+    target = out or Path(f"robot{robot}-{sensor}.png")
     fig.savefig(target)
     plt.close(fig)
     return target
@@ -115,7 +123,25 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--robot", type=int, required=True)
     p.add_argument("--sensor", required=True, help="its port, e.g. in4")
     p.add_argument("--out", type=Path, help="FILE.png or FILE.svg (default: robotID-PORT.png)")
+    v = sub.add_parser("serve", help="a live web view of the fleet: table, map, plots, log, buttons")
+    v.add_argument("--db", required=True, type=Path, help="the master's --db record")
+    v.add_argument("--control", required=True, help="the master's --control socket")
+    v.add_argument("--bind", default="127.0.0.1:8080", help="HOST:PORT to serve on (default 127.0.0.1:8080)")
+    v.add_argument("--world", type=Path, help="an ev3-sim world file drawn under the robots' paths")
+    v.add_argument("--token-file", type=Path,
+                   help="the token control actions need (default: none on loopback, a new one elsewhere)")
     a = ap.parse_args(argv)
+    if a.cmd == "serve":
+        from .serve import serve
+        from .world import WorldError
+        try:
+            return serve(a.db, a.control, a.bind, a.token_file, a.world)
+        except (ValueError, WorldError) as err:
+            print(f"ev3-fleet: {err}", file=sys.stderr)
+            return 2
+        except OSError as err:
+            print(f"ev3-fleet: cannot serve on {a.bind}: {err.strerror}", file=sys.stderr)
+            return 2
     if a.cmd == "plot" and a.out is not None and a.out.suffix not in (".png", ".svg"):
         ap.error(f"--out {a.out}: a plot is written as .png or .svg")
     try:

@@ -90,6 +90,12 @@ class FleetView {
 
   std::map<std::uint16_t, AgentInfo>& info() { return info_; }
   const std::vector<LostAgent>& lost() const { return lost_; }
+  /// The master's election role and epoch, for the status JSON (`election`; null until set: a
+  /// master without `--election`).
+  void set_election(std::string role, std::uint32_t epoch) {
+    election_role_ = std::move(role);
+    election_epoch_ = epoch;
+  }
 
   /// `rule explore-exploit ...` (Kind::rule): switches the rule on or off; the line for the operator.
   std::string set_rule(const ConsoleCommand& c);
@@ -107,6 +113,8 @@ class FleetView {
  private:
   std::map<std::uint16_t, AgentInfo> info_;
   std::vector<LostAgent> lost_;
+  std::string election_role_;  ///< empty: no election
+  std::uint32_t election_epoch_ = 0;
   ev3proto::ExploreExploit explore_exploit_;
 };
 

@@ -76,6 +76,18 @@ constexpr Led led_of(State s) noexcept {
   return Led::DARK;
 }
 
+/// The agent state a PING carries (the wire's AgentState: every state but OFF) as a core State.
+constexpr State state_of(AgentState s) noexcept {
+  switch (s) {
+    case AgentState::IDLE: return State::IDLE;
+    case AgentState::ACTIVE: return State::ACTIVE;
+    case AgentState::WORKING: return State::WORKING;
+    case AgentState::PAUSED: return State::PAUSED;
+    case AgentState::PANIC: return State::PANIC;
+  }
+  return State::IDLE;
+}
+
 /// States that have a master (AgentLogic `Synced`).
 constexpr bool is_synced(State s) noexcept {
   return s == State::ACTIVE || s == State::WORKING || s == State::PAUSED;

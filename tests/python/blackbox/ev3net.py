@@ -486,3 +486,25 @@ def read_status(path: Path) -> dict | None:
         return json.loads(path.read_text())
     except (OSError, ValueError):
         return None
+
+
+def sim_agent(exe: Path, root: Path, tmp: Path, n: int, mport: int, loss_ms: int, paused_ms: int,
+              *extra: str) -> Program:
+    """ev3-agent number @n on the simulated robot whose tree is @root, broadcasting to the master
+    on loopback port @mport; its trace agentN.nd and log agentN.log in @tmp."""
+    return Program(exe, ["--port", str(free_ports(1)[0]), "--bind", "127.0.0.1", "--broadcast", f"127.0.0.1:{mport}",
+                         "--heartbeat-ms", str(HB), "--master-timeout-ms", str(loss_ms),
+                         "--paused-timeout-ms", str(paused_ms), "--sysfs-root", str(root),
+                         f"--trace={tmp / f'agent{n}.nd'}", *extra, "--log-file", str(tmp / f"agent{n}.log")],
+                   tmp, f"agent{n}")
+
+
+def start_custom_all(master: Program, status: Path, bhv: Path, n: int) -> None:
+    """Waits for @n ACTIVE agents in the master's @status, sends them the behaviour in @bhv
+    (`behaviour all custom`) and `start all` on the master's console, and waits for @n WORKING."""
+    wait_until(lambda: (s := read_status(status)) and sum(a["state"] == "ACTIVE" for a in s["agents"]) == n, 8,
+               f"{n} ACTIVE agents")
+    master.write(f"behaviour all custom @{bhv}")
+    master.write("start all")
+    wait_until(lambda: (s := read_status(status)) and sum(a["state"] == "WORKING" for a in s["agents"]) == n, 5,
+               f"{n} WORKING agents")

@@ -20,7 +20,7 @@ import subprocess
 import time
 from pathlib import Path
 
-from ev3net import HB, Program, free_ports, read_status, trace_records, wait_until
+from ev3net import Program, free_ports, read_status, sim_agent, start_custom_all, trace_records, wait_until
 
 WORLD = "bounds 0 0 800 600\nstart 100 150 0\n"
 POSES = [("robot1", "100,150,0"), ("robot2", "100,450,0")]
@@ -73,19 +73,9 @@ def test_the_record_has_every_report_once_after_the_master_was_killed(master_exe
 
     m1 = master("master1")
     for i, (name, _) in enumerate(POSES):
-        aport = free_ports(1)[0]
-        programs.append(Program(agent_exe, [
-            "--port", str(aport), "--bind", "127.0.0.1", "--broadcast", f"127.0.0.1:{mport}",
-            "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS_MS), "--paused-timeout-ms", "8000",
-            "--sysfs-root", str(sim.root(name)), f"--trace={tmp_path / f'agent{i + 1}.nd'}",
-            *(["--report-buffer", "8"] if i == 1 else []),
-            "--log-file", str(tmp_path / f"agent{i + 1}.log")], tmp_path, f"agent{i + 1}"))
-    wait_until(lambda: (s := read_status(status)) and sum(a["state"] == "ACTIVE" for a in s["agents"]) == 2, 8,
-               "two ACTIVE agents")
-    m1.write(f"behaviour all custom @{tmp_path / 'beat.bhv'}")
-    m1.write("start all")
-    wait_until(lambda: (s := read_status(status)) and sum(a["state"] == "WORKING" for a in s["agents"]) == 2, 5,
-               "two WORKING agents")
+        programs.append(sim_agent(agent_exe, sim.root(name), tmp_path, i + 1, mport, LOSS_MS, 8000,
+                                  *(["--report-buffer", "8"] if i == 1 else [])))
+    start_custom_all(m1, status, tmp_path / "beat.bhv", len(POSES))
     wait_until(lambda: all(r.get("last", 0) >= 10 for r in (read_status(status) or {}).get("reports", {}).values())
                and len((read_status(status) or {}).get("reports", {})) == 2, 5, "ten reports of each agent recorded")
     m1.proc.kill()  # SIGKILL: whatever the master held but had not appended is gone with it
