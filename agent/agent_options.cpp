@@ -1,5 +1,8 @@
 #include "agent_options.hpp"
 
+#include <cmath>
+#include <cstdlib>
+
 #include <ev3proto/reports.hpp>
 
 namespace ev3agent {
@@ -7,6 +10,29 @@ namespace ev3agent {
 using ev3proto::Timer;
 
 namespace {
+/// "X,Y,HEADING" (cm, cm, degrees) as a pose in mm and degrees in [0, 360); false when it is not
+/// three finite numbers, x and y within +-10 km.
+bool parse_pose(const std::string& text, ev3proto::robot::Pose& out) {
+  double v[3] = {};
+  const char* p = text.c_str();
+  for (int i = 0; i < 3; ++i) {
+    char* end = nullptr;
+    v[i] = std::strtod(p, &end);
+    if (end == p || !std::isfinite(v[i]) || (i < 2 && std::fabs(v[i]) > 1e6)) return false;
+    p = end;
+    if (i < 2) {
+      if (*p != ',') return false;
+      ++p;
+    }
+  }
+  if (*p != '\0') return false;
+  out.x_mm = v[0] * 10.0;
+  out.y_mm = v[1] * 10.0;
+  const double h = std::fmod(v[2], 360.0);
+  out.heading_deg = h < 0 ? h + 360.0 : h;
+  return true;
+}
+
 /// A timer's default, in words for the help ("100").
 std::string dflt(Timer t) { return std::to_string(ev3proto::Timers{}[t]); }
 
@@ -34,6 +60,10 @@ std::vector<ev3io::OptionSpec> specs() {
       {"master-script", "FILE", "console commands (as ev3-master --script) run when this agent is elected master", false},
       {"report-buffer", "N", "reports kept until the PC master has recorded them, 1..1024; beyond, the oldest are "
                              "dropped and recorded as dropped (default 1024)", false},
+      {"pose", "X,Y,HEADING", "where the robot starts, for its odometry: cm, cm, degrees counter-clockwise from +x "
+                              "(default 0,0,0)", false},
+      {"pose-ms", "N", "while it works, the robot reports its pose this often when it moved, 0..60000 ms; 0: never "
+                       "(default 1000)", false},
   });
   return s;
 }
@@ -129,6 +159,16 @@ ParseOutcome parse_agent_options(int argc, const char* const* argv, AgentOptions
     message = ev3io::read_uint(a, "report-buffer", 1, ev3proto::kReportSlots, v);
     if (!message.empty()) return ParseOutcome::error;
     out.report_buffer = static_cast<std::size_t>(v);
+  }
+  if (a.has("pose") && !parse_pose(a.get("pose"), out.pose)) {
+    message = "bad value for --pose: '" + a.get("pose") + "' (expected X,Y,HEADING: cm, cm, degrees, e.g. 25,25,45)";
+    return ParseOutcome::error;
+  }
+  {
+    std::uint64_t v = out.pose_ms;
+    message = ev3io::read_uint(a, "pose-ms", 0, 60000, v);
+    if (!message.empty()) return ParseOutcome::error;
+    out.pose_ms = v;
   }
   if (a.has("score")) {
     std::uint64_t v = 0;

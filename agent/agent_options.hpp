@@ -28,6 +28,8 @@ struct AgentOptions {
   std::string state_dir;    ///< --state-dir DIR: epoch and votedFor on disk ("" = in memory only)
   std::string master_script;  ///< --master-script FILE: console commands run when elected master
   std::size_t report_buffer = 0;  ///< --report-buffer N: reports kept until the PC records them (0 = the core's 1024)
+  ev3proto::robot::Pose pose;     ///< --pose X,Y,HEADING (cm, cm, degrees): where the robot starts, for odometry
+  ev3proto::Millis pose_ms = ev3proto::robot::RuntimeConfig{}.pose_ms;  ///< --pose-ms N: pose report period (0: off)
 };
 
 using ParseOutcome = ev3io::ParseOutcome;

@@ -101,6 +101,8 @@ class Program {
     rc.ports = opt_.ports;
     rc.tick_ms = opt_.tick_ms;
     rc.watchdog_ms = opt_.watchdog_ms;
+    rc.start_pose = opt_.pose;
+    rc.pose_ms = opt_.pose_ms;
     rt_.emplace(rc, start);
     rio_.scan(*rt_, start);
     link_.emplace(robot::announced_devices(devices_.ev3dev_tree()));

@@ -251,7 +251,9 @@ def make_app(hub: Hub) -> web.Application:
 
 
 def svg_bytes(fig) -> bytes:
+    import matplotlib
     import matplotlib.pyplot as plt
+    matplotlib.rcParams["svg.fonttype"] = "none"  # text as text: smaller, and a page can find it
     buf = io.BytesIO()
     fig.savefig(buf, format="svg")
     plt.close(fig)

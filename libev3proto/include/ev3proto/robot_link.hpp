@@ -190,7 +190,8 @@ class RobotLink {
         texts[i].append_fixed(r.values[i].raw, r.values[i].decimals);
         values[i] = texts[i].view();
       }
-      n.taken = node.sensor_report(to_string(r.port), r.mode.view(), values, count, now);
+      n.taken = node.sensor_report(r.odometry ? std::string_view("pose") : to_string(r.port), r.mode.view(), values,
+                                   count, now);
       note(n);
     }
   }

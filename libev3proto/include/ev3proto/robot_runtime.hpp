@@ -38,6 +38,7 @@
 #include "robot/actions.hpp"
 #include "robot/behaviours.hpp"
 #include "robot/command.hpp"
+#include "robot/odometry.hpp"
 #include "robot/device.hpp"
 #include "robot/events.hpp"
 #include "robot/leds.hpp"
@@ -64,6 +65,11 @@ struct RuntimeConfig {
   /// Contact watchdog: wheels turning this long after the last contact with a master are stopped
   /// (0: no watchdog). Armed by the first contact() (see Runtime::contact).
   Millis watchdog_ms = 500;
+  /// Odometry: where the robot starts (the operator's word for it), and how often its pose is
+  /// reported while it works and has moved (0: never) as SENSOR_VALUE(pose, ODOM, x mm, y mm,
+  /// heading degrees).
+  Pose start_pose{};
+  Millis pose_ms = 1000;
 };
 
 /// The contact watchdog for heartbeat @p heartbeat_ms: the default (500 ms), or 5 heartbeats when
@@ -116,6 +122,7 @@ class Runtime {
     battery_watch_.hold_ms = cfg.battery_low_ms;
     next_tick_ = now;
     next_battery_ = now;
+    odometry_ = Odometry(cfg.start_pose);
   }
 
   // ------------------------------------------------------------------ inputs: devices
@@ -316,6 +323,7 @@ class Runtime {
   /// stopped at once when they interrupt the action), then the action's end condition.
   void tick(Millis now) noexcept {
     if (off_) return;
+    dead_reckon(now);
     pump(now);
     retry_modes(now);
     watchdog(now);
@@ -543,6 +551,7 @@ class Runtime {
     if (attached_[d] && cfg_.ports.role_on(dev, r)) plugged_ &= ~role_bit(r);
     attached_[d] = false;
     error_[d] = false;
+    if (dev == body_.left.port() || dev == body_.right.port()) odometry_.rebase();  // its count starts again
     if (dev == body_.left.port()) {
       body_.left.detach();
       body_.left_pos.clear();
@@ -864,6 +873,28 @@ class Runtime {
     next_tick_ = now < next_tick_ ? now : next_tick_;
   }
 
+  /// Odometry from this tick's wheel positions; while the robot works (an action or a behaviour
+  /// runs, not paused), its pose every pose_ms when it moved.
+  void dead_reckon(Millis now) noexcept {
+    if (!body_.left_pos.valid || !body_.right_pos.valid) return;  // a wheel missing or not read yet
+    constexpr double kPi = 3.14159265358979323846;
+    const double per_l = kPi * cfg_.geo.wheel_diameter_mm / body_.left.info().count_per_rot;
+    const double per_r = kPi * cfg_.geo.wheel_diameter_mm / body_.right.info().count_per_rot;
+    odometry_.update(body_.left_pos.position, body_.right_pos.position, per_l, per_r, cfg_.geo);
+    if (cfg_.pose_ms == 0 || now < next_pose_ || !(runner_.active() || behaviour_) || runner_.paused()) return;
+    next_pose_ = now + cfg_.pose_ms;
+    if (!odometry_.report_due()) return;
+    const Pose& p = odometry_.pose();
+    Report rep;
+    rep.odometry = true;
+    rep.mode = ModeName("ODOM");
+    rep.count = 3;
+    rep.values[0] = Fixed{static_cast<std::int32_t>(std::lround(p.x_mm)), 0};
+    rep.values[1] = Fixed{static_cast<std::int32_t>(std::lround(p.y_mm)), 0};
+    rep.values[2] = Fixed{static_cast<std::int32_t>(std::lround(p.heading_deg * 10.0)) % 3600, 1};
+    reports_.push(rep);
+  }
+
   /// SENSOR_VALUE of behaviour sensor @p s: its last good reading, all its values.
   void report(behaviour::Sensor s) noexcept {
     Role r{};
@@ -909,6 +940,8 @@ class Runtime {
   behaviour::Definition scratch_;  ///< where a behaviour is parsed and checked (on receipt, at START)
   behaviour::Automaton auto_;
   bool behaviour_ = false;         ///< the automaton drives the runner (a behaviour was started)
+  Odometry odometry_;              ///< the pose from the wheels' positions
+  Millis next_pose_ = 0;           ///< the next pose report is due then
   bool armed_ = false;             ///< the contact watchdog is armed (contact() was called)
   bool held_ = false;              ///< the watchdog holds the wheels
   std::uint32_t holds_ = 0;        ///< times it did

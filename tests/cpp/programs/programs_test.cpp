@@ -84,6 +84,20 @@ TEST(AgentOptions, FlagsBothSpellingsAndRepeatedBroadcast) {
   EXPECT_EQ(o.common.faults.seed, 7u);
 }
 
+TEST(AgentOptions, StartPoseAndPoseReports) {
+  ev3agent::AgentOptions o;
+  std::string m;
+  ASSERT_EQ(agent_args({"--pose", "25,-30.5,-90", "--pose-ms", "0"}, o, m), ev3agent::ParseOutcome::run) << m;
+  EXPECT_DOUBLE_EQ(o.pose.x_mm, 250.0);
+  EXPECT_DOUBLE_EQ(o.pose.y_mm, -305.0);
+  EXPECT_DOUBLE_EQ(o.pose.heading_deg, 270.0);
+  EXPECT_EQ(o.pose_ms, 0u);
+  ev3agent::AgentOptions d;
+  ASSERT_EQ(agent_args({}, d, m), ev3agent::ParseOutcome::run) << m;
+  EXPECT_EQ(d.pose_ms, 1000u);
+  EXPECT_DOUBLE_EQ(d.pose.x_mm, 0.0);
+}
+
 TEST(AgentOptions, ErrorsNameTheFlag) {
   const std::vector<std::pair<std::vector<const char*>, std::string>> bad = {
       {{"--port", "70000"}, "--port"},
@@ -102,6 +116,11 @@ TEST(AgentOptions, ErrorsNameTheFlag) {
       {{"--ports", "wheel=outA"}, "--ports: unknown role 'wheel'"},
       {{"--tick-ms", "4"}, "--tick-ms"},
       {{"--tick-ms", "101"}, "--tick-ms"},
+      {{"--pose", "1,2"}, "--pose: '1,2' (expected X,Y,HEADING"},
+      {{"--pose", "1,2,x"}, "--pose"},
+      {{"--pose", "1,2,3,4"}, "--pose"},
+      {{"--pose", "1e9,0,0"}, "--pose"},
+      {{"--pose-ms", "60001"}, "--pose-ms"},
       {{"stray"}, "stray"},
   };
   for (const auto& b : bad) {

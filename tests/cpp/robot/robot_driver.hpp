@@ -33,6 +33,7 @@
 //   heartbeat MS                  a contact every MS ms while the loop runs (0: none, the master is lost)
 //   stall MS                      the program stalls MS ms: the world goes on, the runtime is not called
 //   until result|event|write [max=MS]   run until the runtime gives one (default max 20000)
+//   model ... pose=MS             the pose reports (odometry) every MS ms while it works (default: none)
 //   where                         wheel travel, distance and heading since the last run / start / mark
 //   motor PORT                    the motor's state, position and speed as its files would say
 //   block PORT / unblock PORT     the wheel is held fast (it does not turn) / free again
@@ -62,7 +63,7 @@ using namespace ev3proto::robot;
 
 class RobotDriver {
  public:
-  RobotDriver() { reset(RuntimeConfig{}); }
+  RobotDriver() { reset(quiet(RuntimeConfig{})); }
 
   std::vector<std::string> run(const std::vector<std::string>& input) {
     out_.clear();
@@ -71,6 +72,12 @@ class RobotDriver {
   }
 
  private:
+  /// The transcripts' runtime reports no pose unless `model pose=MS` asks for it.
+  static RuntimeConfig quiet(RuntimeConfig cfg) {
+    cfg.pose_ms = 0;
+    return cfg;
+  }
+
   void reset(const RuntimeConfig& cfg) {
     cfg_ = cfg;
     world_ = World{};
@@ -113,7 +120,7 @@ class RobotDriver {
     const std::string& c = w[0];
     std::string v;
     if (c == "model") {
-      RuntimeConfig cfg;
+      RuntimeConfig cfg = quiet(RuntimeConfig{});
       for (std::size_t i = 1; i < w.size(); ++i) {
         if (kv(w[i], "ports", v)) {
           ReasonText why;
@@ -126,8 +133,10 @@ class RobotDriver {
           cfg.tick_ms = std::stoul(v);
         } else if (kv(w[i], "watchdog", v)) {
           cfg.watchdog_ms = std::stoul(v);
+        } else if (kv(w[i], "pose", v)) {
+          cfg.pose_ms = std::stoul(v);
         } else {
-          return say("error: model takes ports=, wheel=, base=, tick=, watchdog=");
+          return say("error: model takes ports=, wheel=, base=, tick=, watchdog=, pose=");
         }
       }
       reset(cfg);
@@ -623,7 +632,8 @@ class RobotDriver {
       Report rep;
       while (rt_->poll_report(rep)) {
         more = true;
-        std::string s = "report " + std::string(to_string(rep.port)) + " " + std::string(rep.mode.view());
+        std::string s = "report " + std::string(rep.odometry ? "pose" : to_string(rep.port)) + " " +
+                        std::string(rep.mode.view());
         for (std::size_t i = 0; i < rep.count; ++i) {
           Text<24> t;
           t.append_fixed(rep.values[i].raw, rep.values[i].decimals);

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <atomic>
 #include <cstdio>
 #include <cstdlib>
@@ -11,6 +12,7 @@
 #include <new>
 #include <random>
 #include <string>
+#include <vector>
 
 #include "ev3proto/behaviour/builtins.hpp"
 #include "ev3proto/behaviour/checker.hpp"
@@ -396,6 +398,107 @@ void run_ticks(Runtime& rt, Millis from, Millis to, F text) {
     rt.tick(t);
     drain(rt);
   }
+}
+
+TEST(Odometry, StraightArcAndTurnInPlace) {
+  const Geometry g{56.0, 120.0};
+  Pose p{100.0, 200.0, 90.0};
+  p = roll(p, 50.0, 50.0, g);  // straight ahead, facing +y
+  EXPECT_NEAR(p.x_mm, 100.0, 1e-9);
+  EXPECT_NEAR(p.y_mm, 250.0, 1e-9);
+  EXPECT_NEAR(p.heading_deg, 90.0, 1e-9);
+  const double quarter = 3.14159265358979323846 * 120.0 / 4.0;  // each wheel's arc for 90 degrees in place
+  p = roll(p, quarter, -quarter, g);  // right wheel back: turns right (clockwise)
+  EXPECT_NEAR(p.x_mm, 100.0, 1e-9);
+  EXPECT_NEAR(p.y_mm, 250.0, 1e-9);
+  EXPECT_NEAR(p.heading_deg, 0.0, 1e-9);
+  p = roll(p, -quarter, quarter, g);
+  p = roll(p, -quarter, quarter, g);  // two left quarters: 180
+  EXPECT_NEAR(p.heading_deg, 180.0, 1e-9);
+  // A quarter circle of radius 300 mm to the left: the outer wheel rolls (300 + 60) * pi / 2.
+  Pose q{0.0, 0.0, 0.0};
+  const double inner = 240.0 * 3.14159265358979323846 / 2.0, outer = 360.0 * 3.14159265358979323846 / 2.0;
+  for (int i = 0; i < 100; ++i) q = roll(q, inner / 100, outer / 100, g);
+  EXPECT_NEAR(q.x_mm, 300.0, 0.01);
+  EXPECT_NEAR(q.y_mm, 300.0, 0.01);
+  EXPECT_NEAR(q.heading_deg, 90.0, 1e-6);
+}
+
+TEST(Odometry, TheRuntimeReportsItsPoseWhileItWorksAndMoves) {
+  RuntimeConfig cfg;
+  cfg.start_pose = Pose{250.0, 250.0, 45.0};
+  Runtime rt(cfg, 0);
+  plug_model_a(rt, 0);
+  drain(rt);
+  std::int32_t pos = 0, step = 0;  // the left wheel's count; it grows by step at each read
+  std::int32_t right_zero = 0;       // the right wheel's count is pos - right_zero
+  char buf[16];
+  auto text = [&](const Read& r, Millis) -> std::string_view {
+    if (r.attr == Attr::position) {
+      std::snprintf(buf, sizeof buf, "%d\n", r.dev == Dev::outC ? pos - right_zero : pos);
+      return buf;
+    }
+    if (r.dev == Dev::battery) return "8000000\n";
+    if (r.attr == Attr::decimals || r.attr == Attr::num_values) return "1\n";
+    if (r.attr == Attr::mode) return "US-DIST-CM\n";
+    return "800\n";
+  };
+  struct Got {
+    Report rep;
+    std::int32_t pos;  // the count when it was made
+  };
+  std::vector<Got> got;
+  auto run = [&](Millis from, Millis to) {
+    for (Millis t = from; t <= to; ++t) {
+      if (t < rt.next_deadline()) continue;
+      pos += step;
+      ReadPlan p;
+      rt.plan_reads(p, t);
+      for (std::size_t i = 0; i < p.count; ++i) rt.reading(p.reads[i].dev, p.reads[i].attr, text(p.reads[i], t), t);
+      rt.tick(t);
+      for (Report rep; rt.poll_report(rep);)
+        if (rep.odometry) got.push_back({rep, pos});
+      drain(rt);
+    }
+  };
+  const double mm_per_count = 3.14159265358979323846 * 56.0 / 360.0;
+  auto along = [&](std::int32_t counts) {  // x and y after @p counts straight ahead at 45 degrees
+    return std::lround(250.0 + counts * mm_per_count / std::sqrt(2.0));
+  };
+  run(1, 100);
+  pos = 360;  // idle: the wheels turned (pushed by hand): nothing is reported, the pose follows
+  run(101, 500);
+  EXPECT_TRUE(got.empty());
+  const std::string_view args[] = {"speed=400"};
+  rt.control(ev3proto::ControlKind::start, "drive", args, 1, 600);
+  step = 8;
+  run(600, 2650);
+  ASSERT_EQ(got.size(), 3u);  // at once, then a second apart
+  for (const Got& g : got) {
+    EXPECT_EQ(g.rep.mode.view(), "ODOM");
+    ASSERT_EQ(g.rep.count, 3);
+    EXPECT_EQ(g.rep.values[0].raw, along(g.pos));
+    EXPECT_EQ(g.rep.values[1].raw, along(g.pos));
+    EXPECT_EQ(g.rep.values[2].raw, 450);  // 45.0 degrees
+    EXPECT_EQ(g.rep.values[2].decimals, 1);
+  }
+  EXPECT_EQ(got[0].pos, 360 + 8);
+  rt.control(ev3proto::ControlKind::pause, "drive", args, 1, 2700);
+  step = 0;
+  pos += 100;  // moved while paused: not reported until it works again
+  run(2700, 4700);
+  EXPECT_EQ(got.size(), 3u) << "nothing while paused";
+  const std::int32_t before = pos;
+  rt.device_disconnected(Dev::outC, 4701);  // unplugged and back: its count starts from 0 again
+  rt.device_connected(ev3test::large_motor(Dev::outC), 4702);
+  right_zero = before;
+  rt.control(ev3proto::ControlKind::resume, "drive", args, 1, 4703);
+  step = 8;
+  run(4703, 5800);
+  ASSERT_GE(got.size(), 4u);
+  // The first read after the plug is the new base: the step the wheels made up to it is not counted.
+  EXPECT_EQ(got[3].rep.values[0].raw, along(got[3].pos - 8)) << "the replugged wheel's new zero is not a move";
+  EXPECT_EQ(got[3].rep.values[2].raw, 450);
 }
 
 TEST(RobotNoHeap, WholeRunAllocatesNothing) {

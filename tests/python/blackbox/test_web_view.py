@@ -22,8 +22,10 @@ from ev3net import Program, free_ports, read_status, sim_agent, start_custom_all
 REPO = Path(__file__).resolve().parents[3]
 WORLD = "bounds 0 0 400 300\nbox 180 130 40 40\nfloor red rect 150 215 100 50\nstart 60 60 0\n"
 POSES = [("robot1", "60,60,0"), ("robot2", "60,240,0")]
-# Reports distance every 200 ms while it waits, a second at a time, for good.
-BEAT = "behaviour beat\nreport distance every 200ms\non DEVICE_ERROR -> end\nstate a = wait 1s -> a\n"
+# Drives a square for good (turning early when something is ahead), reporting the distance ahead every 200 ms (and its pose every 500 ms:
+# --pose-ms).
+ROAM = ("behaviour roam\nreport distance every 200ms\non DEVICE_ERROR -> end\non OBSTACLE_DETECTED, PROXIMITY_ALERT -> b\n"
+        "state a = drive 20cm speed=300 -> b\nstate b = turn 90 speed=200 -> a\n")
 SHOT = REPO / "build" / "web" / "fleet-view.png"
 
 
@@ -55,16 +57,16 @@ def mission(master_exe, agent_exe, programs, sim_factory, tmp_path):
     sim = sim_factory(WORLD, robots=POSES)
     mport = free_ports(1)[0]
     status, db, sock = tmp_path / "master.json", tmp_path / "mission.db", tmp_path / "master.sock"
-    (tmp_path / "beat.bhv").write_text(BEAT)
+    (tmp_path / "roam.bhv").write_text(ROAM)
     (tmp_path / "world.txt").write_text(WORLD)
     m = Program(master_exe, ["--port", str(mport), "--bind", "127.0.0.1", "--status-json", str(status),
                              "--state-file", str(tmp_path / "master.state"), "--db", str(db), "--control", str(sock),
                              "--agent-timeout-ms", "3000", "--resend-ms", "150", "--log-level", "3",
                              f"--trace={tmp_path / 'master.nd'}"], tmp_path, "master", stdin=subprocess.PIPE)
     programs.append(m)
-    for i, (name, _) in enumerate(POSES):
-        programs.append(sim_agent(agent_exe, sim.root(name), tmp_path, i + 1, mport, 2000, 4000))
-    start_custom_all(m, status, tmp_path / "beat.bhv", len(POSES))
+    for i, (name, pose) in enumerate(POSES):
+        programs.append(sim_agent(agent_exe, sim.root(name), tmp_path, i + 1, mport, 2000, 4000, "--pose", pose, "--pose-ms", "500"))
+    start_custom_all(m, status, tmp_path / "roam.bhv", len(POSES))
     ids = sorted(a["id"] for a in read_status(status)["agents"])
     return {"status": status, "db": db, "sock": sock, "ids": ids, "world": tmp_path / "world.txt"}
 
@@ -113,6 +115,10 @@ def test_the_page_shows_the_fleet_and_pauses_a_robot(mission, programs, tmp_path
             f"const i = document.getElementById('{plot}'); return i != null && i.complete && i.naturalWidth > 0"),
                    10, "robot b's distance plot drawn")
         assert drv.execute_script("const i = document.getElementById('map'); return i.complete && i.naturalWidth > 0")
+        # The map draws both robots' paths from their pose reports (odometry).
+        wait_until(lambda: all(f"robot {r}" in urllib.request.urlopen(f"http://127.0.0.1:{port}/map.svg",
+                                                                      timeout=10).read().decode()
+                               for r in (a, b)), 10, "both robots on the map")
         SHOT.parent.mkdir(parents=True, exist_ok=True)
         drv.save_screenshot(str(SHOT))
     finally:

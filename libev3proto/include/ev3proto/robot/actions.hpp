@@ -95,6 +95,7 @@ struct Body {
 
 /// A sensor reading a Pause took after settling (agent core: sensor_report(port, mode, values)).
 struct Report {
+  bool odometry = false;  ///< the robot's pose (port `pose`, mode ODOM: x mm, y mm, heading degrees)
   Dev port = Dev::in1;
   ModeName mode;
   Fixed values[kMaxValues];
