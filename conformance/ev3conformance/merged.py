@@ -8,7 +8,8 @@ process has its own): every trace file is one process and keeps its order (an ag
 those of the Master core it ran while elected, node master:ID:EPOCH, are written by one process),
 and the receive of a datagram comes after the record that sent it. A datagram is its sender's id
 and msgid: a record with `changed.msgid` (the node's next msgid after it: agent cores, the PC
-master, Master cores) sent the msgids from the node's previous value up to that one; a relay
+master, Master cores) sent the msgids from the node's previous value up to that one (a Reports.tla
+record, left out of the walk, sends too: its msgids count as sent by the node's record before it); a relay
 forwards a datagram unchanged, with its sender and msgid. A receive whose send is in no trace of
 the set (a node that was not traced, a datagram older than the traces) is allowed and counted in
 the summary; a cycle of the graph is an error naming its records; a datagram two traced nodes
@@ -62,6 +63,7 @@ class Rec:
     k: int         # its place in that file (0-based)
     node: str      # the node that wrote it
     r: dict        # the record as read
+    sent_to: int | None = None  # the node's next msgid after the Reports records left out after it
 
 
 @dataclass
@@ -178,10 +180,10 @@ def _streams(fi: int, recs: list[Rec], start) -> dict[str, Stream]:
         s.epochs.append((-1, epoch))
         for x in mine:
             ch = x.r.get("changed", {})
-            m = ch.get("msgid")
-            if isinstance(m, int):
-                s.sends.append((prev, m, x.k))
-                prev = m
+            for m in (ch.get("msgid"), x.sent_to):  # its own sends, then those of Reports records after it
+                if isinstance(m, int):
+                    s.sends.append((prev, m, x.k))
+                    prev = m
             if isinstance(ch.get("epoch"), int):
                 epoch = ch["epoch"]
                 s.epochs.append((x.k, epoch))
@@ -255,7 +257,7 @@ def merge(paths: list[Path], epochs: dict[str, int] | None = None) -> Merged:
             raise MergeError(f"{f}: no records (an empty trace shows nothing)")
         if tf.cut:
             m.cut.append(f"{f.name} ({tf.cut} bytes)")
-        per_file.append([Rec(fi, k, str(r.get("node", "")), r) for k, r in enumerate(tf.records)])
+        per_file.append([Rec(fi, k, str(r.get("node", "")), r, tf.sent_after.get(k)) for k, r in enumerate(tf.records)])
     streams: list[Stream] = []
     for fi, recs in enumerate(per_file):
         for node, s in _streams(fi, recs, lambda n: _start_epoch(n, _label(files[fi], n), epochs)).items():

@@ -114,6 +114,10 @@ class TraceFile:
     nodes: Counter = field(default_factory=Counter)   # records per node
     beyond: Counter = field(default_factory=Counter)  # BEYOND_SPEC records left out, per node
     reports: Counter = field(default_factory=Counter)  # REPORTS_ACTIONS records checked and left out, per node
+    # The msgids REPORTS_ACTIONS records left out sent (a TakeAck's window sends REPORTs): index in
+    # `records` of the node's last record kept before it -> the node's next msgid after it. A
+    # merge of traces attributes those sends to that record (the earliest place they may be).
+    sent_after: dict[int, int] = field(default_factory=dict)
 
 
 def read_trace(path: Path) -> TraceFile:
@@ -153,6 +157,11 @@ def read_trace(path: Path) -> TraceFile:
             if why:
                 raise TraceError(f"line {i + 1}: {why}: {line[:160]!r}")
             out.reports[node] += 1
+            m = r.get("changed", {}).get("msgid")
+            before = next((k for k in range(len(out.records) - 1, -1, -1)
+                           if str(out.records[k].get("node", "")) == node), None)
+            if isinstance(m, int) and before is not None:
+                out.sent_after[before] = m
             continue
         if r["action"] in BEYOND_SPEC:
             if set(r.get("changed", {})) - {"msgid"}:

@@ -139,6 +139,22 @@ def test_a_cycle_is_an_error_naming_its_records(tmp_path):
     assert not r.ok and "cannot merge the traces: the happens-before graph has a cycle" in r.message
 
 
+def test_what_a_reports_record_sends_is_sent_where_it_was_not_later(tmp_path):
+    # The agent's TakeAck (Reports.tla: left out of the walk) sends msgid 11 (a REPORT its window
+    # lets go); the master takes it, then sends msgid 5, which the agent receives before its next
+    # Tick sends msgid 12. Counting msgid 11 as that Tick's would make a cycle.
+    write(tmp_path / "a.ndjson", [_rec("agent", "Tick", changed={"id": 2, "msgid": 11}),
+                                  _rec("agent", "TakeAck", "1:2:0:42:3", changed={"msgid": 12}),
+                                  _rec("agent", "RecvPong", "1:2:5:6:10"),
+                                  _rec("agent", "Tick", changed={"msgid": 13})])
+    write(tmp_path / "m.ndjson", [_rec("master", "MasterPing", "2:1:11:5:ACTIVE"),
+                                  _rec("master", "MasterTick", changed={"msgid": 6})])
+    m = merged.merge([tmp_path])
+    order = [(m.files[x.file].name, x.k) for x in m.order]
+    assert order.index(("a.ndjson", 0)) < order.index(("m.ndjson", 0)) < order.index(("m.ndjson", 1)) \
+        < order.index(("a.ndjson", 1)), order   # a.ndjson's TakeAck is left out: its RecvPong is record 1
+
+
 def test_a_receive_from_outside_the_traced_nodes_is_reported(tmp_path):
     write(tmp_path / "a.ndjson", [_rec("agent", "Ignore", "9:0:77:19"), _rec("agent", "RecvPong", "1:2:5:6:10")])
     write(tmp_path / "m.ndjson", [_rec("master", "MasterTick", changed={"msgid": 6})])
