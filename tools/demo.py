@@ -6,13 +6,16 @@ Phases (each a function):
   1. sync       ev3-sim, ev3-master and three ev3-agent start, the agents with --election and
                 --sysfs-root on their robot's tree; the fleet syncs (the master's table). The
                 --broadcast lists make a line: agent #1 and agent #3 do not hear each other, agent
-                #2 hears both (and everyone hears the PC)
+                #2 hears both (and everyone hears the PC); the web view (ev3-fleet serve, over the
+                master's --db and --control) starts and its address is printed
   2. behaviour  `wait seconds=N` is assigned, started, paused, resumed, stopped; another agent
                 runs one to the end (ACTION_OK); then the thesis' explore-then-exploit scenario:
                 the operator switches on the master's rule `explore-exploit red`, agents #2 and #3
                 `explore` the arena (driving, backing off and turning at walls and boxes, reporting
                 distance and colour), and the robot whose colour sensor reports the red patch is
-                switched to `exploit colour=red` and stays on the patch (checked with ev3-sim)
+                switched to `exploit colour=red` and stays on the patch (checked with ev3-sim); its
+                odometry (the agents run with --pose) beside ev3-sim's truth, and the web view's map
+                drawing both explorers
   3. master     the master is killed (SIGKILL); the agents fall back (WORKING -> PAUSED -> PANIC,
                 ACTIVE -> PANIC), read from their NDJSON traces
   4. election   the weakest agent (lowest --score: #1) stands first and wins epoch 5 (the PC published
@@ -37,8 +40,9 @@ whole run: all those traces merged into one behaviour, each receive after its se
 merged`, docs/spec.md "Whole-run traces": System.tla's and Election.tla's invariants, among them one
 master per epoch, no command obeyed from a stale master, no motion without the master heard within the
 timeout); a trace or a run that does not conform fails the demo. Logs, traces and the
-status JSON stay in build/demo/. The standard library, and for the validation the ev3conformance
-package (conformance/) with TLC: runs wherever `make deps` has run.
+status JSON stay in build/demo/. The standard library, the ev3fleet package (fleet/: the web view)
+and for the validation the ev3conformance package (conformance/) with TLC: runs wherever `make deps`
+has run.
 """
 
 from __future__ import annotations
@@ -102,6 +106,8 @@ class Demo:
         self.master: subprocess.Popen | None = None
         self.sim: subprocess.Popen | None = None
         self.agents: list[subprocess.Popen] = []
+        self.view: subprocess.Popen | None = None
+        self.view_url = ""
         self.master_out_pos = 0
         self.last_table = None
         self.last_table_at = 0.0
@@ -212,7 +218,7 @@ class Demo:
                  "--heartbeat-ms", str(HB), "--master-timeout-ms", str(LOSS), "--paused-timeout-ms", str(PAUSED),
                  "--election", "--score", str(SCORES[i]), "--state-dir", str(self.dir / f"state{i + 1}"),
                  "--master-script", str(self.dir / "master-script.txt"),
-                 "--sysfs-root", str(self.dir / f"robot{i + 1}"),
+                 "--sysfs-root", str(self.dir / f"robot{i + 1}"), "--pose", POSES[i],
                  "--trace", str(self.dir / f"agent{i + 1}.ndjson"), "--log-file", str(self.dir / f"agent{i + 1}.log"),
                  *self.key],
                 stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -220,6 +226,29 @@ class Demo:
             hears = ", ".join(f"#{j + 1}" for j in HEARS[i])
             self.event(f"started ev3-agent #{i + 1} on 127.0.0.1:{p} (pid {a.pid}), --election --score {SCORES[i]}, "
                        f"--sysfs-root on robot{i + 1}'s tree, its broadcasts reach the PC and {hears}")
+        self.start_view()
+
+    def start_view(self) -> None:
+        """ev3-fleet serve: the fleet's web page, on 127.0.0.1:8080 or, when that is taken, a free port."""
+        port = 8080
+        with socket.socket() as probe:
+            try:
+                probe.bind(("127.0.0.1", port))
+            except OSError:
+                port = free_ports(1)[0]
+        out = self.dir / "view.out"
+        self.view = subprocess.Popen(
+            [sys.executable, "-m", "ev3fleet.cli", "serve", "--db", str(self.dir / "mission.db"),
+             "--control", str(self.dir / "master.sock"), "--world", str(WORLD), "--bind", f"127.0.0.1:{port}"],
+            stdin=subprocess.DEVNULL, stdout=open(out, "wb"), stderr=subprocess.STDOUT)
+        end = time.monotonic() + 15
+        while "the fleet's view at" not in out.read_text(errors="replace"):
+            if self.view.poll() is not None or time.monotonic() > end:
+                raise DemoFailed("ev3-fleet serve did not start: " + out.read_text(errors="replace")[-2000:])
+            time.sleep(0.05)
+        self.view_url = f"http://127.0.0.1:{port}/"
+        self.event(f"started the web view (ev3-fleet serve, pid {self.view.pid}): open {self.view_url} in a browser "
+                   f"to watch the fleet, its map and its sensors, and to pause or stop a robot")
 
     def start_sim(self) -> None:
         """ev3-sim: the arena with three robots at its start poses, one tree each."""
@@ -254,6 +283,7 @@ class Demo:
              *sum((["--broadcast", f"127.0.0.1:{p}"] for p in self.aports), []),
              "--agent-timeout-ms", "5000", "--status-json", str(self.dir / "status.json"),
              "--election", "--state-file", str(self.dir / "master.state"), "--db", str(self.dir / "mission.db"),
+             "--control", str(self.dir / "master.sock"),
              "--trace", str(self.dir / out.replace(".out", ".ndjson")),
              "--log-file", str(self.dir / out.replace(".out", ".log")), *self.key],
             stdin=subprocess.PIPE, stdout=open(self.dir / out, "wb"), stderr=subprocess.STDOUT)
@@ -300,7 +330,9 @@ class Demo:
                 a.send_signal(signal.SIGTERM)
         if self.master and self.master.poll() is None:
             self.master.send_signal(signal.SIGTERM)
-        for p in [*self.agents, self.master, "sim", self.sim]:
+        if self.view and self.view.poll() is None:
+            self.view.send_signal(signal.SIGTERM)
+        for p in [*self.agents, self.master, self.view, "sim", self.sim]:
             if p == "sim":  # the agents are gone (their LEDs dark): the picture of the paths
                 if self.sim and self.sim.poll() is None:
                     self.sim.send_signal(signal.SIGTERM)  # writes paths.svg, unmounts the trees
@@ -394,6 +426,36 @@ class Demo:
             raise DemoFailed(f"robot{robot} (agent {x}) left the red patch while exploiting it: at {pos}")
         self.event(f"after {EXPLOIT_SECONDS} s of `exploit red` robot{robot} (agent {x}) is still on the red patch "
                    f"({pos[0]:.0f}, {pos[1]:.0f}) cm")
+        self.check_view(x, pos, (b, c))
+
+    def check_view(self, agent: int, truth: tuple[float, float], explorers: tuple[int, int]) -> None:
+        """The robot's own idea of where it is (its last pose report, odometry, in the record) beside
+        ev3-sim's truth, and the web view's map drawing both explorers."""
+        import sqlite3
+        import urllib.request
+        db = sqlite3.connect(f"file:{self.dir / 'mission.db'}?mode=ro", uri=True)
+        try:
+            row = db.execute("SELECT text FROM reports WHERE agent = ? AND text LIKE 'pose:%' ORDER BY seq DESC "
+                             "LIMIT 1", (agent,)).fetchone()
+        finally:
+            db.close()
+        if row is None:
+            raise DemoFailed(f"agent {agent} reported no pose (odometry) while it explored")
+        x_mm, y_mm, heading = row[0].split(":")[2:5]
+        off = ((float(x_mm) / 10 - truth[0]) ** 2 + (float(y_mm) / 10 - truth[1]) ** 2) ** 0.5
+        self.event(f"agent {agent}'s odometry (its last pose report, up to a second old) says "
+                   f"({float(x_mm) / 10:.0f}, {float(y_mm) / 10:.0f}) cm heading {float(heading):.0f} deg: "
+                   f"{off:.1f} cm from where ev3-sim has it")
+        try:
+            with urllib.request.urlopen(self.view_url + "map.svg", timeout=10) as r:
+                svg = r.read().decode()
+        except OSError as e:
+            raise DemoFailed(f"the web view did not answer at {self.view_url}: {e}")
+        drawn = [a for a in explorers if f"robot {a}" in svg]
+        if len(drawn) != len(explorers):
+            raise DemoFailed(f"the web view's map lacks robots {sorted(set(explorers) - set(drawn))}")
+        self.event(f"the web view's map ({self.view_url}map.svg) draws the paths of agents "
+                   f"{' and '.join(map(str, explorers))} from their pose reports")
 
     def show_robots(self) -> dict[str, tuple[float, float]]:
         """Where ev3-sim's robots are (its status JSON, written on SIGUSR1): name -> (x, y) cm."""
@@ -575,6 +637,9 @@ class Demo:
         for t, text in self.timeline:
             print(f"  {t:5.1f}s  {text}")
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
+        print(f"  the mission record: {self.dir / 'mission.db'}; see it again in the web view with\n"
+              f"    .venv/bin/ev3-fleet serve --db {self.dir / 'mission.db'} --control {self.dir / 'master.sock'} "
+              f"--world {WORLD}")
         svg = self.dir / "paths.svg"
         print(f"  the robots' paths (ev3-sim --snapshot): {svg}" if svg.exists() else "  no snapshot (ev3-sim did not stop cleanly)")
         if self.signed:

@@ -5,7 +5,8 @@ runs, the elected agent's Master core) must be validated by TLC as conforming (d
 "Election traces", "Election master traces"), and so must the whole run, all of them merged ("Whole-run
 traces": System.tla's and Election.tla's invariants, the agents' timeout the demo's).
 The demo also checks its mission record (the master's --db) against the agents' traces: every report
-each agent made is in it once. The demo exits 1 on a failed phase, a record that differs or a trace
+each agent made is in it once; and it starts the web view (ev3-fleet serve), prints its address, and
+checks that its map draws both exploring robots from their pose reports. The demo exits 1 on a failed phase, a record that differs or a trace
 that does not conform; its output names which."""
 
 from __future__ import annotations
@@ -32,3 +33,6 @@ def test_demo_runs_and_its_traces_conform(agent_exe: Path, tmp_path: Path):
     assert "DEMO FAILED" not in out
     record = [line for line in out.splitlines() if "reports; the record holds" in line]
     assert len(record) == 3 and all(line.endswith("every one, once") for line in record), "\n".join(record)
+    assert any("started the web view (ev3-fleet serve" in line and "open http://127.0.0.1:" in line
+               for line in out.splitlines()), out[-6000:]
+    assert any("the web view's map" in line and "draws the paths of agents" in line for line in out.splitlines())
