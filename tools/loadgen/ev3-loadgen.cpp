@@ -15,6 +15,10 @@
 // and the file's age is sampled every 100 ms of the window (a master that starves its loop under
 // load stops rewriting it: it should be at most about 0.5 s old). The CPU time of this program and,
 // with --master-pid, of the master over the window are reported as a share of one core.
+// With --report-ms N the agents take the behaviour `wait` (the master sends BEHAVIOUR and START, a
+// script of its own) and, while WORKING, each makes a SENSOR_VALUE report every N ms: numbered,
+// acknowledged by the master, a row of its --db record each; the window then begins once every
+// agent is WORKING.
 #include <arpa/inet.h>
 #include <netinet/in.h>
 #include <sys/epoll.h>
@@ -67,6 +71,7 @@ struct Options {
   std::uint16_t first_temp_id = ev3proto::kFirstTempId;
   std::string master_status;
   long master_pid = 0;
+  Millis report_ms = 0;  // a SENSOR_VALUE report this often while WORKING (0: none)
   bool json = false;
 };
 
@@ -86,13 +91,15 @@ const std::vector<ev3io::OptionSpec> kSpecs = {
     {"first-temp-id", "N", "agent i announces temporary id N + i (default 50000)"},
     {"master-status", "FILE", "the master's --status-json: report its agents and lost ones at the end"},
     {"master-pid", "PID", "the master's process: report its CPU time over the window"},
+    {"report-ms", "N", "while WORKING (the master sent BEHAVIOUR wait and START), each agent makes a SENSOR_VALUE "
+                       "report this often, 1..60000 (default: none)"},
     {"json", "", "print the summary as one JSON object"},
 };
 
 const char* kSynopsis =
     "ev3-loadgen --master HOST:PORT --agents N [--heartbeat-ms N] [--duration-s S] [--ramp-s S]\n"
     "            [--settle-s S] [--master-timeout-ms N] [--copies N] [--master-status FILE]\n"
-    "            [--master-pid PID] [--json]";
+    "            [--master-pid PID] [--report-ms N] [--json]";
 
 /// Parses the options; "" or an error naming the bad one.
 std::string parse(int argc, char** argv, Options& o, bool& help) {
@@ -140,6 +147,10 @@ std::string parse(int argc, char** argv, Options& o, bool& help) {
     if (!ev3io::to_uint(a.get("master-pid"), 1, 4194304, v)) return "bad value for --master-pid: '" + a.get("master-pid") + "'";
     o.master_pid = static_cast<long>(v);
   }
+  if (a.has("report-ms")) {
+    if (!ev3io::to_uint(a.get("report-ms"), 1, 60000, v)) return "bad value for --report-ms: '" + a.get("report-ms") + "' (1..60000)";
+    o.report_ms = v;
+  }
   o.json = a.has("json");
   return {};
 }
@@ -156,7 +167,12 @@ struct Sim {
   bool synced_now = false;   // ACTIVE / WORKING / PAUSED now
   unsigned losses = 0;       // HeartbeatLost (synced -> PANIC) in the window
   Millis due = ~Millis{0};   // the core's next deadline, as armed in the heap
+  bool working = false;      // WORKING now: makes reports (--report-ms)
 };
+
+/// The one behaviour the simulated agents take (`behaviour all wait seconds=N` from the master),
+/// so that a START makes them WORKING and they report.
+constexpr ev3proto::BehaviourSpec kWaitOnly[] = {{"wait", 0}};
 
 /// A copy to send later.
 struct Copy {
@@ -209,10 +225,16 @@ class LoadGen {
         s.core->advance(now);
         drain(d.second, now);
       }
+      while (!reports_due_.empty() && reports_due_.top().first <= now) {
+        const std::size_t i = reports_due_.top().second;
+        reports_due_.pop();
+        make_report(i, now);
+      }
       flush_copies(now);
       // Phases: settle until all synced, then the window.
       if (!in_window && window_end == 0 && started == o_.agents &&
-          (synced_now_ == o_.agents || now - t0 >= static_cast<Millis>(o_.settle_s * 1000.0 + ramp_ms))) {
+          ((o_.report_ms != 0 ? working_now_ : synced_now_) == o_.agents ||
+           now - t0 >= static_cast<Millis>(o_.settle_s * 1000.0 + ramp_ms))) {
         in_window = true;
         window_start = now;
         window_end = now + static_cast<Millis>(o_.duration_s * 1000.0);
@@ -238,6 +260,7 @@ class LoadGen {
       // Sleep until a datagram, an agent deadline, a copy or the next start.
       while (!due_.empty() && sims_[due_.top().second].due != due_.top().first) due_.pop();
       Millis wake = std::min(due_.empty() ? kNever : due_.top().first, copies_.empty() ? kNever : copies_.top().at);
+      if (!reports_due_.empty()) wake = std::min(wake, reports_due_.top().first);
       wake = std::min(wake, next_report);
       if (in_window && !o_.master_status.empty()) wake = std::min(wake, next_status_check);
       if (in_window) wake = std::min(wake, window_end);
@@ -300,6 +323,8 @@ class LoadGen {
   void start_agent(std::size_t i, Millis now) {
     ev3proto::AgentConfig c;
     c.caps.model = "A";
+    c.caps.behaviours = kWaitOnly;
+    c.caps.behaviour_count = 1;
     c.timers.set(ev3proto::Timer::heartbeat, o_.heartbeat).set(ev3proto::Timer::loss, o_.loss);
     c.timers.set(ev3proto::Timer::paused, o_.paused).set(ev3proto::Timer::sync, o_.sync);
     c.temp_id = static_cast<std::uint16_t>(o_.first_temp_id + i);
@@ -359,8 +384,25 @@ class LoadGen {
       }
       s.synced_now = synced;
       s.synced = s.synced || synced;
+      const bool working = e.state == ev3proto::State::WORKING;
+      if (working && !s.working && o_.report_ms != 0)  // spread over the period: agents started together
+        reports_due_.push(Due{now + 1 + (i * 7919u) % o_.report_ms, i});
+      if (working != s.working) working ? ++working_now_ : --working_now_;
+      s.working = working;
     }
     arm(i);
+  }
+
+  /// Agent @p i's SENSOR_VALUE report (a distance that changes), and its next one while it works.
+  void make_report(std::size_t i, Millis now) {
+    Sim& s = sims_[i];
+    if (!s.working || !s.core) return;
+    char v[12];
+    std::snprintf(v, sizeof v, "%u", static_cast<unsigned>((now / o_.report_ms + i) % 256));
+    const std::string_view values[1] = {v};
+    if (s.core->sensor_report("in4", "US-DIST-CM", values, 1, now) && measuring_) ++reports_;
+    drain(i, now);
+    reports_due_.push(Due{now + o_.report_ms, i});
   }
 
   /// Puts agent @p i's next deadline in the heap (unless it is there already).
@@ -461,13 +503,13 @@ class LoadGen {
           "\"agents_lost\":%zu,\"heartbeat_losses\":%llu,\"pings\":%llu,\"pongs\":%llu,\"unanswered\":%llu,"
           "\"pong_ms\":{\"samples\":%zu,\"p50\":%.2f,\"p90\":%.2f,\"p99\":%.2f,\"max\":%.2f},"
           "\"send_errors\":%llu,\"master_agents\":%ld,\"master_lost\":%ld,\"status_max_age_ms\":%.0f,"
-          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.4f,\"sent\":%llu,\"received\":%llu}\n",
+          "\"cpu_loadgen\":%.2f,\"cpu_master\":%.4f,\"sent\":%llu,\"received\":%llu,\"reports\":%llu}\n",
           o_.agents, static_cast<unsigned long long>(o_.heartbeat), secs, synced_at_window_, synced_now_, agents_lost_,
           static_cast<unsigned long long>(losses_), static_cast<unsigned long long>(pings_),
           static_cast<unsigned long long>(pongs_), static_cast<unsigned long long>(unanswered_), samples, p50, p90,
           p99, pmax, static_cast<unsigned long long>(send_errors_), m_agents, m_lost, status_max_age_,
           cpu_self_ / secs, o_.master_pid ? cpu_master_ / secs : -1.0, static_cast<unsigned long long>(sent_),
-          static_cast<unsigned long long>(received_));
+          static_cast<unsigned long long>(received_), static_cast<unsigned long long>(reports_));
     } else {
       std::printf("agents %zu (heartbeat %llu ms), window %.1f s: synced %zu at start, %zu at end; %zu agents lost "
                   "the master (%llu heartbeat losses)\n",
@@ -479,6 +521,9 @@ class LoadGen {
                   static_cast<unsigned long long>(unanswered_), p50, p90, p99, pmax, samples,
                   static_cast<unsigned long long>(send_errors_), static_cast<unsigned long long>(sent_),
                   static_cast<unsigned long long>(received_));
+      if (o_.report_ms != 0)
+        std::printf("reports made in the window: %llu (one per agent every %llu ms while WORKING)\n",
+                    static_cast<unsigned long long>(reports_), static_cast<unsigned long long>(o_.report_ms));
       std::printf("CPU over the window, in cores: ev3-loadgen %.2f", cpu_self_ / secs);
       if (o_.master_pid != 0) std::printf(", master %.2f", cpu_master_ / secs);
       std::printf("\n");
@@ -495,12 +540,13 @@ class LoadGen {
   std::vector<Sim> sims_;
   using Due = std::pair<Millis, std::size_t>;  // (deadline, agent)
   std::priority_queue<Due, std::vector<Due>, std::greater<Due>> due_;
+  std::priority_queue<Due, std::vector<Due>, std::greater<Due>> reports_due_;  // --report-ms: (when, agent)
   std::priority_queue<Copy, std::vector<Copy>, std::greater<Copy>> copies_;
   std::uint64_t seq_ = 0;
   ev3proto::Message rx_;
   bool measuring_ = false;
-  std::size_t synced_now_ = 0, synced_at_window_ = 0, agents_lost_ = 0;
-  std::uint64_t pings_ = 0, pongs_ = 0, unanswered_ = 0, losses_ = 0, send_errors_ = 0;
+  std::size_t synced_now_ = 0, synced_at_window_ = 0, agents_lost_ = 0, working_now_ = 0;
+  std::uint64_t pings_ = 0, pongs_ = 0, unanswered_ = 0, losses_ = 0, send_errors_ = 0, reports_ = 0;
   std::uint64_t sent_ = 0, received_ = 0;  // datagrams (copies included) sent and received in the window
   std::vector<std::uint32_t> latencies_;  // microseconds
   double status_max_age_ = 0;            // ms
