@@ -508,3 +508,13 @@ def start_custom_all(master: Program, status: Path, bhv: Path, n: int) -> None:
     master.write("start all")
     wait_until(lambda: (s := read_status(status)) and sum(a["state"] == "WORKING" for a in s["agents"]) == n, 5,
                f"{n} WORKING agents")
+
+
+def made(trace: Path) -> int:
+    """The reports an agent made, as its trace says (Reports.tla's `made`, written when it grows; the
+    agent core's records only, not those of a Master core it ran)."""
+    n = 0
+    for r in trace_records(trace):
+        if r.get("node", "agent") == "agent":
+            n = r.get("changed", {}).get("made", n)
+    return n

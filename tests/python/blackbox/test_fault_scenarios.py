@@ -42,7 +42,8 @@ from pathlib import Path
 import pytest
 
 import netns
-from ev3net import Program, agent_lost, false_master_lost, free_ports, read_status, timeline, trace_records, wait_until
+from ev3net import (Program, agent_lost, false_master_lost, free_ports, made, read_status, timeline, trace_records,
+                    wait_until)
 
 SEEDS = range(1, int(os.environ.get("EV3_FAULT_SEEDS", "1")) + 1)
 FAULT = 30                        # % of copies lost, duplicated, reordered, on every sender
@@ -152,15 +153,6 @@ def follows_pc(recs: list[dict], since: int) -> int | None:
         elif v.get("leader") == 1 and v.get("epoch", 0) > old_epoch and v.get("life") != "MASTER":
             return r["now"] - since
     return None
-
-
-def made(trace: Path) -> int:
-    """The reports an agent made, as its trace says (Reports.tla's `made`)."""
-    n = 0
-    for r in trace_records(trace):
-        if r.get("node", "agent") == "agent":
-            n = r.get("changed", {}).get("made", n)
-    return n
 
 
 def entries(path: Path) -> dict[int, list[tuple[int, int, str]]]:

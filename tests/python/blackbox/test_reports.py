@@ -14,13 +14,12 @@ with this test they hold TakeAck records, and the master's PCTake records."""
 
 from __future__ import annotations
 
-import json
 import re
 import subprocess
 import time
 from pathlib import Path
 
-from ev3net import Program, free_ports, read_status, sim_agent, start_custom_all, trace_records, wait_until
+from ev3net import Program, free_ports, made, read_status, sim_agent, start_custom_all, wait_until
 
 WORLD = "bounds 0 0 800 600\nstart 100 150 0\n"
 POSES = [("robot1", "100,150,0"), ("robot2", "100,450,0")]
@@ -28,14 +27,6 @@ POSES = [("robot1", "100,150,0"), ("robot2", "100,450,0")]
 # (one ACTION_OK each), for good.
 BEAT = "behaviour beat\nreport distance, touch every 100ms\non DEVICE_ERROR -> end\nstate a = wait 1s -> a\n"
 LOSS_MS = 4000  # the agents keep WORKING this long without their master
-
-
-def made(trace: Path) -> int:
-    """The reports an agent made, as its trace says (Reports.tla's `made`, written when it grows)."""
-    n = 0
-    for r in trace_records(trace):
-        n = r.get("changed", {}).get("made", n)
-    return n
 
 
 def agent_id(tmp: Path, i: int) -> int:
