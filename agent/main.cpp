@@ -200,7 +200,7 @@ class Program {
         break;
       }
       case K::report:
-        sh_.log.log(kVerbose, "sensor report %s %s%s", std::string(robot::to_string(n.report.port)).c_str(),
+        sh_.log.log(kVerbose, "sensor report %s %s%s", std::string(robot::report_port(n.report)).c_str(),
                  std::string(n.report.mode.view()).c_str(), n.taken ? "" : " (not taken: not running)");
         break;
       case K::missing:

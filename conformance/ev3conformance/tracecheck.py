@@ -130,6 +130,7 @@ def read_trace(path: Path) -> TraceFile:
         raise TraceError(f"cannot read the trace: {e.strerror or e}") from e
     lines = text.split("\n")
     out = TraceFile([])
+    last_kept: dict[str, int] = {}  # node -> index in out.records of its last record kept
     for i, raw in enumerate(lines):
         line = raw.strip()
         if not line:
@@ -158,16 +159,15 @@ def read_trace(path: Path) -> TraceFile:
                 raise TraceError(f"line {i + 1}: {why}: {line[:160]!r}")
             out.reports[node] += 1
             m = r.get("changed", {}).get("msgid")
-            before = next((k for k in range(len(out.records) - 1, -1, -1)
-                           if str(out.records[k].get("node", "")) == node), None)
-            if isinstance(m, int) and before is not None:
-                out.sent_after[before] = m
+            if isinstance(m, int) and node in last_kept:
+                out.sent_after[last_kept[node]] = m
             continue
         if r["action"] in BEYOND_SPEC:
             if set(r.get("changed", {})) - {"msgid"}:
                 raise TraceError(f"line {i + 1}: a {r['action']} record changes more than the msgid: {line[:120]!r}")
             out.beyond[node] += 1
             continue
+        last_kept[node] = len(out.records)
         out.records.append(r)
         out.nodes[node] += 1
     return out

@@ -190,7 +190,7 @@ class RobotLink {
         texts[i].append_fixed(r.values[i].raw, r.values[i].decimals);
         values[i] = texts[i].view();
       }
-      n.taken = node.sensor_report(r.odometry ? std::string_view("pose") : to_string(r.port), r.mode.view(), values,
+      n.taken = node.sensor_report(report_port(r), r.mode.view(), values,
                                    count, now);
       note(n);
     }

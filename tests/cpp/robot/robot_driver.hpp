@@ -632,7 +632,7 @@ class RobotDriver {
       Report rep;
       while (rt_->poll_report(rep)) {
         more = true;
-        std::string s = "report " + std::string(rep.odometry ? "pose" : to_string(rep.port)) + " " +
+        std::string s = "report " + std::string(report_port(rep)) + " " +
                         std::string(rep.mode.view());
         for (std::size_t i = 0; i < rep.count; ++i) {
           Text<24> t;

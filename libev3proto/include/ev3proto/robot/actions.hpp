@@ -101,6 +101,10 @@ struct Report {
   Fixed values[kMaxValues];
   std::uint8_t count = 0;
 };
+/// The port SENSOR_VALUE names for @p r: its sensor's port (`in4`), or `pose` for odometry.
+constexpr std::string_view report_port(const Report& r) noexcept {
+  return r.odometry ? std::string_view("pose") : to_string(r.port);
+}
 
 /// Reports waiting to be taken (full: the oldest is dropped and counted).
 class Reports {
