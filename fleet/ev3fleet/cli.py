@@ -84,10 +84,9 @@ def sensor_figure(db, robot: int, sensor: str):
         ports = sorted({r[1].split(":")[0] for r in rows})
         raise NotARecord(f"robot {robot} has no SENSOR_VALUE of {sensor} in the record"
                          + (f" (it reported {', '.join(ports)})" if ports else " (no sensor reports at all)"))
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    fig, ax = plt.subplots(figsize=(8, 3.5))
+    from matplotlib.figure import Figure  # the object API: no global state, safe in a worker thread
+    fig = Figure(figsize=(8, 3.5))
+    ax = fig.subplots()
     for mode, pts in sorted(points.items()):
         ax.plot([p[0] for p in pts], [p[1] for p in pts], marker=".", linewidth=1, label=mode)
     ax.set_xlabel("time since its first sensor report (s)")
@@ -100,11 +99,9 @@ def sensor_figure(db, robot: int, sensor: str):
 
 
 def plot(db, robot: int, sensor: str, out: Path | None) -> Path:
-    import matplotlib.pyplot as plt
     fig = sensor_figure(db, robot, sensor)
     target = out or Path(f"robot{robot}-{sensor}.png")
     fig.savefig(target)
-    plt.close(fig)
     return target
 
 

@@ -26,11 +26,10 @@ def poses(db) -> dict[int, list[tuple[float, float, float]]]:
 
 
 def map_figure(db, world: World | None):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    from matplotlib.figure import Figure  # the object API: no global state, safe in a worker thread
     from matplotlib.patches import Polygon, Rectangle
-    fig, ax = plt.subplots(figsize=(7, 5.25))
+    fig = Figure(figsize=(7, 5.25))
+    ax = fig.subplots()
     if world is not None:
         x0, y0, x1, y1 = world.bounds
         ax.add_patch(Rectangle((x0, y0), x1 - x0, y1 - y0, fill=False, linewidth=2, edgecolor="#444444"))

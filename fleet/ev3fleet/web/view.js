@@ -4,7 +4,6 @@
 
 const token = new URLSearchParams(location.search).get("token");
 const fleetBody = document.querySelector("#fleet tbody");
-const answers = {};          // robot id -> its last answer, kept across table redraws
 const shownPlots = {};       // "robot/port" -> the report count its picture shows
 const IMAGE_EVERY_MS = 2000; // a picture is redrawn at most this often
 let lastMap = 0, mapCount = -1, mapTimer = null;
@@ -35,40 +34,68 @@ function buttons(id) {
     c => el("button", {"data-robot": String(id), "data-command": c}, c)));
 }
 
+// A robot's row, made once: its cells are updated in place, so a button under the pointer or with
+// the keyboard's focus stays the same element while the fleet changes around it.
+const CELLS = ["id", "state", "behaviour", "step", "battery", "heard", "epoch", "via", "reports"];
+
+function rowOf(id) {
+  let tr = fleetBody.querySelector(`tr[data-robot="${id}"]`);
+  if (!tr) {
+    tr = el("tr", {"data-robot": String(id)}, ...CELLS.map(c => el("td", {"class": c})), buttons(id),
+            el("td", {"class": "answer"}));
+    tr.querySelector("td.state").append(el("span", {"class": "led DARK"}), el("span", {"class": "name"}));
+    const after = [...fleetBody.children].find(r => Number(r.dataset.robot) > id);
+    fleetBody.insertBefore(tr, after || null);
+  }
+  return tr;
+}
+
+function setText(tr, cls, text) {
+  const td = tr.querySelector(`td.${cls}`);
+  if (td.textContent !== text) td.textContent = text;
+}
+
 function renderFleet(doc) {
   const master = document.getElementById("master");
-  if (!doc.status) {
-    master.textContent = `master unreachable: ${doc.error || "no status"}`;
+  const problems = [doc.error && `master unreachable: ${doc.error}`, doc.record_error && `record: ${doc.record_error}`]
+    .filter(Boolean);
+  const s = doc.status;
+  if (!s) {
+    master.textContent = problems.join("; ") || "waiting for the master";
     master.className = "down";
     return;
   }
-  const s = doc.status, e = s.election;
-  master.className = "";
-  master.textContent = `master ${s.listening}` + (e ? `, ${e.role} of epoch ${e.epoch}` : "") +
-    `, ${s.agents.length} robots`;
-  const rows = s.agents.map(a => {
-    const ans = answers[a.id];
-    return el("tr", {"data-robot": String(a.id)},
-      el("td", {}, String(a.id)),
-      el("td", {"class": "state"}, el("span", {"class": `led ${a.led || "DARK"}`, "title": a.led || "no state yet"}),
-         a.state),
-      el("td", {"class": "behaviour"}, a.behaviour || "-"),
-      el("td", {"class": "step"}, a.step ?? "-"),
-      el("td", {}, a.battery || "-"),
-      el("td", {}, ago(a.last_heard_ms_ago)),
-      el("td", {}, e ? String(e.epoch) : "-"),
-      el("td", {}, a.via ? String(a.via) : "direct"),
-      el("td", {}, reportsText(s.reports[String(a.id)])),
-      buttons(a.id),
-      el("td", {"class": "answer" + (ans && !ans.ok ? " error" : "")}, ans ? ans.text : ""));
-  });
-  fleetBody.replaceChildren(...rows);
+  const e = s.election;
+  master.className = problems.length ? "down" : "";
+  master.textContent = (problems.length ? problems.join("; ") + " (the table is the last one heard) - " : "") +
+    `master ${s.listening}` + (e ? `, ${e.role} of epoch ${e.epoch}` : "") + `, ${s.agents.length} robots`;
+  const seen = new Set();
+  for (const a of s.agents) {
+    seen.add(String(a.id));
+    const tr = rowOf(a.id);
+    setText(tr, "id", String(a.id));
+    const led = tr.querySelector("td.state span.led");
+    const ledClass = `led ${a.led || "DARK"}`;
+    if (led.className !== ledClass) led.className = ledClass;
+    led.title = a.led || "no state yet";
+    const name = tr.querySelector("td.state span.name");
+    if (name.textContent !== a.state) name.textContent = a.state;
+    setText(tr, "behaviour", a.behaviour || "-");
+    setText(tr, "step", a.step ?? "-");
+    setText(tr, "battery", a.battery || "-");
+    setText(tr, "heard", ago(a.last_heard_ms_ago));
+    setText(tr, "epoch", e ? String(e.epoch) : "-");
+    setText(tr, "via", a.via ? String(a.via) : "direct");
+    setText(tr, "reports", reportsText(s.reports[String(a.id)]));
+  }
+  for (const tr of [...fleetBody.children]) if (!seen.has(tr.dataset.robot)) tr.remove();
   document.getElementById("lost").textContent = s.lost.length
     ? "lost: " + s.lost.map(l => `${l.id} (${ago(l.lost_ms_ago)})`).join(", ") : "";
 }
 
-function addLog(lines) {
+function addLog(lines, replace = false) {
   const log = document.getElementById("log");
+  if (replace) log.replaceChildren();  // the server's backlog when the stream (re)connects
   for (const l of lines) {
     const t = new Date(l.t_ms).toLocaleTimeString();
     log.append(el("li", {"class": l.kind}, `${t}  ${l.agent == null ? "PC" : "robot " + l.agent}  ${l.kind}: ${l.text}`));
@@ -88,8 +115,12 @@ function refreshMap(count) {
   }, Math.max(0, due));
 }
 
+let lastSensors = {}, sensorsTimer = null;
+
 function renderSensors(sensors) {
+  lastSensors = sensors;
   const box = document.getElementById("plots");
+  let later = false;
   for (const [robot, ports] of Object.entries(sensors)) {
     for (const [port, n] of Object.entries(ports)) {
       const key = `${robot}/${port}`;
@@ -99,12 +130,17 @@ function renderSensors(sensors) {
         box.append(img);
       }
       const shown = shownPlots[key];
-      if (!shown || (shown.n !== n && Date.now() - shown.at >= IMAGE_EVERY_MS)) {
+      if (shown && shown.n === n) continue;
+      if (!shown || Date.now() - shown.at >= IMAGE_EVERY_MS) {
         shownPlots[key] = {n, at: Date.now()};
         img.src = `/plot/${robot}/${port}.svg?n=${n}`;
+      } else {
+        later = true;  // drawn too recently: once more when its time comes, even if no report follows
       }
     }
   }
+  if (later && !sensorsTimer)
+    sensorsTimer = setTimeout(() => { sensorsTimer = null; renderSensors(lastSensors); }, IMAGE_EVERY_MS);
 }
 
 async function send(robot, command) {
@@ -127,7 +163,6 @@ async function send(robot, command) {
   out.textContent = `${command} ${robot}: ${text}`;
   out.className = a.ok ? "" : "error";
   if (robot !== "all") {
-    answers[robot] = {ok: a.ok, text};
     const cell = document.querySelector(`tr[data-robot="${robot}"] td.answer`);
     if (cell) {
       cell.textContent = text;
@@ -144,6 +179,7 @@ document.addEventListener("click", ev => {
 const events = new EventSource("/events");
 events.addEventListener("fleet", ev => renderFleet(JSON.parse(ev.data)));
 events.addEventListener("log", ev => addLog(JSON.parse(ev.data)));
+events.addEventListener("backlog", ev => addLog(JSON.parse(ev.data), true));
 events.addEventListener("sensors", ev => renderSensors(JSON.parse(ev.data)));
 events.addEventListener("map", ev => refreshMap(JSON.parse(ev.data)));
 events.onerror = () => {

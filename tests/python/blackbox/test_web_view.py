@@ -8,9 +8,13 @@ token it was given, a command it does not know, and bad flags at start."""
 
 from __future__ import annotations
 
+import http.client
 import json
+import signal
+import socket
 import subprocess
 import sys
+import time
 import urllib.error
 import urllib.request
 from pathlib import Path
@@ -163,8 +167,54 @@ def test_bad_flags_are_refused_at_start(tmp_path):
     r = run("--bind", "localhost")
     assert r.returncode == 2 and "expected HOST:PORT" in r.stderr, r.stderr
     r = run("--token-file", str(tmp_path / "short"))
-    assert r.returncode == 2 and "at least 16 characters" in r.stderr, r.stderr
+    assert r.returncode == 2 and "at least 16 printable ASCII characters" in r.stderr, r.stderr
     r = run("--token-file", str(tmp_path / "none"))
     assert r.returncode == 2 and "No such file" in r.stderr, r.stderr
     r = run("--world", str(tmp_path / "bad-world.txt"))
     assert r.returncode == 2 and "line 2: unknown statement 'bxo'" in r.stderr, r.stderr
+
+
+@pytest.mark.empty_trace
+def test_the_view_alone_guards_itself_and_stops_at_once(programs, tmp_path):
+    """No master, no record yet: the page still loads, says why it has nothing, refuses a request
+    addressed to another host name (DNS rebinding) and any framing; an unknown picture is a 404;
+    SIGTERM with a page's event stream open ends the view within a second or two; a port in use is
+    refused at start, before any address is printed."""
+    view, port = serve(tmp_path, programs, tmp_path / "none.db", tmp_path / "none.sock")
+
+    def get(path: str, host: str | None = None):
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=10)
+        c.request("GET", path, headers={"Host": host} if host else {})
+        try:
+            r = c.getresponse()
+            return r.status, dict(r.getheaders()), r.read()
+        finally:
+            c.close()
+    status, headers, body = get("/")
+    assert status == 200 and b"ev3 fleet" in body
+    assert headers["X-Frame-Options"] == "DENY" and "frame-ancestors 'none'" in headers["Content-Security-Policy"]
+    status, _, body = get("/", host=f"rebound.example:{port}")
+    assert status == 403 and b"only at a loopback address" in body
+    assert get("/plot/99999999999999999999/in4.svg")[0] == 404
+    assert get("/plot/2/in4.svg")[0] == 404
+    assert get("/map.svg")[0] == 200
+    stream = socket.create_connection(("127.0.0.1", port), timeout=10)
+    stream.sendall(f"GET /events HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\n\r\n".encode())
+    seen = b""
+    while b"event: fleet" not in seen:
+        seen += stream.recv(4096)
+    assert b"none.db: no such file" in seen or b"no such file" in seen  # the record's trouble, on the page
+    t = time.monotonic()
+    view.proc.send_signal(signal.SIGTERM)
+    assert view.proc.wait(10) == 0
+    assert time.monotonic() - t < 3, "the view took long to stop with a page open"
+    stream.close()
+    programs.remove(view)
+    view.close()
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        r = subprocess.run([sys.executable, "-m", "ev3fleet.cli", "serve", "--db", str(tmp_path / "m.db"),
+                            "--control", str(tmp_path / "m.sock"), "--bind", f"127.0.0.1:{busy.getsockname()[1]}"],
+                           capture_output=True, text=True, timeout=30)
+    assert r.returncode == 2 and "cannot serve on" in r.stderr and "the fleet's view at" not in r.stdout, r
