@@ -47,7 +47,7 @@ if [[ $REPORTS != 0 ]]; then
 fi
 "$MASTER" --port "$PORT" --bind 127.0.0.1 --status-json "$STATUS" "${EXTRA[@]}" >"$OUT/master-$TAG.out" 2>&1 &
 MPID=$!
-trap 'kill $MPID 2>/dev/null || true' EXIT
+trap 'kill $MPID 2>/dev/null || true; wait $MPID 2>/dev/null || true' EXIT  # the port is free again at exit
 sleep 0.5
 cpu() { awk '{print ($14 + $15) / 100}' "/proc/$MPID/stat"; }  # utime + stime, in clock ticks of 10 ms
 echo "load average before: $(cut -d' ' -f1-3 /proc/loadavg)"
