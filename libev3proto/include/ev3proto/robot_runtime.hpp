@@ -889,10 +889,17 @@ class Runtime {
     rep.odometry = true;
     rep.mode = ModeName("ODOM");
     rep.count = 3;
-    rep.values[0] = Fixed{static_cast<std::int32_t>(std::lround(p.x_mm)), 0};
-    rep.values[1] = Fixed{static_cast<std::int32_t>(std::lround(p.y_mm)), 0};
+    rep.values[0] = Fixed{mm_clamped(p.x_mm), 0};
+    rep.values[1] = Fixed{mm_clamped(p.y_mm), 0};
     rep.values[2] = Fixed{static_cast<std::int32_t>(std::lround(p.heading_deg * 10.0)) % 3600, 1};
     reports_.push(rep);
+  }
+
+  /// A coordinate in whole millimetres, within +-1000 km (a pose beyond is nonsense from garbage
+  /// positions; it is reported at the bound, never overflowing).
+  static std::int32_t mm_clamped(double mm) noexcept {
+    constexpr double kBound = 1e9;
+    return static_cast<std::int32_t>(std::lround(mm < -kBound ? -kBound : mm > kBound ? kBound : mm));
   }
 
   /// SENSOR_VALUE of behaviour sensor @p s: its last good reading, all its values.

@@ -45,8 +45,8 @@ class Odometry {
   void update(std::int32_t left, std::int32_t right, double mm_per_count_left, double mm_per_count_right,
               const Geometry& g) noexcept {
     if (based_)
-      pose_ = roll(pose_, static_cast<double>(left - left_) * mm_per_count_left,
-                   static_cast<double>(right - right_) * mm_per_count_right, g);
+      pose_ = roll(pose_, static_cast<double>(std::int64_t{left} - left_) * mm_per_count_left,
+                   static_cast<double>(std::int64_t{right} - right_) * mm_per_count_right, g);
     left_ = left;
     right_ = right;
     based_ = true;
