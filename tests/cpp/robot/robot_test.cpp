@@ -501,6 +501,36 @@ TEST(Odometry, TheRuntimeReportsItsPoseWhileItWorksAndMoves) {
   EXPECT_EQ(got[3].rep.values[2].raw, 450);
 }
 
+TEST(RobotGarbage, PositionsAtTheEndsOfTheRangeAreFarApart) {
+  // A wheel read at -2147483648, then 2147483647 (garbage from a driver, or fuzz_robot's
+  // regression_position_extremes) has moved by 2^32 - 1 counts, not by -1: a Stop waits for it.
+  Runtime rt(RuntimeConfig{}, 0);
+  plug_model_a(rt, 0);
+  drain(rt);
+  bool high = false;
+  auto text = [&](const Read& r, Millis) -> std::string_view {
+    if (r.attr == Attr::position) return high ? "2147483647\n" : "-2147483648\n";
+    if (r.dev == Dev::battery) return "8000000\n";
+    if (r.attr == Attr::decimals || r.attr == Attr::num_values) return "1\n";
+    if (r.attr == Attr::mode) return "US-DIST-CM\n";
+    return "800\n";
+  };
+  rt.run(action::single(action::stop(StopAction::brake)), 1);
+  std::vector<ActionResult> results;
+  for (Millis t = 1; t <= 5000; ++t) {
+    if (t < rt.next_deadline()) continue;
+    high = !high;  // each tick the other end of the range
+    ReadPlan p;
+    rt.plan_reads(p, t);
+    for (std::size_t i = 0; i < p.count; ++i) rt.reading(p.reads[i].dev, p.reads[i].attr, text(p.reads[i], t), t);
+    rt.tick(t);
+    for (ActionResult r; rt.poll_result(r);) results.push_back(r);
+    drain(rt);
+  }
+  ASSERT_EQ(results.size(), 1u);
+  EXPECT_EQ(results[0].outcome, Outcome::failed) << "the wheels never stood still: " << results[0].detail.view();
+}
+
 TEST(RobotNoHeap, WholeRunAllocatesNothing) {
   alignas(Runtime) static unsigned char storage[sizeof(Runtime)];
   const long before = g_news.load();

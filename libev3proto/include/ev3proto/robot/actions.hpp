@@ -555,8 +555,12 @@ class ActionRunner {
     const double per_rot = 3.14159265358979323846 * b.geo.wheel_diameter_mm;
     return static_cast<std::int32_t>(std::lround(mm * m.info().count_per_rot / per_rot));
   }
-  static double mm_for_counts(std::int32_t counts, const Body& b, const Tacho& m) noexcept {
-    return counts * 3.14159265358979323846 * b.geo.wheel_diameter_mm / m.info().count_per_rot;
+  static double mm_for_counts(std::int64_t counts, const Body& b, const Tacho& m) noexcept {
+    return static_cast<double>(counts) * 3.14159265358979323846 * b.geo.wheel_diameter_mm / m.info().count_per_rot;
+  }
+  /// @p v held within std::int32_t (a target beyond a motor's position range is at its end).
+  static constexpr std::int32_t clamp32(std::int64_t v) noexcept {
+    return v < INT32_MIN ? INT32_MIN : v > INT32_MAX ? INT32_MAX : static_cast<std::int32_t>(v);
   }
 
   Outcome start_move(Ctx& c) noexcept {
@@ -572,7 +576,7 @@ class ActionRunner {
       }
       counts_[w] = counts_for_mm(mm, b, b.motor(w));
       start_pos_[w] = b.pos(w).position;
-      target_[w] = start_pos_[w] + counts_[w];
+      target_[w] = clamp32(std::int64_t{start_pos_[w]} + counts_[w]);
       anchor_[w] = start_pos_[w];
       progress_at_[w] = c.now;
     }
@@ -613,8 +617,8 @@ class ActionRunner {
   }
 
   bool reached(std::size_t w, std::int32_t pos, const MoveTuning& t) const noexcept {
-    if (counts_[w] > 0) return pos >= target_[w] - t.reach_counts;
-    if (counts_[w] < 0) return pos <= target_[w] + t.reach_counts;
+    if (counts_[w] > 0) return pos >= std::int64_t{target_[w]} - t.reach_counts;
+    if (counts_[w] < 0) return pos <= std::int64_t{target_[w]} + t.reach_counts;
     return true;
   }
 
@@ -640,7 +644,7 @@ class ActionRunner {
   /// after the last command.
   bool still(const Ctx& c, std::size_t w) const noexcept {
     const MotorReadings& r = c.body.pos(w);
-    const std::int32_t d = r.position - r.prev;
+    const std::int64_t d = std::int64_t{r.position} - r.prev;  // any two readings: no overflow
     return r.valid && r.has_prev && r.prev_at > cmd_at_ && d <= c.body.tuning.still_counts &&
            -d <= c.body.tuning.still_counts;
   }
@@ -648,7 +652,7 @@ class ActionRunner {
   /// Notes progress of wheel @p w; true when it has made none for stall_ms.
   bool stalled(const Ctx& c, std::size_t w) noexcept {
     const std::int32_t p = c.body.pos(w).position;
-    const std::int32_t d = p - anchor_[w];
+    const std::int64_t d = std::int64_t{p} - anchor_[w];
     if (d > c.body.tuning.still_counts || -d > c.body.tuning.still_counts) {
       anchor_[w] = p;
       progress_at_[w] = c.now;
@@ -667,7 +671,7 @@ class ActionRunner {
       const bool stuck = stalled(c, w);
       if (!at_target && stuck) {
         ReasonText why;
-        why.append(to_string(c.body.motor(w).port())).append(" stalled at ").append_int(p - start_pos_[w])
+        why.append(to_string(c.body.motor(w).port())).append(" stalled at ").append_int(std::int64_t{p} - start_pos_[w])
             .append(" of ").append_int(counts_[w]).append(" counts");
         return fail(c, why);
       }
@@ -685,8 +689,8 @@ class ActionRunner {
   std::int32_t progress_tenths(const Ctx& c) const noexcept {
     const action::Kind k = step().kind;
     if (k != action::Kind::drive_distance && k != action::Kind::turn) return 0;
-    const double l = mm_for_counts(c.body.left_pos.position - start_pos_[0], c.body, c.body.left);
-    const double r = mm_for_counts(c.body.right_pos.position - start_pos_[1], c.body, c.body.right);
+    const double l = mm_for_counts(std::int64_t{c.body.left_pos.position} - start_pos_[0], c.body, c.body.left);
+    const double r = mm_for_counts(std::int64_t{c.body.right_pos.position} - start_pos_[1], c.body, c.body.right);
     const double v = k == action::Kind::turn ? (r - l) / c.body.geo.wheel_base_mm * 180.0 / 3.14159265358979323846
                                              : (l + r) / 2.0;
     return static_cast<std::int32_t>(std::lround(v * 10.0));
