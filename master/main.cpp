@@ -540,7 +540,8 @@ class Program {
       case K::registered: {
         const auto it = master_->registry().find(e.agent);
         db_.robot_seen(e.agent, it == master_->registry().end() ? 0 : it->second.ann,
-                       ev3prog::agent_address(master_->registry(), e.agent, sh_.net), t);
+                       ev3prog::agent_address(master_->registry(), e.agent, sh_.net),
+                       it == master_->registry().end() ? std::string() : it->second.model, t);
         db_.state(e.agent, "SYNCED", t);
         return;
       }

@@ -8,7 +8,7 @@ namespace ev3master {
 
 namespace {
 
-// Schema 1. Each migration takes a file of schema i to schema i + 1 (kMigrations[0]: an empty file
+// Schema 2. Each migration takes a file of schema i to schema i + 1 (kMigrations[0]: an empty file
 // to schema 1); open() runs those a file lacks, in one transaction, and sets user_version.
 const char* const kMigrations[] = {
     R"sql(
@@ -60,6 +60,10 @@ CREATE TABLE epochs (
   role    TEXT    NOT NULL,           -- the PC's election role: MASTER, CANDIDATE
   members TEXT    NOT NULL            -- the membership it published, ids space-separated
 );
+)sql",
+    // Schema 2: the model each robot announced.
+    R"sql(
+ALTER TABLE robots ADD COLUMN model TEXT;  -- the model it announced in AGENT (NULL: not known)
 )sql",
 };
 static_assert(sizeof kMigrations / sizeof kMigrations[0] == RecordDb::kSchema, "one migration per schema");
@@ -139,8 +143,9 @@ std::string RecordDb::open(const std::string& path) {
     opened_ = "continued (schema " + std::to_string(kSchema) + ", " + std::to_string(reports) + " reports)";
   }
   robot_ = prepare(
-      "INSERT INTO robots (id, announced, address, first_seen_ms, last_seen_ms) VALUES (?1, ?2, ?3, ?4, ?4) "
-      "ON CONFLICT (id) DO UPDATE SET announced = ?2, address = ?3, last_seen_ms = ?4");
+      "INSERT INTO robots (id, announced, address, first_seen_ms, last_seen_ms, model) VALUES (?1, ?2, ?3, ?4, ?4, "
+      "nullif(?5, '')) ON CONFLICT (id) DO UPDATE SET announced = ?2, address = ?3, last_seen_ms = ?4, "
+      "model = coalesce(nullif(?5, ''), model)");
   heard_ = prepare("UPDATE robots SET last_seen_ms = max(last_seen_ms, ?2) WHERE id = ?1");
   state_ = prepare("INSERT INTO states (t_ms, agent, state) VALUES (?1, ?2, ?3)");
   sent_ = prepare("INSERT INTO commands (sent_ms, agent, command, args) VALUES (?1, ?2, ?3, ?4)");
@@ -183,12 +188,14 @@ void bind(sqlite3_stmt* s, int i, const std::string& v) {
 }
 }  // namespace
 
-void RecordDb::robot_seen(std::uint16_t id, std::uint16_t announced, const std::string& address, std::int64_t t) {
+void RecordDb::robot_seen(std::uint16_t id, std::uint16_t announced, const std::string& address,
+                          const std::string& model, std::int64_t t) {
   if (!begin()) return;
   bind(robot_, 1, id);
   bind(robot_, 2, announced);
   bind(robot_, 3, address);
   bind(robot_, 4, t);
+  bind(robot_, 5, model);
   step(robot_);
 }
 

@@ -17,7 +17,7 @@ namespace ev3master {
 class RecordDb {
  public:
   /// The schema this build writes (PRAGMA user_version); older files are migrated on open.
-  static constexpr int kSchema = 1;
+  static constexpr int kSchema = 2;
   /// PRAGMA application_id of a record: "EV3R".
   static constexpr std::int32_t kApplicationId = 0x45563352;
 
@@ -34,7 +34,8 @@ class RecordDb {
   const std::string& opened() const noexcept { return opened_; }
 
   // Rows of this loop turn; @p t: the wall clock in ms since 1970.
-  void robot_seen(std::uint16_t id, std::uint16_t announced, const std::string& address, std::int64_t t);
+  void robot_seen(std::uint16_t id, std::uint16_t announced, const std::string& address, const std::string& model,
+                  std::int64_t t);
   void robots_heard(std::uint16_t id, std::int64_t t);
   void state(std::uint16_t id, const std::string& state, std::int64_t t);
   /// A command's row (its answer NULL); returns the row's number for command_answered().
@@ -77,7 +78,7 @@ class RecordDb {
   std::string open(const std::string&) { return "bad value for --db: this ev3-master is built without SQLite"; }
   bool is_open() const noexcept { return false; }
   const std::string& opened() const noexcept { return opened_; }
-  void robot_seen(std::uint16_t, std::uint16_t, const std::string&, std::int64_t) {}
+  void robot_seen(std::uint16_t, std::uint16_t, const std::string&, const std::string&, std::int64_t) {}
   void robots_heard(std::uint16_t, std::int64_t) {}
   void state(std::uint16_t, const std::string&, std::int64_t) {}
   std::int64_t command_sent(std::uint16_t, const std::string&, const std::string&, std::int64_t) { return 0; }

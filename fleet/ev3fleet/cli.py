@@ -19,14 +19,14 @@ from .record import TABLES, NotARecord, open_record
 def summary(db) -> str:
     """Per robot: reports and their numbers, what is missing, states, commands and answers."""
     out = []
-    robots = db.execute("SELECT id, announced, address, first_seen_ms, last_seen_ms FROM robots ORDER BY id").fetchall()
+    robots = db.execute("SELECT id, model, address FROM robots ORDER BY id").fetchall()
     span = db.execute("SELECT min(t_ms), max(t_ms) FROM (SELECT t_ms FROM states UNION ALL SELECT t_ms FROM reports)"
                       ).fetchone()
     seconds = (span[1] - span[0]) / 1000 if span[0] is not None else 0.0
     total = db.execute("SELECT count(*) FROM reports").fetchone()[0]
     out.append(f"{len(robots)} robots, {total} reports, {seconds:.1f} s of mission")
-    out.append("robot  address               reports  numbers   missing            last state  commands (answered)")
-    for rid, _ann, address, _first, _last in robots:
+    out.append("robot  model  address               reports  numbers   missing            last state  commands (answered)")
+    for rid, model, address in robots:
         n, lo, hi = db.execute("SELECT count(seq), min(seq), max(seq) FROM reports WHERE agent = ?", (rid,)).fetchone()
         unnumbered = db.execute("SELECT count(*) FROM reports WHERE agent = ? AND seq IS NULL", (rid,)).fetchone()[0]
         miss = db.execute("SELECT kind, sum(last - first + 1) FROM reports_missing WHERE agent = ? GROUP BY kind",
@@ -40,7 +40,8 @@ def summary(db) -> str:
         cmds, answered = db.execute("SELECT count(*), count(answer) FROM commands WHERE agent = ?", (rid,)).fetchone()
         numbers = f"{lo}-{hi}" if hi is not None else "-"
         reports = f"{n + unnumbered}"
-        out.append(f"{rid:<6} {address:<21} {reports:>7}  {numbers:<9} {gone:<18} {state[0] if state else '-':<11} "
+        out.append(f"{rid:<6} {model or '-':<6} {address:<21} {reports:>7}  {numbers:<9} {gone:<18} "
+                   f"{state[0] if state else '-':<11} "
                    f"{cmds} ({answered})")
     epochs = db.execute("SELECT epoch, role FROM epochs ORDER BY row").fetchall()
     if epochs:

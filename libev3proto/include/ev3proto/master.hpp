@@ -430,6 +430,7 @@ class Master {
     e.ann = s;
     e.id = nid;
     e.peer = from;
+    if (m.type == MsgType::AGENT) e.model = std::string(m.param(0));
     e.heard = now_;
     e.last_msgid = m.msgid;
     e.pending = true;

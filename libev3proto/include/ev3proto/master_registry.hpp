@@ -98,6 +98,7 @@ struct alignas(64) RegistryEntry {
                                 ///< (a few at most; empty, it takes no memory).
   std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
   std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
+  std::string model;            ///< The model it announced in AGENT ("A"; "" when it registered by PANIC).
 
   /// "MASTER" while not synced, the pending command's name, or "DONE" (for displays).
   std::string_view job() const noexcept {

@@ -64,7 +64,8 @@ def test_the_record_holds_robots_states_commands_and_each_report_once(start_mast
     assert sorted(r[0] for r in db_rows(db, "SELECT id FROM robots")) == sorted([a.id, b.id])
     assert {(r[0], r[1]) for r in db_rows(db, "SELECT agent, state FROM states")} >= {
         (a.id, "SYNCED"), (a.id, "ACTIVE"), (b.id, "SYNCED"), (b.id, "ACTIVE")}
-    assert db_rows(db, "PRAGMA user_version") == [(1,)]
+    assert db_rows(db, "SELECT model FROM robots") == [("A",), ("A",)]  # as each announced in AGENT
+    assert db_rows(db, "PRAGMA user_version") == [(2,)]
     assert db_rows(db, "PRAGMA journal_mode") == [("wal",)]
 
 
@@ -82,7 +83,7 @@ def test_a_killed_master_loses_no_committed_row_and_continues_the_file(start_mas
     programs.remove(m)
     assert len(db_rows(db, "SELECT * FROM reports")) == 5
     m2 = start_master("--db", str(db), "--state-file", str(state), name="again")
-    wait_until(lambda: "continued (schema 1, 5 reports)" in m2.stdout(), 3, "the record continued")
+    wait_until(lambda: "continued (schema 2, 5 reports)" in m2.stdout(), 3, "the record continued")
 
 
 @pytest.mark.empty_trace  # refused at start: no record in the trace
@@ -112,9 +113,31 @@ def test_files_that_are_not_a_record_are_refused(master_exe, tmp_path):
     c.commit()
     c.close()
     r = run(newer, *state)
-    assert r.returncode == 2 and "has schema 99, newer than this ev3-master's 1" in r.stderr
+    assert r.returncode == 2 and "has schema 99, newer than this ev3-master's 2" in r.stderr
     r = run(tmp_path / "fine.db")
     assert r.returncode == 2 and "--db needs --state-file" in r.stderr
+
+
+@pytest.mark.empty_trace  # the second master hears nobody
+def test_a_record_of_schema_1_is_migrated_keeping_its_rows(start_master, agents, programs, tmp_path):
+    db, state = tmp_path / "mission.db", tmp_path / "m.state"
+    m = start_master("--db", str(db), "--state-file", str(state))
+    a, = registered(agents, m, 1)
+    report(a, m, 1, 42)
+    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 1, 3, "the report in the record")
+    assert m.stop() == 0
+    programs.remove(m)
+    m.close()
+    c = sqlite3.connect(db)  # what a master of schema 1 left: no model column
+    c.execute("ALTER TABLE robots DROP COLUMN model")
+    c.execute("PRAGMA user_version = 1")
+    c.commit()
+    c.close()
+    m2 = start_master("--db", str(db), "--state-file", str(state), name="master2")
+    wait_until(lambda: "migrated from schema 1 to 2" in m2.stdout(), 3, "the record migrated")
+    assert db_rows(db, "PRAGMA user_version") == [(2,)]
+    assert db_rows(db, "SELECT id, model FROM robots") == [(a.id, None)]  # kept; its model not known
+    assert db_rows(db, "SELECT seq, text FROM reports") == [(1, "in4:US-DIST-CM:42")]
 
 
 def test_ev3_fleet_answers_questions_of_a_record(start_master, agents, tmp_path):
