@@ -86,7 +86,8 @@ def test_the_control_socket_drives_a_fleet(start_master, agents):
                  "answers": [{"agent": min(a.id, b.id), "answer": "acked"},
                              {"agent": max(a.id, b.id), "answer": "acked"}]}
     assert c.ask("start all").startswith("ok: all START: ")
-    assert [x.type for x in b.commands] == [T["BEHAVIOUR"], T["START"]]
+    # each command once per msgid (a copy may leave before the robot's ACK reaches the master)
+    assert list({x.msgid: x.type for x in b.commands}.values())[:2] == [T["BEHAVIOUR"], T["START"]]
     text = c.ask("list")
     assert "\n" not in text and str(a.id) in text and "drops:" in text
     assert "(control socket)" in m.stdout()  # the operator sees what the socket did
