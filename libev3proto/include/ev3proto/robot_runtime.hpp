@@ -877,10 +877,9 @@ class Runtime {
   /// runs, not paused), its pose every pose_ms when it moved.
   void dead_reckon(Millis now) noexcept {
     if (!body_.left_pos.valid || !body_.right_pos.valid) return;  // a wheel missing or not read yet
-    constexpr double kPi = 3.14159265358979323846;
-    const double per_l = kPi * cfg_.geo.wheel_diameter_mm / body_.left.info().count_per_rot;
-    const double per_r = kPi * cfg_.geo.wheel_diameter_mm / body_.right.info().count_per_rot;
-    odometry_.update(body_.left_pos.position, body_.right_pos.position, per_l, per_r, cfg_.geo);
+    odometry_.update(body_.left_pos.position, body_.right_pos.position,
+                     mm_per_count(cfg_.geo, body_.left.info().count_per_rot),
+                     mm_per_count(cfg_.geo, body_.right.info().count_per_rot), cfg_.geo);
     if (cfg_.pose_ms == 0 || now < next_pose_ || !(runner_.active() || behaviour_) || runner_.paused()) return;
     next_pose_ = now + cfg_.pose_ms;
     if (!odometry_.report_due()) return;

@@ -552,11 +552,11 @@ class ActionRunner {
 
   /// Counts for @p mm of travel of wheel @p w (its own count_per_rot).
   static std::int32_t counts_for_mm(double mm, const Body& b, const Tacho& m) noexcept {
-    const double per_rot = 3.14159265358979323846 * b.geo.wheel_diameter_mm;
+    const double per_rot = kPi * b.geo.wheel_diameter_mm;
     return static_cast<std::int32_t>(std::lround(mm * m.info().count_per_rot / per_rot));
   }
   static double mm_for_counts(std::int64_t counts, const Body& b, const Tacho& m) noexcept {
-    return static_cast<double>(counts) * 3.14159265358979323846 * b.geo.wheel_diameter_mm / m.info().count_per_rot;
+    return static_cast<double>(counts) * kPi * b.geo.wheel_diameter_mm / m.info().count_per_rot;
   }
   /// @p v held within std::int32_t (a target beyond a motor's position range is at its end).
   static constexpr std::int32_t clamp32(std::int64_t v) noexcept {
@@ -571,7 +571,7 @@ class ActionRunner {
     for (std::size_t w = 0; w < 2; ++w) {
       double mm = s.mm;
       if (s.kind == action::Kind::turn) {  // each wheel on a circle of radius base/2 about the midpoint
-        const double arc = s.degrees * 3.14159265358979323846 / 180.0 * b.geo.wheel_base_mm / 2.0;
+        const double arc = s.degrees * kPi / 180.0 * b.geo.wheel_base_mm / 2.0;
         mm = w == 0 ? -arc : arc;
       }
       counts_[w] = counts_for_mm(mm, b, b.motor(w));
@@ -691,7 +691,7 @@ class ActionRunner {
     if (k != action::Kind::drive_distance && k != action::Kind::turn) return 0;
     const double l = mm_for_counts(std::int64_t{c.body.left_pos.position} - start_pos_[0], c.body, c.body.left);
     const double r = mm_for_counts(std::int64_t{c.body.right_pos.position} - start_pos_[1], c.body, c.body.right);
-    const double v = k == action::Kind::turn ? (r - l) / c.body.geo.wheel_base_mm * 180.0 / 3.14159265358979323846
+    const double v = k == action::Kind::turn ? (r - l) / c.body.geo.wheel_base_mm * 180.0 / kPi
                                              : (l + r) / 2.0;
     return static_cast<std::int32_t>(std::lround(v * 10.0));
   }

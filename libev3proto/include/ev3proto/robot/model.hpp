@@ -161,4 +161,11 @@ struct Geometry {
   double wheel_base_mm = 120.0;
 };
 
+inline constexpr double kPi = 3.14159265358979323846;
+
+/// The arc (mm) a wheel of @p g rolls for one count of a motor of @p count_per_rot counts a turn.
+constexpr double mm_per_count(const Geometry& g, double count_per_rot) noexcept {
+  return kPi * g.wheel_diameter_mm / count_per_rot;
+}
+
 }  // namespace ev3proto::robot

@@ -22,7 +22,6 @@ struct Pose {
 /// @p left_mm and @p right_mm (forward positive) on geometry @p g: along an arc whose chord is
 /// taken at the middle heading.
 inline Pose roll(const Pose& p, double left_mm, double right_mm, const Geometry& g) noexcept {
-  constexpr double kPi = 3.14159265358979323846;
   const double ds = (left_mm + right_mm) / 2.0;
   const double dth = (right_mm - left_mm) / g.wheel_base_mm;  // radians, positive: left
   const double th = p.heading_deg * kPi / 180.0;
