@@ -539,9 +539,11 @@ class Program {
     switch (e.kind) {
       case K::registered: {
         const auto it = master_->registry().find(e.agent);
+        const bool known = it != master_->registry().end() && !it->second.model.empty();
         db_.robot_seen(e.agent, it == master_->registry().end() ? 0 : it->second.ann,
                        ev3prog::agent_address(master_->registry(), e.agent, sh_.net),
-                       it == master_->registry().end() ? std::string() : it->second.model, t);
+                       known ? it->second.model : std::string(), known ? ev3proto::json_list(it->second.devices) : std::string(),
+                       t);
         db_.state(e.agent, "SYNCED", t);
         return;
       }

@@ -65,6 +65,10 @@ CREATE TABLE epochs (
     R"sql(
 ALTER TABLE robots ADD COLUMN model TEXT;  -- the model it announced in AGENT (NULL: not known)
 )sql",
+    // Schema 3: the devices of its model each robot announced.
+    R"sql(
+ALTER TABLE robots ADD COLUMN devices TEXT;  -- JSON array of the devices it announced in AGENT (NULL: not known)
+)sql",
 };
 static_assert(sizeof kMigrations / sizeof kMigrations[0] == RecordDb::kSchema, "one migration per schema");
 
@@ -143,9 +147,9 @@ std::string RecordDb::open(const std::string& path) {
     opened_ = "continued (schema " + std::to_string(kSchema) + ", " + std::to_string(reports) + " reports)";
   }
   robot_ = prepare(
-      "INSERT INTO robots (id, announced, address, first_seen_ms, last_seen_ms, model) VALUES (?1, ?2, ?3, ?4, ?4, "
-      "nullif(?5, '')) ON CONFLICT (id) DO UPDATE SET announced = ?2, address = ?3, last_seen_ms = ?4, "
-      "model = coalesce(nullif(?5, ''), model)");
+      "INSERT INTO robots (id, announced, address, first_seen_ms, last_seen_ms, model, devices) VALUES (?1, ?2, ?3, "
+      "?4, ?4, nullif(?5, ''), nullif(?6, '')) ON CONFLICT (id) DO UPDATE SET announced = ?2, address = ?3, "
+      "last_seen_ms = ?4, model = coalesce(nullif(?5, ''), model), devices = coalesce(nullif(?6, ''), devices)");
   heard_ = prepare("UPDATE robots SET last_seen_ms = max(last_seen_ms, ?2) WHERE id = ?1");
   state_ = prepare("INSERT INTO states (t_ms, agent, state) VALUES (?1, ?2, ?3)");
   sent_ = prepare("INSERT INTO commands (sent_ms, agent, command, args) VALUES (?1, ?2, ?3, ?4)");
@@ -189,13 +193,14 @@ void bind(sqlite3_stmt* s, int i, const std::string& v) {
 }  // namespace
 
 void RecordDb::robot_seen(std::uint16_t id, std::uint16_t announced, const std::string& address,
-                          const std::string& model, std::int64_t t) {
+                          const std::string& model, const std::string& devices, std::int64_t t) {
   if (!begin()) return;
   bind(robot_, 1, id);
   bind(robot_, 2, announced);
   bind(robot_, 3, address);
   bind(robot_, 4, t);
   bind(robot_, 5, model);
+  bind(robot_, 6, devices);
   step(robot_);
 }
 

@@ -17,7 +17,7 @@ namespace ev3master {
 class RecordDb {
  public:
   /// The schema this build writes (PRAGMA user_version); older files are migrated on open.
-  static constexpr int kSchema = 2;
+  static constexpr int kSchema = 3;
   /// PRAGMA application_id of a record: "EV3R".
   static constexpr std::int32_t kApplicationId = 0x45563352;
 
@@ -34,8 +34,9 @@ class RecordDb {
   const std::string& opened() const noexcept { return opened_; }
 
   // Rows of this loop turn; @p t: the wall clock in ms since 1970.
+  /// @p model "" when not known; @p devices: the devices it announced, a JSON array ("" when not known).
   void robot_seen(std::uint16_t id, std::uint16_t announced, const std::string& address, const std::string& model,
-                  std::int64_t t);
+                  const std::string& devices, std::int64_t t);
   void robots_heard(std::uint16_t id, std::int64_t t);
   void state(std::uint16_t id, const std::string& state, std::int64_t t);
   /// A command's row (its answer NULL); returns the row's number for command_answered().
@@ -78,7 +79,8 @@ class RecordDb {
   std::string open(const std::string&) { return "bad value for --db: this ev3-master is built without SQLite"; }
   bool is_open() const noexcept { return false; }
   const std::string& opened() const noexcept { return opened_; }
-  void robot_seen(std::uint16_t, std::uint16_t, const std::string&, const std::string&, std::int64_t) {}
+  void robot_seen(std::uint16_t, std::uint16_t, const std::string&, const std::string&, const std::string&,
+                  std::int64_t) {}
   void robots_heard(std::uint16_t, std::int64_t) {}
   void state(std::uint16_t, const std::string&, std::int64_t) {}
   std::int64_t command_sent(std::uint16_t, const std::string&, const std::string&, std::int64_t) { return 0; }

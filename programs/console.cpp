@@ -273,6 +273,7 @@ std::string FleetView::status_json(const std::map<std::uint16_t, ev3proto::Regis
     first = false;
     s += "{\"id\":" + std::to_string(kv.first) + ",\"announced\":" + std::to_string(e.ann) +
          ",\"model\":" + (e.model.empty() ? std::string("null") : ev3proto::json_quote(e.model)) +
+         ",\"devices\":" + (e.model.empty() ? std::string("null") : ev3proto::json_list(e.devices)) +
          ",\"address\":" + ev3proto::json_quote(i.address) + ",\"synced\":" + (e.synced ? "true" : "false") +
          ",\"state\":" + ev3proto::json_quote(state_text(e)) + ",\"led\":" +
          (e.synced && e.has_state ? ev3proto::json_quote(ev3proto::to_string(ev3proto::led_of(ev3proto::state_of(e.state))))

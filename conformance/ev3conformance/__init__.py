@@ -1,6 +1,6 @@
 """Conformance checks for libev3proto.
 
-`ev3conformance.wire` is the reference codec of wire format v1 (docs/protocol.md).
+`ev3conformance.wire` is the reference codec of wire format v2 (docs/protocol.md).
 """
 
 from ev3conformance.wire import (

@@ -356,7 +356,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="ev3-conformance", description=__doc__,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
-    codec = sub.add_parser("codec", help="the reference codec of wire format v1")
+    codec = sub.add_parser("codec", help="the reference codec of wire format v2")
     modes = codec.add_subparsers(dest="mode", required=True)
 
     dec = modes.add_parser("decode", help="decode one datagram")

@@ -172,10 +172,13 @@ def spec_to_wire(m: dict, msgid: int | None = None) -> bytes:
 
 
 def wire_to_spec(data: bytes) -> tuple:
-    """A datagram -> the spec's Out record as a tuple (src, dst, type, ref, args); msgid dropped."""
+    """A datagram -> the spec's Out record as a tuple (src, dst, type, ref, args); msgid dropped.
+    AGENT's args are its model alone: the devices after it are fixed per robot (AgentLogic.tla)."""
     msg = wire.decode(data)
     name = msg.type_name
     ps = [p.decode("latin-1") for p in msg.params]
+    if name == "AGENT":
+        ps = ps[:1]
     if name in REF_TYPES and ps:
         return (msg.sender, msg.receiver, name, int(ps[0]), tuple(ps[1:]))
     return (msg.sender, msg.receiver, name, 0, tuple(ps))

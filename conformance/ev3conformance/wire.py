@@ -1,4 +1,4 @@
-"""Reference codec of wire format v1 (docs/protocol.md).
+"""Reference codec of wire format v2 (docs/protocol.md).
 
 This module is written to be read next to docs/protocol.md: it is the reference that other
 implementations (the C++ library in libev3proto/include/ev3proto/wire.hpp) are checked against,
@@ -152,9 +152,9 @@ def _type(number: int, name: str, direction: str, min_params: int, max_params: i
     return MessageType(number, name, direction, min_params, max_params, tuple(specs))
 
 
-# The message types of wire format v1. Keep in the order of docs/messages.tsv.
+# The message types of wire format v2. Keep in the order of docs/messages.tsv.
 _TABLE: tuple[MessageType, ...] = (
-    _type(1, "AGENT", "agent->0", 1, 1, "text:model"),
+    _type(1, "AGENT", "agent->0", 1, 32, "text:model", "text:device..."),
     _type(2, "MASTER", "master->agent", 1, 1, "u16:announced_id"),
     _type(3, "ACK", "both", 1, 1, "u32:acked_msgid"),
     _type(4, "NOT", "agent->master", 2, 2, "u32:refused_msgid", "text:reason"),

@@ -10,10 +10,25 @@ from __future__ import annotations
 
 import argparse
 import csv
+import json
 import sys
 from pathlib import Path
 
 from .record import TABLES, NotARecord, open_record
+
+
+def unplugged(db, rid: int) -> str:
+    """"; unplugged: in4": the ports robot @rid told unplugged (DEVICE_DISCONNECTED) since it last told
+    all its devices back (DEVICE_CONNECTED, docs/protocol.md), or ""."""
+    ports: list[str] = []
+    for (text,) in db.execute("SELECT text FROM reports WHERE agent = ? AND type = 'EVENT' AND text LIKE 'DEVICE!_%' "
+                              "ESCAPE '!' ORDER BY row", (rid,)):
+        event, _, port = text.partition(":")
+        if event == "DEVICE_CONNECTED":
+            ports = []
+        elif event == "DEVICE_DISCONNECTED" and port not in ports:
+            ports.append(port)
+    return f"; unplugged: {', '.join(ports)}" if ports else ""
 
 
 def summary(db) -> str:
@@ -43,6 +58,8 @@ def summary(db) -> str:
         out.append(f"{rid:<6} {model or '-':<6} {address:<21} {reports:>7}  {numbers:<9} {gone:<18} "
                    f"{state[0] if state else '-':<11} "
                    f"{cmds} ({answered})")
+    for rid, devices in db.execute("SELECT id, devices FROM robots WHERE devices IS NOT NULL ORDER BY id").fetchall():
+        out.append(f"robot {rid} devices: {', '.join(json.loads(devices)) or 'none'}{unplugged(db, rid)}")
     epochs = db.execute("SELECT epoch, role FROM epochs ORDER BY row").fetchall()
     if epochs:
         out.append("epochs: " + ", ".join(f"{e} {r}" for e, r in epochs))

@@ -6,7 +6,7 @@ import sqlite3
 from pathlib import Path
 
 APPLICATION_ID = 0x45563352  # "EV3R", PRAGMA application_id of a record
-SCHEMA = 2                   # the schema this package reads
+SCHEMA = 3                   # the schema this package reads
 TABLES = ("robots", "states", "commands", "reports", "reports_missing", "epochs")
 
 

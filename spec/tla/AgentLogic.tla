@@ -310,6 +310,9 @@ LossDue(a) == \/ a.state = "ACTIVE" /\ a.silence >= TLoss
 TimeoutDue(a) == SyncDue(a) \/ LossDue(a)
 
 PanicMsg(a) == Out(a.id, Broadcast, "PANIC", 0, <<>>)
+\* AGENT carries the model; on the wire the names of the model's devices follow
+\* it, fixed for a robot whether plugged or not, so they change nothing here
+\* (which are missing the master learns from EVENT DEVICE_DISCONNECTED).
 Periodic(a) ==
     CASE a.state = "IDLE"  -> Out(a.id, Broadcast, "AGENT", 0, <<ModelName>>)
       [] a.state = "PANIC" -> PanicMsg(a)

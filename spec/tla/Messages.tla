@@ -1,6 +1,6 @@
 ------------------------------ MODULE Messages ------------------------------
 (***************************************************************************)
-(* Wire format v1 as the spec sees it (docs/protocol.md, docs/messages.tsv).*)
+(* Wire format v2 as the spec sees it (docs/protocol.md, docs/messages.tsv).*)
 (* A message is a record; the type is its name, TypeNum maps it to the     *)
 (* number on the wire.  tools/spec.py checks TypeNum against messages.tsv. *)
 (*                                                                         *)

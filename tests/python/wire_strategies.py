@@ -1,4 +1,4 @@
-"""Hypothesis strategies for wire format v1: valid messages, valid datagrams, their mutations,
+"""Hypothesis strategies for wire format v2: valid messages, valid datagrams, their mutations,
 raw bytes, and messages encode() must refuse."""
 
 from hypothesis import settings

@@ -891,8 +891,9 @@ class Agent {
   void Periodic() noexcept {
     if (el_.role == ElectionRole::master) return;  // the Master core run for it sends LEADER
     if (state_ == State::IDLE) {
-      const std::string_view p[1] = {cfg_.caps.model};
-      emit(Dest::broadcast, kBroadcastId, MsgType::AGENT, p, 1);
+      std::string_view p[kMaxParams];
+      const std::size_t n = announcement(p);
+      emit(Dest::broadcast, kBroadcastId, MsgType::AGENT, p, n);
     } else if (state_ == State::PANIC) {
       emit(Dest::broadcast, kBroadcastId, MsgType::PANIC, nullptr, 0);
       el_.RepeatElect(lifecycle(), *this);
@@ -902,6 +903,17 @@ class Agent {
       reports_.retry();  // what the master has not acknowledged in a heartbeat goes again
       Send();
     }
+  }
+
+  /// AGENT's params into @p p, their count: the model, then the name of each device of the model
+  /// in bit order ("left motor"; a bit without a name is left out), plugged or not: which are
+  /// missing the master learns from EVENT DEVICE_DISCONNECTED (spec: AGENT's args are the model).
+  std::size_t announcement(std::string_view (&p)[kMaxParams]) const noexcept {
+    std::size_t n = 0;
+    p[n++] = cfg_.caps.model;
+    for (std::size_t bit = 0; bit < 32 && bit < cfg_.caps.device_name_count && n < kMaxParams; ++bit)
+      if ((cfg_.caps.devices & (1u << bit)) != 0) p[n++] = cfg_.caps.device_names[bit];
+    return n;
   }
 
   /// The timer that ends a silence in state @p s (AgentLogic SyncDue / LossDue), or none.

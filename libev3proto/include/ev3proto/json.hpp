@@ -40,4 +40,16 @@ inline std::string json_quote(std::string_view s) {
   return out;
 }
 
+/// @p items as a JSON array of strings: ["left motor","right motor"].
+template <class Strings>
+std::string json_list(const Strings& items) {
+  std::string out = "[";
+  for (const auto& s : items) {
+    if (out.size() > 1) out += ',';
+    json_string(out, s);
+  }
+  out += ']';
+  return out;
+}
+
 }  // namespace ev3proto

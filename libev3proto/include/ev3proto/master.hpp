@@ -430,7 +430,10 @@ class Master {
     e.ann = s;
     e.id = nid;
     e.peer = from;
-    if (m.type == MsgType::AGENT) e.model = std::string(m.param(0));
+    if (m.type == MsgType::AGENT) {
+      e.model = std::string(m.param(0));
+      for (std::size_t i = 1; i < m.param_count(); ++i) e.devices.emplace_back(m.param(i));
+    }
     e.heard = now_;
     e.last_msgid = m.msgid;
     e.pending = true;

@@ -99,6 +99,7 @@ struct alignas(64) RegistryEntry {
   std::string behaviour;        ///< [beh] Behaviour the agent acknowledged last ("" = NONE).
   std::vector<std::string> behaviour_args; ///< Its arguments (reconcile sends them again).
   std::string model;            ///< The model it announced in AGENT ("A"; "" when it registered by PANIC).
+  std::vector<std::string> devices; ///< The devices of its model it announced in AGENT ("left motor", ...).
 
   /// "MASTER" while not synced, the pending command's name, or "DONE" (for displays).
   std::string_view job() const noexcept {

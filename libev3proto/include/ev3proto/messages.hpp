@@ -1,5 +1,5 @@
 /// @file messages.hpp
-/// @brief The message types of wire format v1 as a constexpr table (a copy of docs/messages.tsv).
+/// @brief The message types of wire format v2 as a constexpr table (a copy of docs/messages.tsv).
 ///
 /// One row per type. New types add rows to
 /// kMessageTable and enumerators to MsgType; nothing else needs to change. A unit test compares this
@@ -16,9 +16,9 @@ namespace ev3proto {
 /// Largest number of params any datagram may carry (docs/protocol.md).
 inline constexpr std::size_t kMaxParams = 32;
 
-/// The message types defined by wire format v1 (the numeric value is the wire `type` field).
+/// The message types defined by wire format v2 (the numeric value is the wire `type` field).
 enum class MsgType : std::uint8_t {
-  AGENT = 1,          ///< agent -> 0: an agent announces itself with its model name.
+  AGENT = 1,          ///< agent -> 0: an agent announces itself: its model, then the model's devices.
   MASTER = 2,         ///< master -> agent: assigns an id (receiver field) to an announced temporary id.
   ACK = 3,            ///< both: acknowledges a msgid.
   NOT = 4,            ///< agent -> master: refuses a msgid, with a reason.
@@ -112,11 +112,11 @@ constexpr ParamSpec P(ParamKind k, std::string_view n) noexcept { return ParamSp
 inline constexpr ParamSpec kNoParam{ParamKind::text, {}};
 } // namespace detail
 
-/// The message table of wire format v1, in type order (docs/messages.tsv).
+/// The message table of wire format v2, in type order (docs/messages.tsv).
 inline constexpr MessageSpec kMessageTable[] = {
     // type name direction min max declared repeats params
-    {1, "AGENT", Direction::agent_to_broadcast, 1, 1, 1, false,
-     {detail::P(ParamKind::text, "model"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
+    {1, "AGENT", Direction::agent_to_broadcast, 1, 32, 2, true,
+     {detail::P(ParamKind::text, "model"), detail::P(ParamKind::text, "device"), detail::kNoParam, detail::kNoParam}},
     {2, "MASTER", Direction::master_to_agent, 1, 1, 1, false,
      {detail::P(ParamKind::u16, "announced_id"), detail::kNoParam, detail::kNoParam, detail::kNoParam}},
     {3, "ACK", Direction::both, 1, 1, 1, false,

@@ -1,5 +1,5 @@
 /// @file wire.hpp
-/// @brief Wire format v1: decode and encode datagrams (docs/protocol.md is normative).
+/// @brief Wire format v2: decode and encode datagrams (docs/protocol.md is normative).
 ///
 /// Header-only, C++17, no exceptions, no heap, no I/O, no mutable globals. decode() never reads
 /// outside the datagram it is given; encode() never writes more than the caller's capacity.

@@ -1,4 +1,4 @@
-// decode/encode of wire format v1 against docs/protocol.md: every rejection with its field, the
+// decode/encode of wire format v2 against docs/protocol.md: every rejection with its field, the
 // canonical escapes, the boundaries, round trips and encode's refusals.
 #include <gtest/gtest.h>
 

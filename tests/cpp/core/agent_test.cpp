@@ -315,6 +315,24 @@ TEST(AgentQueues, OverflowDropsOldestAndCounts) {
   EXPECT_FALSE(a.poll_transmit(t));
 }
 
+TEST(AgentAnnouncement, AgentCarriesTheModelThenItsNamedDevicesPluggedOrNot) {
+  constexpr std::string_view kNames[] = {"left motor", "right motor", "colour sensor"};
+  AgentConfig c = config();
+  c.caps.devices = 1u | 4u | 8u;  // bit 3 has no name: left out
+  c.caps.device_names = kNames;
+  c.caps.device_name_count = 3;
+  Agent<> a(c, 0);
+  a.device_unplugged(4u, "in3", 10);  // missing: still announced, the model has it
+  a.advance(1000);
+  Transmit t;
+  ASSERT_TRUE(a.poll_transmit(t));
+  EXPECT_EQ(t.bytes, "50001:0:1:1:A:left motor:colour sensor");
+  Agent<> plain(config(), 0);  // devices without names: the model alone
+  plain.advance(1000);
+  ASSERT_TRUE(plain.poll_transmit(t));
+  EXPECT_EQ(t.bytes, "50001:0:1:1:A");
+}
+
 TEST(AgentBehaviour, ArgumentsBeyondCapacityAreRefused) {
   Agent<NoTrace, 50, 8, 512, 16, 4> a(config(), 0);
   a.handle_datagram("1:5:1:2:50001", 1, 1);

@@ -200,6 +200,20 @@ TEST(MasterReceipts, SayWhatWasTakenAndWhyTheRestWasIgnored) {
   expect_receipt(m.handle_datagram("2:1:5:20:x", 11, 16), Action::MasterReport, MasterIgnored::duplicate);
 }
 
+TEST(MasterSync, KeepsTheModelAndTheDevicesAnnounced) {
+  Master<> m(MasterConfig{}, 0);
+  m.handle_datagram("50001:0:1:1:A:left motor:right motor:colour sensor", 11, 1);
+  m.handle_datagram("50002:0:1:1:B", 12, 2);
+  m.handle_datagram("50003:0:1:19", 13, 3);  // PANIC: registered, nothing announced
+  ASSERT_EQ(m.registry().size(), 3u);
+  EXPECT_EQ(m.registry().at(2).model, "A");
+  EXPECT_EQ(m.registry().at(2).devices, (std::vector<std::string>{"left motor", "right motor", "colour sensor"}));
+  EXPECT_EQ(m.registry().at(3).model, "B");
+  EXPECT_TRUE(m.registry().at(3).devices.empty());
+  EXPECT_EQ(m.registry().at(4).model, "");
+  EXPECT_TRUE(m.registry().at(4).devices.empty());
+}
+
 TEST(MasterMsgids, AnAgentWhoseMsgidsWrapIsStillHeardFresh) {
   // The master orders an agent's msgids as the agent orders the master's: serial-number order
   // (msgid_newer). An agent whose msgid wraps from 4294967295 to 0 is heard fresh; a late copy of

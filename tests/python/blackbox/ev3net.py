@@ -223,9 +223,10 @@ class TestMaster(Node):
 class FakeAgent(Node):
     """An agent driving ev3-master: announces itself, ACKs MASTER, pings, answers commands."""
 
-    def __init__(self, master_port: int, temp_id: int, answer: bool = True) -> None:
+    def __init__(self, master_port: int, temp_id: int, answer: bool = True, devices: tuple[str, ...] = ()) -> None:
         self.master_port = master_port
         self.temp_id = temp_id
+        self.devices = devices        # announced in AGENT after the model
         self.id = 0
         self.msgid = 0
         self.answer = answer          # answer commands automatically with ACK
@@ -258,7 +259,7 @@ class FakeAgent(Node):
         end = time.monotonic() + timeout
         while self.id == 0:
             assert time.monotonic() < end, f"agent {self.temp_id} got no MASTER"
-            self.send_master("AGENT", "A", sender=self.temp_id)
+            self.send_master("AGENT", "A", *self.devices, sender=self.temp_id)
             time.sleep(0.05)
         return self.id
 

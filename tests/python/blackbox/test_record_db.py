@@ -28,10 +28,10 @@ def report(a: FakeAgent, m, seq: int, value: int, copies: int = 3) -> None:
     a.send(Message(a.id, 1, inner.msgid, T["REPORT"], (str(seq).encode(), b"1", encode(inner))), m.port, copies)
 
 
-def registered(agents, m, n: int) -> list[FakeAgent]:
+def registered(agents, m, n: int, devices: tuple[str, ...] = ()) -> list[FakeAgent]:
     out = []
     for i in range(n):
-        a = FakeAgent(m.port, 50200 + i)
+        a = FakeAgent(m.port, 50200 + i, devices=devices if i == 0 else ())
         agents.append(a)
         a.register()
         a.pinging = True
@@ -44,7 +44,7 @@ def registered(agents, m, n: int) -> list[FakeAgent]:
 def test_the_record_holds_robots_states_commands_and_each_report_once(start_master, agents, tmp_path):
     db = tmp_path / "mission.db"
     m = start_master("--db", str(db), "--state-file", str(tmp_path / "m.state"), control=True)
-    a, b = registered(agents, m, 2)
+    a, b = registered(agents, m, 2, devices=("left motor", "right motor", "colour sensor"))
     m.write(f"behaviour {a.id} wait seconds=3")
     m.write(f"start {a.id}")
     # The robot pings ACTIVE, not WORKING, so the core sends BEHAVIOUR and START again itself
@@ -66,8 +66,13 @@ def test_the_record_holds_robots_states_commands_and_each_report_once(start_mast
     assert sorted(r[0] for r in db_rows(db, "SELECT id FROM robots")) == sorted([a.id, b.id])
     assert {(r[0], r[1]) for r in db_rows(db, "SELECT agent, state FROM states")} >= {
         (a.id, "SYNCED"), (a.id, "ACTIVE"), (b.id, "SYNCED"), (b.id, "ACTIVE")}
-    assert db_rows(db, "SELECT model FROM robots") == [("A",), ("A",)]  # as each announced in AGENT
-    assert db_rows(db, "PRAGMA user_version") == [(2,)]
+    # the model and the devices as each announced them in AGENT (b: the model alone)
+    assert db_rows(db, "SELECT id, model, devices FROM robots ORDER BY id") == sorted([
+        (a.id, "A", '["left motor","right motor","colour sensor"]'), (b.id, "A", "[]")])
+    status = {x["id"]: x for x in read_status(m.status)["agents"]}
+    assert status[a.id]["devices"] == ["left motor", "right motor", "colour sensor"]
+    assert status[b.id]["devices"] == []
+    assert db_rows(db, "PRAGMA user_version") == [(3,)]
     assert db_rows(db, "PRAGMA journal_mode") == [("wal",)]
 
 
@@ -85,7 +90,7 @@ def test_a_killed_master_loses_no_committed_row_and_continues_the_file(start_mas
     programs.remove(m)
     assert len(db_rows(db, "SELECT * FROM reports")) == 5
     m2 = start_master("--db", str(db), "--state-file", str(state), name="again")
-    wait_until(lambda: "continued (schema 2, 5 reports)" in m2.stdout(), 3, "the record continued")
+    wait_until(lambda: "continued (schema 3, 5 reports)" in m2.stdout(), 3, "the record continued")
 
 
 @pytest.mark.empty_trace  # refused at start: no record in the trace
@@ -115,7 +120,7 @@ def test_files_that_are_not_a_record_are_refused(master_exe, tmp_path):
     c.commit()
     c.close()
     r = run(newer, *state)
-    assert r.returncode == 2 and "has schema 99, newer than this ev3-master's 2" in r.stderr
+    assert r.returncode == 2 and "has schema 99, newer than this ev3-master's 3" in r.stderr
     r = run(tmp_path / "fine.db")
     assert r.returncode == 2 and "--db needs --state-file" in r.stderr
 
@@ -130,27 +135,30 @@ def test_a_record_of_schema_1_is_migrated_keeping_its_rows(start_master, agents,
     assert m.stop() == 0
     programs.remove(m)
     m.close()
-    c = sqlite3.connect(db)  # what a master of schema 1 left: no model column
+    c = sqlite3.connect(db)  # what a master of schema 1 left: no model or devices column
+    c.execute("ALTER TABLE robots DROP COLUMN devices")
     c.execute("ALTER TABLE robots DROP COLUMN model")
     c.execute("PRAGMA user_version = 1")
     c.commit()
     c.close()
     m2 = start_master("--db", str(db), "--state-file", str(state), name="master2")
-    wait_until(lambda: "migrated from schema 1 to 2" in m2.stdout(), 3, "the record migrated")
-    assert db_rows(db, "PRAGMA user_version") == [(2,)]
-    assert db_rows(db, "SELECT id, model FROM robots") == [(a.id, None)]  # kept; its model not known
+    wait_until(lambda: "migrated from schema 1 to 3" in m2.stdout(), 3, "the record migrated")
+    assert db_rows(db, "PRAGMA user_version") == [(3,)]
+    assert db_rows(db, "SELECT id, model, devices FROM robots") == [(a.id, None, None)]  # kept; not known
     assert db_rows(db, "SELECT seq, text FROM reports") == [(1, "in4:US-DIST-CM:42")]
 
 
 def test_ev3_fleet_answers_questions_of_a_record(start_master, agents, tmp_path):
     db = tmp_path / "mission.db"
     m = start_master("--db", str(db), "--state-file", str(tmp_path / "m.state"))
-    a, b = registered(agents, m, 2)
+    a, b = registered(agents, m, 2, devices=("left motor", "colour sensor"))
     for seq in range(1, 21):
         report(a, m, seq, 100 - 3 * seq)
+    event = Message(a.id, 1, a.next_msgid(), T["EVENT"], (b"DEVICE_DISCONNECTED", b"in3"))
+    a.send(Message(a.id, 1, event.msgid, T["REPORT"], (b"21", b"1", encode(event))), m.port, 3)
     b.send_master("REPORT_DROPPED", "1", "2")
     report(b, m, 3, 5)
-    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 21
+    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 22
                and db_rows(db, "SELECT count(*) FROM reports_missing") == [(1,)], 3, "the reports in the record")
 
     def fleet(*args):
@@ -159,19 +167,21 @@ def test_ev3_fleet_answers_questions_of_a_record(start_master, agents, tmp_path)
     r = fleet("summary", str(db))
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
-    assert lines[0].startswith("2 robots, 21 reports")
+    assert lines[0].startswith("2 robots, 22 reports")
     row_a = next(x for x in lines[2:] if x.split()[0] == str(a.id))
     row_b = next(x for x in lines[2:] if x.split()[0] == str(b.id))
-    assert " 20  1-20 " in row_a and " 1  3-3 " in row_b and "2 dropped" in row_b
+    assert " 21  1-21 " in row_a and " 1  3-3 " in row_b and "2 dropped" in row_b
+    assert f"robot {a.id} devices: left motor, colour sensor; unplugged: in3" in lines
+    assert f"robot {b.id} devices: none" in lines
     r = fleet("export", str(db), "--table", "reports", "--format", "csv", "--out", "r.csv")
     assert r.returncode == 0, r.stderr
     rows = (tmp_path / "r.csv").read_text().splitlines()
-    assert rows[0] == "row,t_ms,agent,seq,type,text" and len(rows) == 22
+    assert rows[0] == "row,t_ms,agent,seq,type,text" and len(rows) == 23
     r = fleet("export", str(db), "--table", "reports", "--format", "parquet")
     assert r.returncode == 0, r.stderr
     import pyarrow.parquet as pq
     t = pq.read_table(tmp_path / "reports.parquet")
-    assert t.num_rows == 21 and sorted(t.column("seq").to_pylist()) == sorted([*range(1, 21), 3])
+    assert t.num_rows == 22 and sorted(t.column("seq").to_pylist()) == sorted([*range(1, 22), 3])
     for out in ("a.png", "a.svg"):
         r = fleet("plot", str(db), "--robot", str(a.id), "--sensor", "in4", "--out", out)
         assert r.returncode == 0, r.stderr

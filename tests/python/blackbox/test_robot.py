@@ -338,9 +338,11 @@ def test_a_behaviour_the_robot_cannot_run_is_refused_on_receipt(sim_factory, sta
     parse gets NOT with `line L col C: ...`, one with an unknown action NOT naming it, one needing
     the gyro (model A has none) NOT naming the device, a built-in with a bad argument NOT naming the
     argument. Nothing was loaded (START: "no behaviour") and nothing moved; a good definition is
-    ACKed and runs (its ACTION_OK)."""
+    ACKed and runs (its ACTION_OK). Its AGENT announced model A's five devices after the model."""
     sim = sim_factory(OPEN)
     start_agent("--sysfs-root", str(sim.root()))
+    _, a, _ = tm.wait_for(lambda m: m.type == T["AGENT"], 3, "AGENT")
+    assert a.params == (b"A", b"left motor", b"right motor", b"ultrasonic sensor", b"touch sensor", b"colour sensor")
     tm.sync(2)
     why = tm.refused(2, "BEHAVIOUR", "custom", "behaviour x\nparam speed = 200\nstate a = run $speed ->\n").decode()
     assert re.fullmatch(r"line 3 col \d+: .+", why), why
