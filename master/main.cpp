@@ -199,15 +199,10 @@ class Program {
   /// to its row of the record (--db).
   void send_command(ev3io::LineServer::Client client, bool json, std::uint16_t agent, ev3proto::Command cmd,
                     Millis now) {
-    master_->advance(now);  // the drops due first: `all` is every robot the core still has
     cmd.tag = ++last_tag_;
-    std::vector<std::uint16_t> to;
-    std::size_t queued = 0;
-    for (const auto& kv : master_->registry())
-      if (agent == 0 || kv.first == agent) {
-        to.push_back(kv.first);
-        queued = std::max(queued, kv.second.queue.size());
-      }
+    std::vector<std::uint16_t> to = master_->command(agent, cmd, now);  // `all`: every robot it has
+    std::size_t queued = 0;  // the most commands queued ahead of this one at one robot
+    for (std::uint16_t a : to) queued = std::max(queued, master_->registry().at(a).queue.size() - 1);
     if (agent != 0 && to.empty()) to.push_back(agent);  // unknown: the core answers unknown_agent
     if (client != 0) {
       // The commands queued ahead each take their resends first; then the agent timeout.
@@ -224,7 +219,6 @@ class Program {
         if (master_->registry().count(a) != 0)
           db_commands_[{cmd.tag, a}] = db_.command_sent(a, std::string(to_string(cmd.type)), args, t);
     }
-    master_->command(agent, cmd, now);
     pump(now);
   }
 

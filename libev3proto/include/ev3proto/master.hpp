@@ -120,14 +120,17 @@ class Master {
   /// An operator command for agent @p agent (0 = every registered agent) at @p now. Queued behind
   /// the agent's pending command; sent at once when none is pending; the agent's desired state
   /// follows it (desired_after). Unknown ids are reported (the spec step changes nothing).
-  void command(std::uint16_t agent, const Command& c, Millis now) {
+  /// Returns the agents it was queued for, in id order (none: an unknown id, or 0 with no agent).
+  std::vector<std::uint16_t> command(std::uint16_t agent, const Command& c, Millis now) {
     advance(now);
     Snapshot s = snap();
+    std::vector<std::uint16_t> to;
     if (MasterCommandOk(agent))
-      MasterCommand(agent, c);
+      MasterCommand(agent, c, to);
     else
       push(OperatorEvent::Kind::unknown_agent, agent, c.type, {}, c.tag);
     record(Action::MasterCommand, s, {});
+    return to;
   }
 
   // ---------------------------------------------------------------- outputs
@@ -610,13 +613,18 @@ class Master {
   bool MasterCommandOk(std::uint16_t agent) const {
     return agent == kBroadcastId || reg_.contains(agent);
   }
-  /// Spec MasterCommand: the operator's command for agent @p agent (0 = all: not in the spec).
-  void MasterCommand(std::uint16_t agent, const Command& c) {
+  /// Spec MasterCommand: the operator's command for agent @p agent (0 = all: not in the spec),
+  /// the agents it is queued for appended to @p to.
+  void MasterCommand(std::uint16_t agent, const Command& c, std::vector<std::uint16_t>& to) {
     if (agent != kBroadcastId) {
       enqueue(*reg_.find(agent), c);
+      to.push_back(agent);
       return;
     }
-    for (auto& kv : reg_) enqueue(kv.second, c);
+    for (auto& kv : reg_) {  // in id order
+      enqueue(kv.second, c);
+      to.push_back(kv.first);
+    }
   }
 
   /// MasterTick is due at @p now: as MASTER, an entry's resend or drop time has come.

@@ -214,6 +214,18 @@ TEST(MasterSync, KeepsTheModelAndTheDevicesAnnounced) {
   EXPECT_TRUE(m.registry().at(4).devices.empty());
 }
 
+TEST(MasterCommand, ReturnsTheAgentsItQueuedTheCommandFor) {
+  Master<> m(MasterConfig{}, 0);
+  m.handle_datagram("50009:0:1:1:A", 11, 1);
+  m.handle_datagram("50008:0:1:1:A", 12, 2);
+  EXPECT_EQ(m.command(0, Command::simple(MsgType::START), 3), (std::vector<std::uint16_t>{2, 3}));
+  EXPECT_EQ(m.command(3, Command::simple(MsgType::STOP), 4), (std::vector<std::uint16_t>{3}));
+  EXPECT_TRUE(m.command(7, Command::simple(MsgType::STOP), 5).empty()) << "an unknown id";
+  EXPECT_EQ(m.registry().at(3).queue.size(), 2u);
+  Master<> none(MasterConfig{}, 0);
+  EXPECT_TRUE(none.command(0, Command::simple(MsgType::START), 1).empty()) << "all of no agent";
+}
+
 TEST(MasterMsgids, AnAgentWhoseMsgidsWrapIsStillHeardFresh) {
   // The master orders an agent's msgids as the agent orders the master's: serial-number order
   // (msgid_newer). An agent whose msgid wraps from 4294967295 to 0 is heard fresh; a late copy of
