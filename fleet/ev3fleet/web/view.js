@@ -74,6 +74,9 @@ function renderFleet(doc) {
     seen.add(String(a.id));
     const tr = rowOf(a.id);
     setText(tr, "id", String(a.id));
+    const built = a.model ? `model ${a.model}: ${(a.devices || []).join(", ") || "no devices"}` : "model not known";
+    const idCell = tr.querySelector("td.id");
+    if (idCell.title !== built) idCell.title = built;
     const led = tr.querySelector("td.state span.led");
     const ledClass = `led ${a.led || "DARK"}`;
     if (led.className !== ledClass) led.className = ledClass;

@@ -104,6 +104,8 @@ def test_the_page_shows_the_fleet_and_pauses_a_robot(mission, programs, tmp_path
         wait_until(lambda: state(a) == "WORKING" and state(b) == "WORKING", 10, "both robots WORKING on the page")
         assert "GREEN" in led(a).split() and "GREEN" in led(b).split()
         assert drv.find_element(By.CSS_SELECTOR, f'tr[data-robot="{a}"] td.behaviour').text == "custom"
+        assert drv.find_element(By.CSS_SELECTOR, f'tr[data-robot="{a}"] td.id').get_attribute("title") == (
+            "model A: left motor, right motor, ultrasonic sensor, touch sensor, colour sensor")
         drv.find_element(By.CSS_SELECTOR, f'tr[data-robot="{a}"] button[data-command="pause"]').click()
         wait_until(lambda: state(a) == "PAUSED", 10, f"robot {a} PAUSED on the page")
         assert "ORANGE" in led(a).split()
