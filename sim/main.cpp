@@ -10,6 +10,7 @@
 #include <fuse3/fuse_lowlevel.h>
 
 #include <fcntl.h>
+#include <grp.h>
 #include <poll.h>
 #include <signal.h>
 #include <sys/signalfd.h>
@@ -96,8 +97,9 @@ struct App {
   std::vector<std::unique_ptr<Mount>> mounts;
   std::vector<PendingWrite> pending;
   ev3io::Logger log;
-  uid_t uid = 0;
-  gid_t gid = 0;
+  uid_t uid = 0;        // the owner of every node (ev3-sim's user: root, as on a brick, when run as root)
+  gid_t gid = 0;        // the group of nodes not given to group ev3dev
+  gid_t group_gid = 0;  // group ev3dev's gid, or gid when the machine has no such group
 };
 
 Mount& mount_of(fuse_req_t req) { return *static_cast<Mount*>(fuse_req_userdata(req)); }
@@ -105,8 +107,8 @@ Mount& mount_of(fuse_req_t req) { return *static_cast<Mount*>(fuse_req_userdata(
 struct stat stat_of(const App& app, const Node& n) {
   struct stat st {};
   st.st_ino = n.ino;
-  st.st_uid = app.uid;
-  st.st_gid = app.gid;
+  st.st_uid = n.uid ? *n.uid : app.uid;
+  st.st_gid = n.gid ? *n.gid : n.ev3dev_group ? app.group_gid : app.gid;
   st.st_blksize = 4096;
   switch (n.kind) {
     case NodeKind::Dir:
@@ -156,12 +158,19 @@ void op_getattr(fuse_req_t req, fuse_ino_t ino, fuse_file_info*) {
   fuse_reply_attr(req, &st, 0);
 }
 
-void op_setattr(fuse_req_t req, fuse_ino_t ino, struct stat*, int to_set, fuse_file_info* fi) {
-  // `echo x > attr` truncates first; sysfs ignores that. Nothing else may change.
-  if (to_set & ~(FUSE_SET_ATTR_SIZE | FUSE_SET_ATTR_ATIME | FUSE_SET_ATTR_MTIME | FUSE_SET_ATTR_CTIME |
-                 FUSE_SET_ATTR_ATIME_NOW | FUSE_SET_ATTR_MTIME_NOW)) {
-    fuse_reply_err(req, EPERM);
-    return;
+void op_setattr(fuse_req_t req, fuse_ino_t ino, struct stat* attr, int to_set, fuse_file_info* fi) {
+  // `echo x > attr` truncates first; sysfs ignores that, and the times. chmod and chown change the
+  // node as kernfs keeps them (the kernel has already checked who may: default_permissions).
+  std::optional<unsigned> mode;
+  std::optional<std::uint32_t> uid, gid;
+  if (to_set & FUSE_SET_ATTR_MODE) mode = attr->st_mode & 07777;
+  if (to_set & FUSE_SET_ATTR_UID) uid = attr->st_uid;
+  if (to_set & FUSE_SET_ATTR_GID) gid = attr->st_gid;
+  if (mode || uid || gid) {
+    if (int err = mount_of(req).robot->tree().set_attributes(ino, mode, uid, gid)) {
+      fuse_reply_err(req, err);
+      return;
+    }
   }
   op_getattr(req, ino, fi);
 }
@@ -671,5 +680,14 @@ int main(int argc, char** argv) {
   }
   app.uid = getuid();
   app.gid = getgid();
+  // The class devices' attributes belong to group ev3dev, as ev3dev's udev rules leave them on a
+  // brick; a machine without that group gets ev3-sim's own group instead (nothing is created).
+  if (const group* g = getgrnam("ev3dev")) {
+    app.group_gid = g->gr_gid;
+  } else {
+    app.group_gid = app.gid;
+    app.log.log(kInfo, "no group ev3dev on this machine: the attributes a brick gives to group ev3dev are group %u",
+                static_cast<unsigned>(app.gid));
+  }
   return run(app);
 }

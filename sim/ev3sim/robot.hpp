@@ -155,6 +155,7 @@ class Robot {
   ReadResult read_attr(const std::string& port, const std::string& name);
   WriteResult write_attr(const std::string& port, const std::string& name, std::string_view data);
   void add_led(int i);
+  void add_board_info();
   void set_led_trigger(int i, const std::string& trigger);
   std::string address(const std::string& port) const;
   Device* device(const std::string& port);

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -44,7 +45,12 @@ struct Node {
   Ino parent = 0;
   std::string name;
   NodeKind kind = NodeKind::Dir;
-  unsigned mode = 0755;           ///< permission bits as sysfs shows them
+  unsigned mode = 0755;           ///< permission bits as sysfs shows them (chmod changes them)
+  /// Owned by group ev3dev (ev3dev's udev rules give the class devices' attributes to it); the
+  /// program maps this to a gid. Otherwise the group is the owner's.
+  bool ev3dev_group = false;
+  std::optional<std::uint32_t> uid;  ///< set by chown; unset: the program's default owner
+  std::optional<std::uint32_t> gid;  ///< set by chown; unset: see ev3dev_group
   std::uint32_t size = 4096;      ///< st_size (sysfs: 4096 for attributes, N for binary ones)
   std::map<std::string, Ino> children;
   std::string target;             ///< symlink target
@@ -80,6 +86,16 @@ class Tree {
   void remove(Ino ino);
   /// Bumped by every change of structure (for caches).
   std::uint64_t version() const { return version_; }
+  /// ev3dev's udev rules on a class device: every attribute file under the directory @p dir
+  /// goes to group ev3dev with the owner's permission bits copied to the group's (0644 -> 0664,
+  /// 0200 -> 0220, 0444 -> 0444). Directories and symlinks stay as they are.
+  void give_to_ev3dev_group(Ino dir);
+
+  /// chmod / chown as sysfs allows them to whoever the kernel let through (the owner or root for
+  /// chmod, root for chown; the caller checks that): the permission bits of a file or directory
+  /// (not a symlink: EPERM), its owner, its group. 0, ENOENT, or ENODEV for a dead node.
+  int set_attributes(Ino ino, std::optional<unsigned> mode, std::optional<std::uint32_t> uid,
+                     std::optional<std::uint32_t> gid);
 
   // --- the file operations, with sysfs's errors --------------------------------------------
   /// 0, ENODEV (dead node), EISDIR, or EACCES when the attribute cannot be read (or written).

@@ -55,6 +55,35 @@ TEST(Tree, FilesLinksAndErrors) {
   EXPECT_EQ(t.read(again).data, "new\n");
 }
 
+TEST(Tree, Ev3devGroupChmodAndChown) {
+  Tree t;
+  const Ino rw = t.add_file("d/m/speed_sp", 0644, [] { return ReadResult{}; }, [](std::string_view) { return WriteResult{}; });
+  const Ino wo = t.add_file("d/m/command", 0200, nullptr, [](std::string_view) { return WriteResult{}; });
+  const Ino ro = t.add_file("d/m/sub/state", 0444, [] { return ReadResult{}; }, nullptr);
+  const Ino link = t.add_relative_link("d/m/subsystem", "class/x");
+  const Ino outside = t.add_file("d/other", 0644, [] { return ReadResult{}; }, nullptr);
+  t.give_to_ev3dev_group(t.resolve("d/m"));
+  // udev's g=u on every attribute below the device; directories, links and others untouched.
+  EXPECT_EQ(t.node(rw)->mode, 0664u);
+  EXPECT_EQ(t.node(wo)->mode, 0220u);
+  EXPECT_EQ(t.node(ro)->mode, 0444u);
+  EXPECT_TRUE(t.node(rw)->ev3dev_group && t.node(wo)->ev3dev_group && t.node(ro)->ev3dev_group);
+  EXPECT_FALSE(t.node(t.resolve("d/m"))->ev3dev_group);
+  EXPECT_EQ(t.node(t.resolve("d/m"))->mode, 0755u);
+  EXPECT_FALSE(t.node(link)->ev3dev_group);
+  EXPECT_FALSE(t.node(outside)->ev3dev_group);
+  EXPECT_EQ(t.node(outside)->mode, 0644u);
+
+  EXPECT_EQ(t.set_attributes(rw, 0600u, std::nullopt, 1000u), 0);
+  EXPECT_EQ(t.node(rw)->mode, 0600u);
+  EXPECT_FALSE(t.node(rw)->uid);
+  EXPECT_EQ(t.node(rw)->gid, 1000u);
+  EXPECT_EQ(t.set_attributes(link, 0700u, std::nullopt, std::nullopt), EPERM);
+  EXPECT_EQ(t.set_attributes(999, 0700u, std::nullopt, std::nullopt), ENOENT);
+  t.remove(t.resolve("d/m"));
+  EXPECT_EQ(t.set_attributes(rw, 0644u, std::nullopt, std::nullopt), ENODEV);
+}
+
 TEST(Tree, KernelIntegerParsing) {
   long long v = 0;
   EXPECT_EQ(parse_kernel_int("42\n", -100, 100, v), 0);
