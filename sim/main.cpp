@@ -23,6 +23,7 @@
 #include <cstring>
 #include <fstream>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -48,10 +49,15 @@ std::int64_t monotonic_us() {
 }
 
 // An open attribute: sysfs fills the buffer on a read at offset 0 and serves later offsets from
-// it, so a reader never sees two halves of different values.
+// it, so a reader never sees two halves of different values. `event` is the node's notify count
+// when the file was opened or last read from the start (kernfs keeps the same per open file): a
+// poll reports POLLPRI | POLLERR while the node's count has moved past it.
 struct FileHandle {
+  Ino ino = 0;
   std::string data;
   bool filled = false;
+  std::uint64_t event = 0;
+  fuse_pollhandle* ph = nullptr;  // the kernel waits for a notify on this file
 };
 
 struct DirEntry {
@@ -76,6 +82,7 @@ struct Mount {
   fuse_session* se = nullptr;
   fuse_buf buf{};
   bool mounted = false;
+  std::set<FileHandle*> polled;  // open files with a poll handle, woken by the tree's notifies
 };
 
 // Simulated time follows the monotonic clock times --time-scale. When stepping cannot keep up,
@@ -235,7 +242,10 @@ void op_open(fuse_req_t req, fuse_ino_t ino, fuse_file_info* fi) {
   }
   fi->direct_io = 1;  // every read reaches the simulation (no page cache)
   fi->keep_cache = 0;
-  fi->fh = reinterpret_cast<std::uint64_t>(new FileHandle);
+  auto* h = new FileHandle;
+  h->ino = ino;
+  h->event = mount_of(req).robot->tree().node(ino)->event;
+  fi->fh = reinterpret_cast<std::uint64_t>(h);
   fuse_reply_open(req, fi);
 }
 
@@ -244,6 +254,7 @@ void op_read(fuse_req_t req, fuse_ino_t ino, size_t size, off_t off, fuse_file_i
   auto* h = reinterpret_cast<FileHandle*>(fi->fh);
   if (off == 0 || !h->filled) {
     m.robot->set_now(m.app->sim->now());
+    if (const Node* n = m.robot->tree().node(ino)) h->event = n->event;
     ReadResult r = m.robot->tree().read(ino);
     if (r.err) {
       fuse_reply_err(req, r.err);
@@ -289,8 +300,51 @@ void op_write(fuse_req_t req, fuse_ino_t ino, const char* data, size_t size, off
 void op_flush(fuse_req_t req, fuse_ino_t, fuse_file_info*) { fuse_reply_err(req, 0); }
 
 void op_release(fuse_req_t req, fuse_ino_t, fuse_file_info* fi) {
-  delete reinterpret_cast<FileHandle*>(fi->fh);
+  auto* h = reinterpret_cast<FileHandle*>(fi->fh);
+  if (h->ph) fuse_pollhandle_destroy(h->ph);
+  mount_of(req).polled.erase(h);
+  delete h;
   fuse_reply_err(req, 0);
+}
+
+// sysfs's poll (kernfs_generic_poll): always readable and writable; POLLPRI and POLLERR as well
+// once the attribute was notified after the file was opened or last read from the start. A poll
+// handle is kept until the next notify of the attribute (wake_pollers).
+void op_poll(fuse_req_t req, fuse_ino_t ino, fuse_file_info* fi, fuse_pollhandle* ph) {
+  Mount& m = mount_of(req);
+  auto* h = reinterpret_cast<FileHandle*>(fi->fh);
+  const Node* n = m.robot->tree().node(ino);
+  if (ph) {
+    if (h->ph) fuse_pollhandle_destroy(h->ph);
+    h->ph = ph;
+    m.polled.insert(h);
+  }
+  unsigned revents = POLLIN | POLLRDNORM | POLLOUT | POLLWRNORM;
+  if (!n || !n->alive || n->event != h->event) revents |= POLLPRI | POLLERR;
+  fuse_reply_poll(req, revents);
+}
+
+// Tells the kernel about every attribute the trees notified since the last call: each poll
+// handle waiting on one of them is used once (the kernel polls again and gets a new one).
+void wake_pollers(App& app) {
+  for (auto& mp : app.mounts) {
+    Mount& m = *mp;
+    const std::vector<Ino> changed = m.robot->tree().take_notified();
+    if (changed.empty() || m.polled.empty()) continue;
+    for (auto it = m.polled.begin(); it != m.polled.end();) {
+      FileHandle* h = *it;
+      bool hit = false;
+      for (Ino c : changed) hit = hit || c == h->ino;
+      if (!hit) {
+        ++it;
+        continue;
+      }
+      fuse_lowlevel_notify_poll(h->ph);
+      fuse_pollhandle_destroy(h->ph);
+      h->ph = nullptr;
+      it = m.polled.erase(it);
+    }
+  }
 }
 
 void op_refuse_create(fuse_req_t req, fuse_ino_t, const char*, mode_t, fuse_file_info*) { fuse_reply_err(req, EACCES); }
@@ -312,6 +366,7 @@ fuse_lowlevel_ops make_ops() {
   ops.write = op_write;
   ops.flush = op_flush;
   ops.release = op_release;
+  ops.poll = op_poll;
   ops.create = op_refuse_create;
   ops.mknod = op_refuse_mknod;
   ops.mkdir = op_refuse_mkdir;
@@ -595,6 +650,7 @@ int run(App& app) {
         stop = true;
       }
     }
+    wake_pollers(app);
     app.log.tick(static_cast<ev3io::Millis>(now_us / 1000));
   }
   answer_due_writes(app, true);

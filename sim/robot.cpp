@@ -319,6 +319,10 @@ std::string Robot::plug(const std::string& port, const std::string& driver) {
   tree_.add_file(dev.class_dir + "/driver_name", 0444, [driver] { return text(driver + "\n"); }, nullptr);
   add_device_files(dev);
   tree_.give_to_ev3dev_group(tree_.resolve(dev.class_dir));
+  if (dev.motor) {
+    dev.state = tree_.resolve(dev.class_dir + "/state");
+    dev.last_state = dev.motor->state();
+  }
   return {};
 }
 
@@ -360,7 +364,11 @@ ReadResult Robot::read_attr(const std::string& port, const std::string& name) {
 }
 
 WriteResult Robot::write_attr(const std::string& port, const std::string& name, std::string_view data) {
-  if (TachoMotor* m = motor(port)) return m->write(name, data, now_);
+  if (TachoMotor* m = motor(port)) {
+    const WriteResult r = m->write(name, data, now_);
+    notify_state_changes();  // a command changes the state at once (running, or stopped)
+    return r;
+  }
   if (Sensor* s = sensor(port)) return s->write(name, data, now_);
   return {ENODEV, 0};
 }
@@ -486,6 +494,17 @@ void Robot::commit(double fraction, bool blocked, SimTime now, double dt) {
   used_ah_ += amps * dt / 3600.0;
   const double ocv = full_volts_ - (full_volts_ - b.empty_volts) * used_ah_ * 1000.0 / b.capacity_mah;
   volts_ = std::max(0.0, ocv - amps * b.resistance);
+  notify_state_changes();
+}
+
+void Robot::notify_state_changes() {
+  for (auto& [port, d] : devices_) {
+    if (!d.motor) continue;
+    std::string now = d.motor->state();
+    if (now == d.last_state) continue;
+    d.last_state = std::move(now);
+    tree_.notify(d.state);
+  }
 }
 
 void Robot::sense(SimTime now, const Perception& base) {

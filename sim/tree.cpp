@@ -149,6 +149,23 @@ void Tree::give_to_ev3dev_group(Ino dir) {
   }
 }
 
+void Tree::notify(Ino ino) {
+  auto it = nodes_.find(ino);
+  if (it == nodes_.end() || !it->second.alive) return;
+  Node& n = it->second;
+  // Queued once until taken: a node already counted since the last take is in the queue.
+  bool queued = false;
+  for (Ino q : notified_) queued = queued || q == ino;
+  if (!queued) notified_.push_back(ino);
+  ++n.event;
+}
+
+std::vector<Ino> Tree::take_notified() {
+  std::vector<Ino> out;
+  out.swap(notified_);
+  return out;
+}
+
 int Tree::set_attributes(Ino ino, std::optional<unsigned> mode, std::optional<std::uint32_t> uid,
                          std::optional<std::uint32_t> gid) {
   auto it = nodes_.find(ino);

@@ -51,6 +51,7 @@ struct Node {
   bool ev3dev_group = false;
   std::optional<std::uint32_t> uid;  ///< set by chown; unset: the program's default owner
   std::optional<std::uint32_t> gid;  ///< set by chown; unset: see ev3dev_group
+  std::uint64_t event = 0;        ///< sysfs_notify count: pollers wake when it moves
   std::uint32_t size = 4096;      ///< st_size (sysfs: 4096 for attributes, N for binary ones)
   std::map<std::string, Ino> children;
   std::string target;             ///< symlink target
@@ -91,6 +92,12 @@ class Tree {
   /// 0200 -> 0220, 0444 -> 0444). Directories and symlinks stay as they are.
   void give_to_ev3dev_group(Ino dir);
 
+  /// sysfs_notify: the attribute changed in a way pollers wait for (POLLPRI, POLLERR). Counts
+  /// the node's event and queues it for take_notified().
+  void notify(Ino ino);
+  /// The nodes notified since the last call (each once), in the order of their first notify.
+  std::vector<Ino> take_notified();
+
   /// chmod / chown as sysfs allows them to whoever the kernel let through (the owner or root for
   /// chmod, root for chown; the caller checks that): the permission bits of a file or directory
   /// (not a symlink: EPERM), its owner, its group. 0, ENOENT, or ENODEV for a dead node.
@@ -108,6 +115,7 @@ class Tree {
   std::unordered_map<Ino, Node> nodes_;
   Ino next_ = kRoot + 1;
   std::uint64_t version_ = 0;
+  std::vector<Ino> notified_;
 };
 
 /// The relative symlink target that leads from directory @p from_dir to @p to (both relative

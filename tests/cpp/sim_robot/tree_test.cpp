@@ -55,7 +55,7 @@ TEST(Tree, FilesLinksAndErrors) {
   EXPECT_EQ(t.read(again).data, "new\n");
 }
 
-TEST(Tree, Ev3devGroupChmodAndChown) {
+TEST(Tree, Ev3devGroupChmodChownAndNotify) {
   Tree t;
   const Ino rw = t.add_file("d/m/speed_sp", 0644, [] { return ReadResult{}; }, [](std::string_view) { return WriteResult{}; });
   const Ino wo = t.add_file("d/m/command", 0200, nullptr, [](std::string_view) { return WriteResult{}; });
@@ -80,7 +80,17 @@ TEST(Tree, Ev3devGroupChmodAndChown) {
   EXPECT_EQ(t.node(rw)->gid, 1000u);
   EXPECT_EQ(t.set_attributes(link, 0700u, std::nullopt, std::nullopt), EPERM);
   EXPECT_EQ(t.set_attributes(999, 0700u, std::nullopt, std::nullopt), ENOENT);
+
+  EXPECT_TRUE(t.take_notified().empty());
+  t.notify(ro);
+  t.notify(wo);
+  t.notify(ro);
+  EXPECT_EQ(t.node(ro)->event, 2u);
+  EXPECT_EQ(t.take_notified(), (std::vector<Ino>{ro, wo}));
+  EXPECT_TRUE(t.take_notified().empty());
   t.remove(t.resolve("d/m"));
+  t.notify(ro);  // a dead node is not notified
+  EXPECT_TRUE(t.take_notified().empty());
   EXPECT_EQ(t.set_attributes(rw, 0644u, std::nullopt, std::nullopt), ENODEV);
 }
 
