@@ -29,6 +29,7 @@
 #include <vector>
 
 #include "ev3io/log.hpp"
+#include "exec.hpp"
 #include "ev3sim/options.hpp"
 #include "ev3sim/sim.hpp"
 #include "ev3sim/svg.hpp"
@@ -78,6 +79,7 @@ struct App;
 struct Mount {
   App* app = nullptr;
   Robot* robot = nullptr;
+  std::size_t index = 0;  // the robot's place on the command line, from 1
   std::string dir;
   fuse_session* se = nullptr;
   fuse_buf buf{};
@@ -490,7 +492,14 @@ std::string mount_robot(App& app, Mount& m, const fuse_lowlevel_ops& ops) {
   } else if (!S_ISDIR(st.st_mode)) {
     return m.dir + " is not a directory";
   }
-  std::string o = "default_permissions,auto_unmount,fsname=ev3-sim,subtype=ev3-sim";
+  // The source names the robot (ev3-sim exec finds the trees by it); fuse's option parser takes
+  // a backslash before a comma or a backslash literally.
+  std::string source;
+  for (char c : mount_source(m.index, m.robot->name())) {
+    if (c == ',' || c == '\\') source += '\\';
+    source += c;
+  }
+  std::string o = "default_permissions,auto_unmount,fsname=" + source + ",subtype=ev3-sim";
   if (app.opt.allow_other) o += ",allow_other";
   const char* argv[] = {"ev3-sim", "-o", o.c_str()};
   fuse_args args = FUSE_ARGS_INIT(3, const_cast<char**>(argv));
@@ -672,6 +681,7 @@ int run(App& app) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc > 1 && std::strcmp(argv[1], "exec") == 0) return exec_main(argc - 1, argv + 1);
   App app;
   app.log.set_name("sim");
   std::string err = parse_sim_options(argc, argv, app.opt);
@@ -724,6 +734,7 @@ int main(int argc, char** argv) {
     auto m = std::make_unique<Mount>();
     m->app = &app;
     m->robot = app.sim->robot(ro.name);
+    m->index = i + 1;
     m->dir = ro.root;
     app.mounts.push_back(std::move(m));
   }

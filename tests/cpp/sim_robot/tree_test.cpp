@@ -173,4 +173,62 @@ TEST(Options, SeveralRobotsAndErrors) {
   EXPECT_EQ(parse({"--world", "w", "--sysfs-root", "a", "--bogus"}, e), "unknown flag '--bogus'");
 }
 
+std::string parse_exec(std::vector<const char*> args, ExecOptions& o) {
+  args.insert(args.begin(), "exec");
+  return parse_exec_options(static_cast<int>(args.size()), args.data(), o);
+}
+
+TEST(Options, ExecArgumentsAndErrors) {
+  ExecOptions o;
+  ASSERT_EQ(parse_exec({"--robot", "2", "--", "python3", "--robot", "x"}, o), "");
+  EXPECT_EQ(o.robot, "2");
+  EXPECT_EQ(o.command, (std::vector<std::string>{"python3", "--robot", "x"}));
+  ExecOptions e;
+  EXPECT_EQ(parse_exec({"--", "true"}, e), "exec: name the robot: --robot N|NAME or --sysfs-root DIR");
+  ExecOptions e2;
+  EXPECT_EQ(parse_exec({"--robot", "1"}, e2), "exec: no command (give it after --)");
+  ExecOptions e3;
+  EXPECT_EQ(parse_exec({"--robot"}, e3), "exec: --robot needs a value");
+  ExecOptions e4;
+  EXPECT_EQ(parse_exec({"--robot", "1", "true"}, e4), "exec: unknown argument 'true' (the command comes after --)");
+  ExecOptions e5;
+  EXPECT_EQ(parse_exec({"--robot", "1", "--robot", "2", "--", "true"}, e5), "exec: --robot given twice");
+}
+
+TEST(Options, ExecFindsTheRobotsTreeInMountinfo) {
+  const std::string info =
+      "22 1 0:21 / /sys rw,nosuid - sysfs sysfs rw\n"
+      "44 27 0:40 / /tmp/r1 rw,nosuid,nodev,relatime - fuse.ev3-sim ev3-sim:1:robot1 rw,user_id=0\n"
+      "45 27 0:41 / /tmp/my\\040dir rw shared:7 - fuse.ev3-sim ev3-sim:2:bob rw,user_id=0\n"
+      "46 27 0:42 / /tmp/old rw - fuse.ev3-sim ev3-sim rw,user_id=0\n"
+      "47 27 0:43 / /tmp/s2 rw - fuse.ev3-sim ev3-sim:1:robot1 rw,user_id=0\n";
+  EXPECT_EQ(mount_source(2, "bob"), "ev3-sim:2:bob");
+  const std::vector<SimMount> all = parse_sim_mounts(info);
+  ASSERT_EQ(all.size(), 3u);  // the old source without a robot is not one
+  EXPECT_EQ(all[1].dir, "/tmp/my dir");
+  EXPECT_EQ(all[1].index, 2);
+  EXPECT_EQ(all[1].name, "bob");
+
+  SimMount m;
+  // pick(--robot, --sysfs-root): the error, "" when found (then m).
+  auto pick = [&](const std::vector<SimMount>& mounts, const char* robot, const char* root) {
+    ExecOptions o;
+    o.robot = robot;
+    o.root = root;
+    return pick_sim_mount(mounts, o, root, m);
+  };
+  EXPECT_EQ(pick(all, "2", ""), "");
+  EXPECT_EQ(m.dir, "/tmp/my dir");
+  EXPECT_EQ(pick(all, "robot1", ""),
+            "exec: robot robot1 is ambiguous: robot1 (robot 1) on /tmp/r1, robot1 (robot 1) on /tmp/s2; name its "
+            "tree with --sysfs-root DIR");
+  EXPECT_EQ(pick(all, "", "/tmp/s2"), "");
+  EXPECT_EQ(m.dir, "/tmp/s2");
+  EXPECT_EQ(pick(all, "7", ""),
+            "exec: no running ev3-sim serves robot 7 (running: robot1 (robot 1) on /tmp/r1, bob (robot 2) on /tmp/my "
+            "dir, robot1 (robot 1) on /tmp/s2)");
+  EXPECT_EQ(pick(all, "bob", "/tmp").rfind("exec: no running ev3-sim serves a tree on /tmp for robot bob", 0), 0u);
+  EXPECT_EQ(pick({}, "2", ""), "exec: no ev3-sim is running (no fuse.ev3-sim mount in /proc/self/mountinfo)");
+}
+
 }  // namespace
