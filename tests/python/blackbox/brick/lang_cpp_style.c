@@ -3,6 +3,7 @@
  * closes it; every read opens, reads and closes. Both of model A's wheels (outB, outC) turn
  * argv[1] degrees at argv[2] degrees per second with run-to-rel-pos; the program waits for both
  * to leave the `running` state and prints their positions.
+ * ev3dev-lang-cpp itself is not packaged in Debian, so this program stands in for it.
  * Exit status: 0, 1 on an error (printed). */
 #include <dirent.h>
 #include <errno.h>
