@@ -32,9 +32,11 @@ int fail(const std::string& why) {
   return 1;
 }
 
-bool is_dir(const std::string& p) {
+// "" when @p p is a directory, else why not.
+std::string not_dir(const std::string& p) {
   struct stat st {};
-  return stat(p.c_str(), &st) == 0 && S_ISDIR(st.st_mode);
+  if (stat(p.c_str(), &st) != 0) return std::strerror(errno);
+  return S_ISDIR(st.st_mode) ? "" : "not a directory";
 }
 
 }  // namespace
@@ -75,8 +77,9 @@ int exec_main(int argc, char** argv) {
   for (const char* sub : {"class", "devices"}) {
     const std::string from = m.dir + "/" + sub;
     const std::string to = std::string("/sys/") + sub;
-    if (!is_dir(from)) return fail("exec: " + from + " is not a directory: is " + m.name + "'s tree still mounted?");
-    if (!is_dir(to)) return fail("exec: " + to + " is missing (is sysfs mounted on /sys?)");
+    if (std::string why = not_dir(from); !why.empty())
+      return fail("exec: " + from + ": " + why + " (a tree ev3-sim serves to another user needs its --allow-other)");
+    if (std::string why = not_dir(to); !why.empty()) return fail("exec: " + to + ": " + why + " (is sysfs mounted on /sys?)");
     if (mount(from.c_str(), to.c_str(), nullptr, MS_BIND, nullptr) != 0)
       return fail("exec: cannot bind-mount " + from + " on " + to + ": " + std::strerror(errno));
   }
