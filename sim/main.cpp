@@ -10,6 +10,7 @@
 #include <fuse3/fuse_lowlevel.h>
 
 #include <fcntl.h>
+#include <grp.h>
 #include <poll.h>
 #include <signal.h>
 #include <sys/signalfd.h>
@@ -22,11 +23,13 @@
 #include <cstring>
 #include <fstream>
 #include <memory>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
 
 #include "ev3io/log.hpp"
+#include "exec.hpp"
 #include "ev3sim/options.hpp"
 #include "ev3sim/sim.hpp"
 #include "ev3sim/svg.hpp"
@@ -47,10 +50,15 @@ std::int64_t monotonic_us() {
 }
 
 // An open attribute: sysfs fills the buffer on a read at offset 0 and serves later offsets from
-// it, so a reader never sees two halves of different values.
+// it, so a reader never sees two halves of different values. `event` is the node's notify count
+// when the file was opened or last read from the start (kernfs keeps the same per open file): a
+// poll reports POLLPRI | POLLERR while the node's count has moved past it.
 struct FileHandle {
+  Ino ino = 0;
   std::string data;
   bool filled = false;
+  std::uint64_t event = 0;
+  fuse_pollhandle* ph = nullptr;  // the kernel waits for a notify on this file
 };
 
 struct DirEntry {
@@ -71,10 +79,12 @@ struct App;
 struct Mount {
   App* app = nullptr;
   Robot* robot = nullptr;
+  std::size_t index = 0;  // the robot's place on the command line, from 1
   std::string dir;
   fuse_session* se = nullptr;
   fuse_buf buf{};
   bool mounted = false;
+  std::set<FileHandle*> polled;  // open files with a poll handle, woken by the tree's notifies
 };
 
 // Simulated time follows the monotonic clock times --time-scale. When stepping cannot keep up,
@@ -96,8 +106,9 @@ struct App {
   std::vector<std::unique_ptr<Mount>> mounts;
   std::vector<PendingWrite> pending;
   ev3io::Logger log;
-  uid_t uid = 0;
-  gid_t gid = 0;
+  uid_t uid = 0;        // the owner of every node (ev3-sim's user: root, as on a brick, when run as root)
+  gid_t gid = 0;        // the group of nodes not given to group ev3dev
+  gid_t group_gid = 0;  // group ev3dev's gid, or gid when the machine has no such group
 };
 
 Mount& mount_of(fuse_req_t req) { return *static_cast<Mount*>(fuse_req_userdata(req)); }
@@ -105,8 +116,8 @@ Mount& mount_of(fuse_req_t req) { return *static_cast<Mount*>(fuse_req_userdata(
 struct stat stat_of(const App& app, const Node& n) {
   struct stat st {};
   st.st_ino = n.ino;
-  st.st_uid = app.uid;
-  st.st_gid = app.gid;
+  st.st_uid = n.uid ? *n.uid : app.uid;
+  st.st_gid = n.gid ? *n.gid : n.ev3dev_group ? app.group_gid : app.gid;
   st.st_blksize = 4096;
   switch (n.kind) {
     case NodeKind::Dir:
@@ -156,12 +167,19 @@ void op_getattr(fuse_req_t req, fuse_ino_t ino, fuse_file_info*) {
   fuse_reply_attr(req, &st, 0);
 }
 
-void op_setattr(fuse_req_t req, fuse_ino_t ino, struct stat*, int to_set, fuse_file_info* fi) {
-  // `echo x > attr` truncates first; sysfs ignores that. Nothing else may change.
-  if (to_set & ~(FUSE_SET_ATTR_SIZE | FUSE_SET_ATTR_ATIME | FUSE_SET_ATTR_MTIME | FUSE_SET_ATTR_CTIME |
-                 FUSE_SET_ATTR_ATIME_NOW | FUSE_SET_ATTR_MTIME_NOW)) {
-    fuse_reply_err(req, EPERM);
-    return;
+void op_setattr(fuse_req_t req, fuse_ino_t ino, struct stat* attr, int to_set, fuse_file_info* fi) {
+  // `echo x > attr` truncates first; sysfs ignores that, and the times. chmod and chown change the
+  // node as kernfs keeps them (the kernel has already checked who may: default_permissions).
+  std::optional<unsigned> mode;
+  std::optional<std::uint32_t> uid, gid;
+  if (to_set & FUSE_SET_ATTR_MODE) mode = attr->st_mode & 07777;
+  if (to_set & FUSE_SET_ATTR_UID) uid = attr->st_uid;
+  if (to_set & FUSE_SET_ATTR_GID) gid = attr->st_gid;
+  if (mode || uid || gid) {
+    if (int err = mount_of(req).robot->tree().set_attributes(ino, mode, uid, gid)) {
+      fuse_reply_err(req, err);
+      return;
+    }
   }
   op_getattr(req, ino, fi);
 }
@@ -226,7 +244,10 @@ void op_open(fuse_req_t req, fuse_ino_t ino, fuse_file_info* fi) {
   }
   fi->direct_io = 1;  // every read reaches the simulation (no page cache)
   fi->keep_cache = 0;
-  fi->fh = reinterpret_cast<std::uint64_t>(new FileHandle);
+  auto* h = new FileHandle;
+  h->ino = ino;
+  h->event = mount_of(req).robot->tree().node(ino)->event;
+  fi->fh = reinterpret_cast<std::uint64_t>(h);
   fuse_reply_open(req, fi);
 }
 
@@ -235,6 +256,7 @@ void op_read(fuse_req_t req, fuse_ino_t ino, size_t size, off_t off, fuse_file_i
   auto* h = reinterpret_cast<FileHandle*>(fi->fh);
   if (off == 0 || !h->filled) {
     m.robot->set_now(m.app->sim->now());
+    if (const Node* n = m.robot->tree().node(ino)) h->event = n->event;
     ReadResult r = m.robot->tree().read(ino);
     if (r.err) {
       fuse_reply_err(req, r.err);
@@ -280,8 +302,51 @@ void op_write(fuse_req_t req, fuse_ino_t ino, const char* data, size_t size, off
 void op_flush(fuse_req_t req, fuse_ino_t, fuse_file_info*) { fuse_reply_err(req, 0); }
 
 void op_release(fuse_req_t req, fuse_ino_t, fuse_file_info* fi) {
-  delete reinterpret_cast<FileHandle*>(fi->fh);
+  auto* h = reinterpret_cast<FileHandle*>(fi->fh);
+  if (h->ph) fuse_pollhandle_destroy(h->ph);
+  mount_of(req).polled.erase(h);
+  delete h;
   fuse_reply_err(req, 0);
+}
+
+// sysfs's poll (kernfs_generic_poll): always readable and writable; POLLPRI and POLLERR as well
+// once the attribute was notified after the file was opened or last read from the start. A poll
+// handle is kept until the next notify of the attribute (wake_pollers).
+void op_poll(fuse_req_t req, fuse_ino_t ino, fuse_file_info* fi, fuse_pollhandle* ph) {
+  Mount& m = mount_of(req);
+  auto* h = reinterpret_cast<FileHandle*>(fi->fh);
+  const Node* n = m.robot->tree().node(ino);
+  if (ph) {
+    if (h->ph) fuse_pollhandle_destroy(h->ph);
+    h->ph = ph;
+    m.polled.insert(h);
+  }
+  unsigned revents = POLLIN | POLLRDNORM | POLLOUT | POLLWRNORM;
+  if (!n || !n->alive || n->event != h->event) revents |= POLLPRI | POLLERR;
+  fuse_reply_poll(req, revents);
+}
+
+// Tells the kernel about every attribute the trees notified since the last call: each poll
+// handle waiting on one of them is used once (the kernel polls again and gets a new one).
+void wake_pollers(App& app) {
+  for (auto& mp : app.mounts) {
+    Mount& m = *mp;
+    const std::vector<Ino> changed = m.robot->tree().take_notified();
+    if (changed.empty() || m.polled.empty()) continue;
+    for (auto it = m.polled.begin(); it != m.polled.end();) {
+      FileHandle* h = *it;
+      bool hit = false;
+      for (Ino c : changed) hit = hit || c == h->ino;
+      if (!hit) {
+        ++it;
+        continue;
+      }
+      fuse_lowlevel_notify_poll(h->ph);
+      fuse_pollhandle_destroy(h->ph);
+      h->ph = nullptr;
+      it = m.polled.erase(it);
+    }
+  }
 }
 
 void op_refuse_create(fuse_req_t req, fuse_ino_t, const char*, mode_t, fuse_file_info*) { fuse_reply_err(req, EACCES); }
@@ -303,6 +368,7 @@ fuse_lowlevel_ops make_ops() {
   ops.write = op_write;
   ops.flush = op_flush;
   ops.release = op_release;
+  ops.poll = op_poll;
   ops.create = op_refuse_create;
   ops.mknod = op_refuse_mknod;
   ops.mkdir = op_refuse_mkdir;
@@ -426,7 +492,14 @@ std::string mount_robot(App& app, Mount& m, const fuse_lowlevel_ops& ops) {
   } else if (!S_ISDIR(st.st_mode)) {
     return m.dir + " is not a directory";
   }
-  std::string o = "default_permissions,auto_unmount,fsname=ev3-sim,subtype=ev3-sim";
+  // The source names the robot (ev3-sim exec finds the trees by it); fuse's option parser takes
+  // a backslash before a comma or a backslash literally.
+  std::string source;
+  for (char c : mount_source(m.index, m.robot->name())) {
+    if (c == ',' || c == '\\') source += '\\';
+    source += c;
+  }
+  std::string o = "default_permissions,auto_unmount,fsname=" + source + ",subtype=ev3-sim";
   if (app.opt.allow_other) o += ",allow_other";
   const char* argv[] = {"ev3-sim", "-o", o.c_str()};
   fuse_args args = FUSE_ARGS_INIT(3, const_cast<char**>(argv));
@@ -586,6 +659,7 @@ int run(App& app) {
         stop = true;
       }
     }
+    wake_pollers(app);
     app.log.tick(static_cast<ev3io::Millis>(now_us / 1000));
   }
   answer_due_writes(app, true);
@@ -607,6 +681,7 @@ int run(App& app) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  if (argc > 1 && std::strcmp(argv[1], "exec") == 0) return exec_main(argc - 1, argv + 1);
   App app;
   app.log.set_name("sim");
   std::string err = parse_sim_options(argc, argv, app.opt);
@@ -659,6 +734,7 @@ int main(int argc, char** argv) {
     auto m = std::make_unique<Mount>();
     m->app = &app;
     m->robot = app.sim->robot(ro.name);
+    m->index = i + 1;
     m->dir = ro.root;
     app.mounts.push_back(std::move(m));
   }
@@ -671,5 +747,14 @@ int main(int argc, char** argv) {
   }
   app.uid = getuid();
   app.gid = getgid();
+  // The class devices' attributes belong to group ev3dev, as ev3dev's udev rules leave them on a
+  // brick; a machine without that group gets ev3-sim's own group instead (nothing is created).
+  if (const group* g = getgrnam("ev3dev")) {
+    app.group_gid = g->gr_gid;
+  } else {
+    app.group_gid = app.gid;
+    app.log.log(kInfo, "no group ev3dev on this machine: the attributes a brick gives to group ev3dev are group %u",
+                static_cast<unsigned>(app.gid));
+  }
   return run(app);
 }

@@ -1,5 +1,7 @@
 #include "ev3sim/options.hpp"
 
+#include <sstream>
+
 #include "ev3io/cli.hpp"
 #include "ev3sim/sim.hpp"
 
@@ -44,7 +46,9 @@ std::string sim_usage() {
       "i-th --sysfs-root. Control commands (FIFO): unplug|replug [ROBOT] PORT, plug [ROBOT] PORT\n"
       "DRIVER, battery [ROBOT] VOLTS, garbage [ROBOT] PORT on|off, place [ROBOT] X Y HEADING,\n"
       "snapshot [FILE], status [FILE], quit. Exit status: 0, 1 on a runtime error (no /dev/fuse,\n"
-      "a mount failing), 2 on bad arguments or a bad world file.",
+      "a mount failing), 2 on bad arguments or a bad world file.\n\n"
+      "ev3-sim exec (--robot N|NAME | --sysfs-root DIR) -- COMMAND [ARGS]... runs a program written\n"
+      "for a brick with a running ev3-sim's robot tree as /sys/class (ev3-sim exec --help).",
       specs());
 }
 
@@ -106,6 +110,125 @@ std::string parse_sim_options(int argc, const char* const* argv, SimOptions& out
     *dst = a.get(flag);
     if (dst->empty()) return std::string("bad value for --") + flag + ": empty path";
   }
+  return {};
+}
+
+// --- ev3-sim exec ------------------------------------------------------------------------------
+
+std::string exec_usage() {
+  return "usage: ev3-sim exec (--robot N|NAME | --sysfs-root DIR) -- COMMAND [ARGS]...\n\n"
+         "Runs COMMAND with the tree of one robot of a running ev3-sim in place of /sys/class and\n"
+         "/sys/devices, in a private mount namespace (needs root): a program written for a brick\n"
+         "(python-ev3dev2, ev3dev-lang-cpp) drives the simulated robot unmodified.\n\n"
+         "  --robot N|NAME     the N-th robot of the running ev3-sim (its N-th --sysfs-root), or the\n"
+         "                     robot called NAME\n"
+         "  --sysfs-root DIR   the robot whose tree ev3-sim mounts on DIR (when several ev3-sim run)\n\n"
+         "Exit status: COMMAND's; 1 when no running ev3-sim serves that robot or the namespace\n"
+         "cannot be made (not root); 2 on bad arguments; 127 when COMMAND is not found.\n";
+}
+
+std::string parse_exec_options(int argc, const char* const* argv, ExecOptions& out) {
+  int i = 1;
+  for (; i < argc; ++i) {
+    const std::string a = argv[i];
+    if (a == "--") {
+      ++i;
+      break;
+    }
+    if (a == "--help" || a == "-h") {
+      out.help = true;
+      return {};
+    }
+    std::string* dst = a == "--robot" ? &out.robot : a == "--sysfs-root" ? &out.root : nullptr;
+    if (!dst) return "exec: unknown argument '" + a + "' (the command comes after --)";
+    if (i + 1 >= argc || std::string(argv[i + 1]).empty()) return "exec: " + a + " needs a value";
+    if (!dst->empty()) return "exec: " + a + " given twice";
+    *dst = argv[++i];
+  }
+  for (; i < argc; ++i) out.command.emplace_back(argv[i]);
+  if (out.robot.empty() && out.root.empty()) return "exec: name the robot: --robot N|NAME or --sysfs-root DIR";
+  if (out.command.empty()) return "exec: no command (give it after --)";
+  return {};
+}
+
+std::string mount_source(std::size_t index, const std::string& name) {
+  return "ev3-sim:" + std::to_string(index) + ":" + name;
+}
+
+namespace {
+
+// mountinfo writes space, tab, newline and backslash as \ooo (octal).
+std::string unescape_mountinfo(const std::string& s) {
+  std::string out;
+  for (std::size_t i = 0; i < s.size(); ++i) {
+    if (s[i] == '\\' && i + 3 < s.size() && s[i + 1] >= '0' && s[i + 1] <= '3' && s[i + 2] >= '0' &&
+        s[i + 2] <= '7' && s[i + 3] >= '0' && s[i + 3] <= '7') {
+      out += static_cast<char>((s[i + 1] - '0') * 64 + (s[i + 2] - '0') * 8 + (s[i + 3] - '0'));
+      i += 3;
+    } else {
+      out += s[i];
+    }
+  }
+  return out;
+}
+
+bool all_digits(const std::string& s) {
+  return !s.empty() && s.size() < 10 && s.find_first_not_of("0123456789") == std::string::npos;
+}
+
+std::string describe(const SimMount& m) {
+  return m.name + " (robot " + std::to_string(m.index) + ") on " + m.dir;
+}
+
+}  // namespace
+
+std::vector<SimMount> parse_sim_mounts(const std::string& mountinfo) {
+  // A line: id parent major:minor root mountpoint options [optional fields...] - fstype source superopts
+  std::vector<SimMount> out;
+  std::istringstream lines(mountinfo);
+  std::string line;
+  while (std::getline(lines, line)) {
+    std::istringstream f(line);
+    std::vector<std::string> w;
+    for (std::string t; f >> t;) w.push_back(t);
+    std::size_t dash = 6;
+    while (dash < w.size() && w[dash] != "-") ++dash;
+    if (w.size() < 5 || dash + 2 >= w.size() || w[dash + 1] != "fuse.ev3-sim") continue;
+    const std::string source = unescape_mountinfo(w[dash + 2]);
+    const std::string prefix = "ev3-sim:";
+    if (source.compare(0, prefix.size(), prefix) != 0) continue;
+    const std::size_t colon = source.find(':', prefix.size());
+    if (colon == std::string::npos) continue;
+    const std::string index = source.substr(prefix.size(), colon - prefix.size());
+    if (!all_digits(index)) continue;
+    out.push_back({unescape_mountinfo(w[4]), std::stol(index), source.substr(colon + 1)});
+  }
+  return out;
+}
+
+std::string pick_sim_mount(const std::vector<SimMount>& mounts, const ExecOptions& opt,
+                           const std::string& real_root, SimMount& out) {
+  if (mounts.empty()) return "exec: no ev3-sim is running (no fuse.ev3-sim mount in /proc/self/mountinfo)";
+  std::vector<SimMount> found;
+  for (const SimMount& m : mounts) {
+    if (!real_root.empty() && m.dir != real_root) continue;
+    if (!opt.robot.empty() && !(all_digits(opt.robot) ? std::stol(opt.robot) == m.index : opt.robot == m.name))
+      continue;
+    found.push_back(m);
+  }
+  std::string running;
+  for (const SimMount& m : mounts) running += (running.empty() ? "" : ", ") + describe(m);
+  if (found.empty()) {
+    std::string what = !opt.root.empty() ? "serves a tree on " + opt.root : "serves robot " + opt.robot;
+    if (!opt.root.empty() && !opt.robot.empty()) what += " for robot " + opt.robot;
+    return "exec: no running ev3-sim " + what + " (running: " + running + ")";
+  }
+  if (found.size() > 1) {
+    std::string which;
+    for (const SimMount& m : found) which += (which.empty() ? "" : ", ") + describe(m);
+    return "exec: robot " + opt.robot + " is ambiguous: " + which + "; name its tree with --sysfs-root DIR";
+  }
+  out = found.front();
   return {};
 }
 

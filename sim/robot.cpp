@@ -4,6 +4,7 @@
 #include <cerrno>
 #include <climits>
 #include <cmath>
+#include <cstdio>
 
 namespace ev3sim {
 
@@ -125,6 +126,7 @@ void Robot::build_static_tree() {
   const Layout& lay = layout(cfg_.gen);
   tree_.mkdirs("class/lego-sensor");
   tree_.mkdirs("class/tacho-motor");
+  if (cfg_.gen == Generation::Stretch) add_board_info();
   for (int i = 0; i < 4; ++i) add_led(i);
   // The battery.
   const std::string dir = std::string(lay.battery_parent) + "/power_supply/" + lay.battery_name;
@@ -160,6 +162,20 @@ void Robot::build_static_tree() {
   tree_.add_file(dir + "/voltage_max_design", 0444, [L] { return text(std::string(L->max_design) + "\n"); }, nullptr);
   tree_.add_file(dir + "/voltage_min_design", 0444, [L] { return text(std::string(L->min_design) + "\n"); }, nullptr);
   tree_.add_file(dir + "/voltage_now", 0444, [this] { return number(std::llround(volts_ * 1e6)); }, nullptr);
+}
+
+// The board-info class (stretch): the brick's identity in board0's uevent, which libraries read to
+// tell an EV3 from other boards. The serial number is the brick's Bluetooth address on a brick;
+// here 0016530 and the robot's seed in five digits, so robots of one run differ.
+void Robot::add_board_info() {
+  const std::string dir = "devices/virtual/board-info/board0";
+  char serial[16];
+  std::snprintf(serial, sizeof serial, "0016530%05llu", static_cast<unsigned long long>(cfg_.seed % 100000));
+  const std::string uevent = std::string("BOARD_INFO_HW_REV=7\nBOARD_INFO_MODEL=LEGO MINDSTORMS EV3\n") +
+                             "BOARD_INFO_ROM_REV=6\nBOARD_INFO_SERIAL_NUM=" + serial + "\nBOARD_INFO_TYPE=main\n";
+  tree_.add_relative_link("class/board-info/board0", dir);
+  tree_.add_relative_link(dir + "/subsystem", "class/board-info");
+  tree_.add_file(dir + "/uevent", 0644, [uevent] { return text(uevent); }, uevent_write);
 }
 
 // --- LEDs ------------------------------------------------------------------------------------
@@ -201,6 +217,7 @@ void Robot::add_led(int i) {
           }
         return WriteResult{EINVAL, 0};
       });
+  tree_.give_to_ev3dev_group(tree_.resolve(dir));
 }
 
 void Robot::set_led_trigger(int i, const std::string& trigger) {
@@ -230,6 +247,7 @@ void Robot::set_led_trigger(int i, const std::string& trigger) {
               return WriteResult{};
             });
       }
+      tree_.give_to_ev3dev_group(tree_.resolve(dir));
     }
   } else if (was_timer) {
     for (const char* which : {"delay_on", "delay_off"})
@@ -300,6 +318,11 @@ std::string Robot::plug(const std::string& port, const std::string& driver) {
   tree_.add_file(dev.class_dir + "/address", 0444, [addr] { return text(addr + "\n"); }, nullptr);
   tree_.add_file(dev.class_dir + "/driver_name", 0444, [driver] { return text(driver + "\n"); }, nullptr);
   add_device_files(dev);
+  tree_.give_to_ev3dev_group(tree_.resolve(dev.class_dir));
+  if (dev.motor) {
+    dev.state = tree_.resolve(dev.class_dir + "/state");
+    dev.last_state = dev.motor->state();
+  }
   return {};
 }
 
@@ -341,7 +364,11 @@ ReadResult Robot::read_attr(const std::string& port, const std::string& name) {
 }
 
 WriteResult Robot::write_attr(const std::string& port, const std::string& name, std::string_view data) {
-  if (TachoMotor* m = motor(port)) return m->write(name, data, now_);
+  if (TachoMotor* m = motor(port)) {
+    const WriteResult r = m->write(name, data, now_);
+    notify_state_changes();  // a command changes the state at once (running, or stopped)
+    return r;
+  }
   if (Sensor* s = sensor(port)) return s->write(name, data, now_);
   return {ENODEV, 0};
 }
@@ -467,6 +494,17 @@ void Robot::commit(double fraction, bool blocked, SimTime now, double dt) {
   used_ah_ += amps * dt / 3600.0;
   const double ocv = full_volts_ - (full_volts_ - b.empty_volts) * used_ah_ * 1000.0 / b.capacity_mah;
   volts_ = std::max(0.0, ocv - amps * b.resistance);
+  notify_state_changes();
+}
+
+void Robot::notify_state_changes() {
+  for (auto& [port, d] : devices_) {
+    if (!d.motor) continue;
+    std::string now = d.motor->state();
+    if (now == d.last_state) continue;
+    d.last_state = std::move(now);
+    tree_.notify(d.state);
+  }
 }
 
 void Robot::sense(SimTime now, const Perception& base) {

@@ -136,6 +136,49 @@ void Tree::remove(Ino ino) {
   ++version_;
 }
 
+void Tree::give_to_ev3dev_group(Ino dir) {
+  std::vector<Ino> stack{dir};
+  while (!stack.empty()) {
+    Node& n = nodes_.at(stack.back());
+    stack.pop_back();
+    if (n.kind == NodeKind::File) {
+      n.ev3dev_group = true;
+      n.mode = (n.mode & ~0070u) | ((n.mode & 0700u) >> 3);
+    }
+    for (const auto& [name, child] : n.children) stack.push_back(child);
+  }
+}
+
+void Tree::notify(Ino ino) {
+  auto it = nodes_.find(ino);
+  if (it == nodes_.end() || !it->second.alive) return;
+  Node& n = it->second;
+  // Queued once until taken: a node already counted since the last take is in the queue.
+  bool queued = false;
+  for (Ino q : notified_) queued = queued || q == ino;
+  if (!queued) notified_.push_back(ino);
+  ++n.event;
+}
+
+std::vector<Ino> Tree::take_notified() {
+  std::vector<Ino> out;
+  out.swap(notified_);
+  return out;
+}
+
+int Tree::set_attributes(Ino ino, std::optional<unsigned> mode, std::optional<std::uint32_t> uid,
+                         std::optional<std::uint32_t> gid) {
+  auto it = nodes_.find(ino);
+  if (it == nodes_.end()) return ENOENT;
+  Node& n = it->second;
+  if (!n.alive) return ENODEV;
+  if (mode && n.kind == NodeKind::Link) return EPERM;
+  if (mode) n.mode = *mode & 07777u;
+  if (uid) n.uid = *uid;
+  if (gid) n.gid = *gid;
+  return 0;
+}
+
 int Tree::open(Ino ino, bool for_read, bool for_write) const {
   const Node* n = node(ino);
   if (!n) return ENOENT;

@@ -147,6 +147,8 @@ class Robot {
     std::string class_link; // class/tacho-motor/motorN
     std::unique_ptr<TachoMotor> motor;
     std::unique_ptr<Sensor> sensor;
+    Ino state = 0;           // motors: the `state` attribute (notified when it changes)
+    std::string last_state;  // what `state` read when last compared
   };
   void build_static_tree();
   void add_common(const std::string& dir, const std::string& subsystem_class, const std::string& device_dir,
@@ -155,6 +157,10 @@ class Robot {
   ReadResult read_attr(const std::string& port, const std::string& name);
   WriteResult write_attr(const std::string& port, const std::string& name, std::string_view data);
   void add_led(int i);
+  void add_board_info();
+  /// sysfs_notify on each motor's `state` that differs from what it was at the last call (the
+  /// tacho-motor class notifies every change of state).
+  void notify_state_changes();
   void set_led_trigger(int i, const std::string& trigger);
   std::string address(const std::string& port) const;
   Device* device(const std::string& port);

@@ -9,6 +9,7 @@
 #include <cstdint>
 #include <functional>
 #include <map>
+#include <optional>
 #include <string>
 #include <string_view>
 #include <unordered_map>
@@ -44,7 +45,13 @@ struct Node {
   Ino parent = 0;
   std::string name;
   NodeKind kind = NodeKind::Dir;
-  unsigned mode = 0755;           ///< permission bits as sysfs shows them
+  unsigned mode = 0755;           ///< permission bits as sysfs shows them (chmod changes them)
+  /// Owned by group ev3dev (ev3dev's udev rules give the class devices' attributes to it); the
+  /// program maps this to a gid. Otherwise the group is the owner's.
+  bool ev3dev_group = false;
+  std::optional<std::uint32_t> uid;  ///< set by chown; unset: the program's default owner
+  std::optional<std::uint32_t> gid;  ///< set by chown; unset: see ev3dev_group
+  std::uint64_t event = 0;        ///< sysfs_notify count: pollers wake when it moves
   std::uint32_t size = 4096;      ///< st_size (sysfs: 4096 for attributes, N for binary ones)
   std::map<std::string, Ino> children;
   std::string target;             ///< symlink target
@@ -80,6 +87,22 @@ class Tree {
   void remove(Ino ino);
   /// Bumped by every change of structure (for caches).
   std::uint64_t version() const { return version_; }
+  /// ev3dev's udev rules on a class device: every attribute file under the directory @p dir
+  /// goes to group ev3dev with the owner's permission bits copied to the group's (0644 -> 0664,
+  /// 0200 -> 0220, 0444 -> 0444). Directories and symlinks stay as they are.
+  void give_to_ev3dev_group(Ino dir);
+
+  /// sysfs_notify: the attribute changed in a way pollers wait for (POLLPRI, POLLERR). Counts
+  /// the node's event and queues it for take_notified().
+  void notify(Ino ino);
+  /// The nodes notified since the last call (each once), in the order of their first notify.
+  std::vector<Ino> take_notified();
+
+  /// chmod / chown as sysfs allows them to whoever the kernel let through (the owner or root for
+  /// chmod, root for chown; the caller checks that): the permission bits of a file or directory
+  /// (not a symlink: EPERM), its owner, its group. 0, ENOENT, or ENODEV for a dead node.
+  int set_attributes(Ino ino, std::optional<unsigned> mode, std::optional<std::uint32_t> uid,
+                     std::optional<std::uint32_t> gid);
 
   // --- the file operations, with sysfs's errors --------------------------------------------
   /// 0, ENODEV (dead node), EISDIR, or EACCES when the attribute cannot be read (or written).
@@ -92,6 +115,7 @@ class Tree {
   std::unordered_map<Ino, Node> nodes_;
   Ino next_ = kRoot + 1;
   std::uint64_t version_ = 0;
+  std::vector<Ino> notified_;
 };
 
 /// The relative symlink target that leads from directory @p from_dir to @p to (both relative

@@ -65,6 +65,30 @@ void run_ms(Sim& sim, int ms) { sim.advance_to(sim.now() + ms * 1000LL); }
 
 const char* kOpen = "bounds 0 0 1000 400\n";
 
+// The tacho-motor class notifies `state` on every change (sysfs_notify): at the command that
+// starts the motor and when it stops, not while it keeps running.
+TEST(Physics, MotorStateIsNotifiedOnEveryChange) {
+  auto sim = make_sim(kOpen);
+  Robot& r = add(*sim, "r", 100, 200, 0);
+  const Ino state = attr_node(r, "outB", "state");
+  r.tree().take_notified();
+  r.set_now(sim->now());
+  EXPECT_EQ(write(r, "outB", "time_sp", "300"), 0);
+  EXPECT_TRUE(r.tree().take_notified().empty());
+  const std::uint64_t before = r.tree().node(state)->event;
+  EXPECT_EQ(write(r, "outB", "speed_sp", "500"), 0);
+  EXPECT_EQ(write(r, "outB", "command", "run-timed"), 0);
+  EXPECT_EQ(r.tree().take_notified(), std::vector<Ino>{state});
+  EXPECT_EQ(read(r, "outB", "state"), "running");
+  run_ms(*sim, 200);
+  EXPECT_TRUE(r.tree().take_notified().empty());
+  EXPECT_EQ(r.tree().node(state)->event, before + 1);
+  run_ms(*sim, 150);
+  EXPECT_EQ(read(r, "outB", "state"), "");
+  EXPECT_EQ(r.tree().take_notified(), std::vector<Ino>{state});
+  EXPECT_EQ(r.tree().node(state)->event, before + 2);
+}
+
 TEST(Physics, OneWheelTurnMovesOneCircumference) {
   auto sim = make_sim(kOpen);
   Robot& r = add(*sim, "a", 100, 200, 0);

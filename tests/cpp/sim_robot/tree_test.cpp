@@ -55,6 +55,45 @@ TEST(Tree, FilesLinksAndErrors) {
   EXPECT_EQ(t.read(again).data, "new\n");
 }
 
+TEST(Tree, Ev3devGroupChmodChownAndNotify) {
+  Tree t;
+  const Ino rw = t.add_file("d/m/speed_sp", 0644, [] { return ReadResult{}; }, [](std::string_view) { return WriteResult{}; });
+  const Ino wo = t.add_file("d/m/command", 0200, nullptr, [](std::string_view) { return WriteResult{}; });
+  const Ino ro = t.add_file("d/m/sub/state", 0444, [] { return ReadResult{}; }, nullptr);
+  const Ino link = t.add_relative_link("d/m/subsystem", "class/x");
+  const Ino outside = t.add_file("d/other", 0644, [] { return ReadResult{}; }, nullptr);
+  t.give_to_ev3dev_group(t.resolve("d/m"));
+  // udev's g=u on every attribute below the device; directories, links and others untouched.
+  EXPECT_EQ(t.node(rw)->mode, 0664u);
+  EXPECT_EQ(t.node(wo)->mode, 0220u);
+  EXPECT_EQ(t.node(ro)->mode, 0444u);
+  EXPECT_TRUE(t.node(rw)->ev3dev_group && t.node(wo)->ev3dev_group && t.node(ro)->ev3dev_group);
+  EXPECT_FALSE(t.node(t.resolve("d/m"))->ev3dev_group);
+  EXPECT_EQ(t.node(t.resolve("d/m"))->mode, 0755u);
+  EXPECT_FALSE(t.node(link)->ev3dev_group);
+  EXPECT_FALSE(t.node(outside)->ev3dev_group);
+  EXPECT_EQ(t.node(outside)->mode, 0644u);
+
+  EXPECT_EQ(t.set_attributes(rw, 0600u, std::nullopt, 1000u), 0);
+  EXPECT_EQ(t.node(rw)->mode, 0600u);
+  EXPECT_FALSE(t.node(rw)->uid);
+  EXPECT_EQ(t.node(rw)->gid, 1000u);
+  EXPECT_EQ(t.set_attributes(link, 0700u, std::nullopt, std::nullopt), EPERM);
+  EXPECT_EQ(t.set_attributes(999, 0700u, std::nullopt, std::nullopt), ENOENT);
+
+  EXPECT_TRUE(t.take_notified().empty());
+  t.notify(ro);
+  t.notify(wo);
+  t.notify(ro);
+  EXPECT_EQ(t.node(ro)->event, 2u);
+  EXPECT_EQ(t.take_notified(), (std::vector<Ino>{ro, wo}));
+  EXPECT_TRUE(t.take_notified().empty());
+  t.remove(t.resolve("d/m"));
+  t.notify(ro);  // a dead node is not notified
+  EXPECT_TRUE(t.take_notified().empty());
+  EXPECT_EQ(t.set_attributes(rw, 0644u, std::nullopt, std::nullopt), ENODEV);
+}
+
 TEST(Tree, KernelIntegerParsing) {
   long long v = 0;
   EXPECT_EQ(parse_kernel_int("42\n", -100, 100, v), 0);
@@ -132,6 +171,64 @@ TEST(Options, SeveralRobotsAndErrors) {
   EXPECT_EQ(parse({"--world", "w", "--sysfs-root", "a", "--time-scale", "0"}, e),
             "bad value for --time-scale: '0' (expected a factor 0.01..1000)");
   EXPECT_EQ(parse({"--world", "w", "--sysfs-root", "a", "--bogus"}, e), "unknown flag '--bogus'");
+}
+
+std::string parse_exec(std::vector<const char*> args, ExecOptions& o) {
+  args.insert(args.begin(), "exec");
+  return parse_exec_options(static_cast<int>(args.size()), args.data(), o);
+}
+
+TEST(Options, ExecArgumentsAndErrors) {
+  ExecOptions o;
+  ASSERT_EQ(parse_exec({"--robot", "2", "--", "python3", "--robot", "x"}, o), "");
+  EXPECT_EQ(o.robot, "2");
+  EXPECT_EQ(o.command, (std::vector<std::string>{"python3", "--robot", "x"}));
+  ExecOptions e;
+  EXPECT_EQ(parse_exec({"--", "true"}, e), "exec: name the robot: --robot N|NAME or --sysfs-root DIR");
+  ExecOptions e2;
+  EXPECT_EQ(parse_exec({"--robot", "1"}, e2), "exec: no command (give it after --)");
+  ExecOptions e3;
+  EXPECT_EQ(parse_exec({"--robot"}, e3), "exec: --robot needs a value");
+  ExecOptions e4;
+  EXPECT_EQ(parse_exec({"--robot", "1", "true"}, e4), "exec: unknown argument 'true' (the command comes after --)");
+  ExecOptions e5;
+  EXPECT_EQ(parse_exec({"--robot", "1", "--robot", "2", "--", "true"}, e5), "exec: --robot given twice");
+}
+
+TEST(Options, ExecFindsTheRobotsTreeInMountinfo) {
+  const std::string info =
+      "22 1 0:21 / /sys rw,nosuid - sysfs sysfs rw\n"
+      "44 27 0:40 / /tmp/r1 rw,nosuid,nodev,relatime - fuse.ev3-sim ev3-sim:1:robot1 rw,user_id=0\n"
+      "45 27 0:41 / /tmp/my\\040dir rw shared:7 - fuse.ev3-sim ev3-sim:2:bob rw,user_id=0\n"
+      "46 27 0:42 / /tmp/old rw - fuse.ev3-sim ev3-sim rw,user_id=0\n"
+      "47 27 0:43 / /tmp/s2 rw - fuse.ev3-sim ev3-sim:1:robot1 rw,user_id=0\n";
+  EXPECT_EQ(mount_source(2, "bob"), "ev3-sim:2:bob");
+  const std::vector<SimMount> all = parse_sim_mounts(info);
+  ASSERT_EQ(all.size(), 3u);  // the old source without a robot is not one
+  EXPECT_EQ(all[1].dir, "/tmp/my dir");
+  EXPECT_EQ(all[1].index, 2);
+  EXPECT_EQ(all[1].name, "bob");
+
+  SimMount m;
+  // pick(--robot, --sysfs-root): the error, "" when found (then m).
+  auto pick = [&](const std::vector<SimMount>& mounts, const char* robot, const char* root) {
+    ExecOptions o;
+    o.robot = robot;
+    o.root = root;
+    return pick_sim_mount(mounts, o, root, m);
+  };
+  EXPECT_EQ(pick(all, "2", ""), "");
+  EXPECT_EQ(m.dir, "/tmp/my dir");
+  EXPECT_EQ(pick(all, "robot1", ""),
+            "exec: robot robot1 is ambiguous: robot1 (robot 1) on /tmp/r1, robot1 (robot 1) on /tmp/s2; name its "
+            "tree with --sysfs-root DIR");
+  EXPECT_EQ(pick(all, "", "/tmp/s2"), "");
+  EXPECT_EQ(m.dir, "/tmp/s2");
+  EXPECT_EQ(pick(all, "7", ""),
+            "exec: no running ev3-sim serves robot 7 (running: robot1 (robot 1) on /tmp/r1, bob (robot 2) on /tmp/my "
+            "dir, robot1 (robot 1) on /tmp/s2)");
+  EXPECT_EQ(pick(all, "bob", "/tmp").rfind("exec: no running ev3-sim serves a tree on /tmp for robot bob", 0), 0u);
+  EXPECT_EQ(pick({}, "2", ""), "exec: no ev3-sim is running (no fuse.ev3-sim mount in /proc/self/mountinfo)");
 }
 
 }  // namespace

@@ -12,7 +12,8 @@ mount, or a brick's /sys (then with --allow-extra). Every difference is printed,
     missing: PATH          an entry of the reference is not in the candidate
     extra: PATH            the candidate has an entry the reference does not (not with --allow-extra)
     kind: PATH ...         file / directory / symlink mismatch
-    mode: PATH ...         permission bits differ from the manifest
+    mode: PATH ...         permission bits differ from the manifest (with --live: from a brick's,
+                           EV3DEV_GROUP_CLASSES' attribute files group-writable as the owner)
     symlink: PATH ...      the link points somewhere else
     content: PATH ...      the content breaks its rule (see RULES)
     device: ...            no device with the reference's address and driver in a class directory
@@ -45,6 +46,18 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 RENUMBERED = ("tacho-motor", "lego-sensor")
+# The classes whose devices' attribute files ev3dev's udev rules give to group ev3dev, copying the
+# owner's permission bits to the group's (g=u): the manifests hold the kernel's modes, a brick and
+# ev3-sim (--live) show these.
+EV3DEV_GROUP_CLASSES = ("tacho-motor", "lego-sensor", "leds")
+
+
+def brick_mode(path: str, mode: int) -> int:
+    """The mode of attribute file @path on a brick: g=u inside a device of EV3DEV_GROUP_CLASSES."""
+    parts = path.split("/")
+    if any(parts[i] in EV3DEV_GROUP_CLASSES and parts[0] == "devices" for i in range(len(parts) - 2)):
+        return (mode & ~0o070) | ((mode & 0o700) >> 3)
+    return mode
 
 RULES = """\
 exact           the reference's bytes
@@ -60,8 +73,8 @@ writeonly       mode 0200; never read
 binary:N        N bytes
 trigger         trigger list: words, exactly one [selected], including none and timer
 brightness      an integer from 0 to max_brightness
-kv:K1,K2        KEY=VALUE lines with the reference's keys in order; K1, K2 are integers, the
-                other values equal the reference's
+kv:K1,K2        KEY=VALUE lines with the reference's keys in order; K1, K2 are integers (a
+                key ending in SERIAL_NUM: 12 hex digits), the other values equal the reference's
 """
 
 
@@ -242,8 +255,9 @@ class Checker:
                 self.problem(f"symlink: {cpath} -> {target}, expected -> {expected}")
             return
         mode = stat.S_IMODE(st.st_mode)
-        if mode != entry.mode:
-            self.problem(f"mode: {cpath} is {mode:04o}, expected {entry.mode:04o}")
+        want_mode = brick_mode(cpath, entry.mode) if self.live and kind == "f" else entry.mode
+        if mode != want_mode:
+            self.problem(f"mode: {cpath} is {mode:04o}, expected {want_mode:04o}")
         if kind == "f":
             self.check_content(cpath, entry)
 
@@ -402,7 +416,8 @@ class Checker:
             key = want.partition("=")[0]
             value = have.partition("=")[2]
             if key in dynamic.split(","):
-                if not re.fullmatch(r"-?\d+", value):
+                pattern = r"[0-9A-F]{12}" if key.endswith("SERIAL_NUM") else r"-?\d+"
+                if not re.fullmatch(pattern, value):
                     return f"has {key}={value}, expected an integer"
             elif have != want:
                 return f"has {have!r}, expected {want!r}"

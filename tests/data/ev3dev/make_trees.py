@@ -70,6 +70,7 @@ GENERATIONS = {
                            "VOLTAGE_MAX_DESIGN": "90000000", "VOLTAGE_MIN_DESIGN": "48000000",
                            "CURRENT_NOW": "160000", "SCOPE": "System"},
         "sensor_commands_rule": "exact",
+        "board_info": True,
     },
     "jessie": {
         "address": "{port}",
@@ -88,6 +89,7 @@ GENERATIONS = {
                            "VOLTAGE_MIN_DESIGN": "6200000", "VOLTAGE_NOW": "7944666",
                            "CURRENT_NOW": "160000", "SCOPE": "System"},
         "sensor_commands_rule": "err:EOPNOTSUPP",
+        "board_info": False,
     },
 }
 
@@ -250,6 +252,17 @@ def add_battery(tree: Tree, gen: dict) -> None:
     f(f"{dev}/voltage_now", RO, "int", values["VOLTAGE_NOW"] + "\n")
 
 
+def add_board_info(tree: Tree) -> None:
+    """stretch's board-info class: board0, the EV3 itself, described by its uevent (the keys and
+    values of a brick's board0; the serial number differs per brick)."""
+    dev = "devices/virtual/board-info/board0"
+    tree.link("class/board-info/board0", dev)
+    tree.link(f"{dev}/subsystem", "class/board-info")
+    tree.file(f"{dev}/uevent", RW, "kv:BOARD_INFO_SERIAL_NUM",
+              "BOARD_INFO_HW_REV=7\nBOARD_INFO_MODEL=LEGO MINDSTORMS EV3\nBOARD_INFO_ROM_REV=6\n"
+              "BOARD_INFO_SERIAL_NUM=001653000001\nBOARD_INFO_TYPE=main\n")
+
+
 def model_a(generation: str) -> Tree:
     gen = GENERATIONS[generation]
     tree = Tree()
@@ -259,6 +272,8 @@ def model_a(generation: str) -> Tree:
         add_sensor(tree, gen, port, driver, name)
     add_leds(tree, gen)
     add_battery(tree, gen)
+    if gen["board_info"]:
+        add_board_info(tree)
     return tree
 
 
