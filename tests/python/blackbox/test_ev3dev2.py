@@ -226,7 +226,7 @@ def test_poll_on_state_signals_every_change_at_once(sim_factory):
         assert events and events[0][1] & select.POLLPRI and events[0][1] & select.POLLERR
         assert os.pread(fd, 4096, 0) == b"\n"
         print(f"POLLPRI on state: woke {t_wake * 1000:.1f} ms after a 400 ms run-timed command")
-        assert 0.39 <= t_wake <= 0.48, t_wake
+        assert 0.39 <= t_wake <= 0.6, t_wake  # woken by the notify, not by a poll timeout
     finally:
         os.close(fd)
 
