@@ -61,8 +61,12 @@ WriteResult uevent_write(std::string_view data) {
 
 }  // namespace
 
+namespace {
+// The EV3's ports in the order the lego-port class numbers them: in1..in4 register first.
+const char* const kPorts[] = {"in1", "in2", "in3", "in4", "outA", "outB", "outC", "outD"};
+}  // namespace
+
 int port_index(const std::string& port) {
-  static const char* const kPorts[] = {"in1", "in2", "in3", "in4", "outA", "outB", "outC", "outD"};
   for (int i = 0; i < 8; ++i)
     if (port == kPorts[i]) return i;
   return -1;
@@ -126,7 +130,10 @@ void Robot::build_static_tree() {
   const Layout& lay = layout(cfg_.gen);
   tree_.mkdirs("class/lego-sensor");
   tree_.mkdirs("class/tacho-motor");
-  if (cfg_.gen == Generation::Stretch) add_board_info();
+  if (cfg_.gen == Generation::Stretch) {
+    add_board_info();
+    add_lego_ports();
+  }
   for (int i = 0; i < 4; ++i) add_led(i);
   // The battery.
   const std::string dir = std::string(lay.battery_parent) + "/power_supply/" + lay.battery_name;
@@ -176,6 +183,43 @@ void Robot::add_board_info() {
   tree_.add_relative_link("class/board-info/board0", dir);
   tree_.add_relative_link(dir + "/subsystem", "class/board-info");
   tree_.add_file(dir + "/uevent", 0644, [uevent] { return text(uevent); }, uevent_write);
+}
+
+// The lego-port class (stretch): a port device per input and output port, the parent of the
+// device plugged into it. Only the ports' auto mode is emulated: `mode` reads and takes `auto`,
+// another of the port's modes and `set_device` are refused with EOPNOTSUPP (an unknown mode with
+// EINVAL, as the driver does); `status` says what auto detection found.
+void Robot::add_lego_ports() {
+  const Layout& lay = layout(cfg_.gen);
+  for (int i = 0; i < 8; ++i) {
+    const std::string port = kPorts[i];
+    const bool input = i < 4;
+    const std::string addr = address(port);
+    const std::string parent = std::string(lay.ports_root) + "/" + addr;
+    const std::string dir = parent + "/lego-port/port" + std::to_string(i);
+    const std::string driver = input ? "ev3-input-port" : "ev3-output-port";
+    const std::string modes = input ? "auto nxt-analog nxt-color nxt-i2c other-i2c ev3-analog ev3-uart other-uart raw"
+                                    : "auto tacho-motor dc-motor led raw";
+    tree_.add_relative_link("class/lego-port/port" + std::to_string(i), dir);
+    add_common(dir, "lego-port", parent,
+               [driver, addr] { return "LEGO_DRIVER_NAME=" + driver + "\nLEGO_ADDRESS=" + addr + "\n"; });
+    tree_.add_file(dir + "/address", 0444, [addr] { return text(addr + "\n"); }, nullptr);
+    tree_.add_file(dir + "/driver_name", 0444, [driver] { return text(driver + "\n"); }, nullptr);
+    tree_.add_file(dir + "/modes", 0444, [modes] { return text(modes + "\n"); }, nullptr);
+    tree_.add_file(dir + "/mode", 0644, [] { return text("auto\n"); }, [modes](std::string_view d) {
+      for (const std::string& m : split_words(modes))
+        if (sysfs_streq(d, m)) return WriteResult{m == "auto" ? 0 : EOPNOTSUPP, 0};
+      return WriteResult{EINVAL, 0};
+    });
+    tree_.add_file(dir + "/set_device", 0200, nullptr, [](std::string_view) { return WriteResult{EOPNOTSUPP, 0}; });
+    tree_.add_file(dir + "/status", 0444, [this, port, input] {
+      const std::string d = plugged(port);
+      if (d.empty()) return text(input ? "no-sensor\n" : "no-motor\n");
+      if (!input) return text("tacho-motor\n");
+      return text(d == "lego-ev3-touch" ? "ev3-analog\n" : "ev3-uart\n");  // the touch sensor is analog
+    }, nullptr);
+    tree_.give_to_ev3dev_group(tree_.resolve(dir));
+  }
 }
 
 // --- LEDs ------------------------------------------------------------------------------------

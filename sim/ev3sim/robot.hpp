@@ -158,6 +158,7 @@ class Robot {
   WriteResult write_attr(const std::string& port, const std::string& name, std::string_view data);
   void add_led(int i);
   void add_board_info();
+  void add_lego_ports();
   /// sysfs_notify on each motor's `state` that differs from what it was at the last call (the
   /// tacho-motor class notifies every change of state).
   void notify_state_changes();

@@ -49,7 +49,7 @@ RENUMBERED = ("tacho-motor", "lego-sensor")
 # The classes whose devices' attribute files ev3dev's udev rules give to group ev3dev, copying the
 # owner's permission bits to the group's (g=u): the manifests hold the kernel's modes, a brick and
 # ev3-sim (--live) show these.
-EV3DEV_GROUP_CLASSES = ("tacho-motor", "lego-sensor", "leds")
+EV3DEV_GROUP_CLASSES = ("tacho-motor", "lego-sensor", "leds", "lego-port")
 
 
 def brick_mode(path: str, mode: int) -> int:

@@ -263,6 +263,37 @@ def add_board_info(tree: Tree) -> None:
               "BOARD_INFO_SERIAL_NUM=001653000001\nBOARD_INFO_TYPE=main\n")
 
 
+INPUT_PORT_MODES = "auto nxt-analog nxt-color nxt-i2c other-i2c ev3-analog ev3-uart other-uart raw"
+OUTPUT_PORT_MODES = "auto tacho-motor dc-motor led raw"
+
+
+def add_lego_ports(tree: Tree, gen: dict) -> None:
+    """stretch's lego-port class: a port device per input and output port (ev3_ports_in.c and
+    ev3_ports_out.c), in auto mode; its status says what auto detection found on model A (the
+    touch sensor is an EV3/Analog device, the colour, ultrasonic and gyro sensors EV3/UART)."""
+    plugged = {port: driver for port, driver, _ in MODEL_A_MOTORS + MODEL_A_SENSORS}
+    for port, index in PORT_INDEX.items():
+        dev = gen["port_dir"].format(port=port, index=index)
+        parent = os.path.dirname(os.path.dirname(dev))
+        address = gen["address"].format(port=port)
+        class_device(tree, "lego-port", f"port{index}", dev, parent)
+        if port.startswith("in"):
+            driver, modes, statuses = "ev3-input-port", INPUT_PORT_MODES, ["no-sensor", "ev3-analog", "ev3-uart"]
+            status = "no-sensor" if port not in plugged else "ev3-analog" if plugged[port] == "lego-ev3-touch" \
+                else "ev3-uart"
+        else:
+            driver, modes, statuses = "ev3-output-port", OUTPUT_PORT_MODES, ["no-motor", "tacho-motor"]
+            status = "tacho-motor" if port in plugged else "no-motor"
+        f = tree.file
+        f(f"{dev}/address", RO, "exact", address + "\n")
+        f(f"{dev}/driver_name", RO, "exact", driver + "\n")
+        f(f"{dev}/mode", RW, "member:modes", "auto\n")
+        f(f"{dev}/modes", RO, "exact", modes + "\n")
+        f(f"{dev}/set_device", WO, "writeonly", "")
+        f(f"{dev}/status", RO, "oneof:" + ",".join(statuses), status + "\n")
+        f(f"{dev}/uevent", RW, "exact", f"LEGO_DRIVER_NAME={driver}\nLEGO_ADDRESS={address}\n")
+
+
 def model_a(generation: str) -> Tree:
     gen = GENERATIONS[generation]
     tree = Tree()
@@ -274,6 +305,7 @@ def model_a(generation: str) -> Tree:
     add_battery(tree, gen)
     if gen["board_info"]:
         add_board_info(tree)
+        add_lego_ports(tree, gen)
     return tree
 
 

@@ -10,6 +10,7 @@ written (empty_trace)."""
 
 from __future__ import annotations
 
+import errno
 import json
 import math
 import os
@@ -105,6 +106,9 @@ def test_python_ev3dev2_program_drives_turns_reads_sensors_and_sets_leds(sim_fac
 
     read, truth = steps["drive"]
     assert read["platform"] == "ev3"  # board-info/board0 says LEGO MINDSTORMS EV3
+    assert read["ports"] == {"ev3-ports:in1": ["auto", "ev3-analog"], "ev3-ports:in2": ["auto", "no-sensor"],
+                             "ev3-ports:in3": ["auto", "ev3-uart"], "ev3-ports:outA": ["auto", "no-motor"],
+                             "ev3-ports:outB": ["auto", "tacho-motor"]}
     drive_err = truth["x"] - (START_X + 2 * WHEEL_TURN_CM)
     # Over the red strip, facing the wall at x = 150 from the sensor 11 cm ahead of the axle.
     assert read["colour_at_start"] == "NoColor" and read["colour"] == "Red"
@@ -192,6 +196,17 @@ def test_modes_owner_and_group_as_on_a_brick_and_chmod_chown(sim_factory):
     assert (stat.S_IMODE(st.st_mode), st.st_uid, st.st_gid) == (0o600, 65533, 65533)
     assert as_user(group, write).returncode != 0  # no longer the group's
 
+    # lego-port: the ports in auto mode; other modes and set_device are not emulated.
+    port0 = root / "class" / "lego-port" / "port0"
+    assert (port0 / "address").read_text() == "ev3-ports:in1\n" and (port0 / "status").read_text() == "ev3-analog\n"
+    assert stat.S_IMODE(os.stat(port0 / "mode").st_mode) == 0o664
+    write_attr(port0 / "mode", "auto")
+    for attr, value, err in (("mode", "ev3-uart", errno.EOPNOTSUPP), ("mode", "warp", errno.EINVAL),
+                             ("set_device", "lego-ev3-touch", errno.EOPNOTSUPP)):
+        with pytest.raises(OSError) as e:
+            write_attr(port0 / attr, value)
+        assert e.value.errno == err, (attr, value, e.value)
+
     # board-info/board0: what libraries read to know they run on an EV3.
     uevent = (root / "class" / "board-info" / "board0" / "uevent").read_text()
     keys = dict(line.split("=", 1) for line in uevent.splitlines())
@@ -250,6 +265,6 @@ def test_exec_errors_are_clear(sim_factory):
     assert r.returncode == 1 and "needs root" in r.stderr
     # The namespace is the command's alone: this process still sees the machine's /sys/class.
     r = subprocess.run(exec_cmd(str(root), "ls", "/sys/class"), capture_output=True, text=True, timeout=10)
-    assert r.returncode == 0 and r.stdout.split() == ["board-info", "leds", "lego-sensor", "power_supply",
-                                                      "tacho-motor"]
+    assert r.returncode == 0 and r.stdout.split() == ["board-info", "leds", "lego-port", "lego-sensor",
+                                                      "power_supply", "tacho-motor"]
     assert "board-info" not in os.listdir("/sys/class")

@@ -11,8 +11,9 @@ import sys
 
 from ev3dev2 import get_current_platform
 from ev3dev2.led import Leds
-from ev3dev2.motor import OUTPUT_B, OUTPUT_C, MoveTank
-from ev3dev2.sensor import INPUT_1, INPUT_3, INPUT_4
+from ev3dev2.motor import OUTPUT_A, OUTPUT_B, OUTPUT_C, MoveTank
+from ev3dev2.port import LegoPort
+from ev3dev2.sensor import INPUT_1, INPUT_2, INPUT_3, INPUT_4
 from ev3dev2.sensor.lego import ColorSensor, TouchSensor, UltrasonicSensor
 
 tank = MoveTank(OUTPUT_B, OUTPUT_C)
@@ -28,6 +29,9 @@ def report(step, readings):
 
 
 readings = {"platform": get_current_platform()}
+# What each port found (the lego-port class): the touch sensor is analog, the others UART.
+readings["ports"] = {p: [LegoPort(p).mode, LegoPort(p).status]
+                     for p in (INPUT_1, INPUT_2, INPUT_3, OUTPUT_A, OUTPUT_B)}
 # Put the sensors in their modes before the values matter: a mode change takes a few tens of
 # milliseconds and the first values after it are stale.
 readings["colour_at_start"] = colour.color_name
