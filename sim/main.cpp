@@ -388,6 +388,35 @@ bool read_file(const std::string& path, std::string& out) {
   return true;
 }
 
+// The world file @p path read and checked into @p out: "" or the error to print.
+std::string load_world(const std::string& path, World& out) {
+  std::string text;
+  if (!read_file(path, text)) return "cannot read the world file " + path + ": " + std::strerror(errno);
+  return parse_world(text, path, out);
+}
+
+// ev3-sim world FILE: the world file checked and printed as JSON (world_json), for programs that
+// draw it (the web view): exit 0, or 2 with the error.
+int world_main(int argc, char** argv) {
+  if (argc == 2 && (std::strcmp(argv[1], "--help") == 0 || std::strcmp(argv[1], "-h") == 0)) {
+    std::fputs("usage: ev3-sim world FILE\n\nChecks the world file FILE as ev3-sim reads it and prints it as JSON "
+               "(centimetres and degrees;\ndocs/devices.md, \"World files\"). Exit status: 0, 2 on a bad file.\n",
+               stdout);
+    return 0;
+  }
+  if (argc != 2) {
+    std::fprintf(stderr, "ev3-sim world: expected one world file (usage: ev3-sim world FILE)\n");
+    return 2;
+  }
+  World world;
+  if (std::string e = load_world(argv[1], world); !e.empty()) {
+    std::fprintf(stderr, "ev3-sim: %s\n", e.c_str());
+    return 2;
+  }
+  std::fputs(world_json(world).c_str(), stdout);
+  return 0;
+}
+
 // Writes @p path whole or not at all (a temporary file renamed over it).
 bool write_file_atomic(const std::string& path, const std::string& data) {
   const std::string tmp = path + ".tmp";
@@ -682,6 +711,7 @@ int run(App& app) {
 
 int main(int argc, char** argv) {
   if (argc > 1 && std::strcmp(argv[1], "exec") == 0) return exec_main(argc - 1, argv + 1);
+  if (argc > 1 && std::strcmp(argv[1], "world") == 0) return world_main(argc - 1, argv + 1);
   App app;
   app.log.set_name("sim");
   std::string err = parse_sim_options(argc, argv, app.opt);
@@ -698,13 +728,8 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "ev3-sim: cannot open the log file %s: %s\n", app.opt.log_file.c_str(), std::strerror(errno));
     return 2;
   }
-  std::string text;
-  if (!read_file(app.opt.world, text)) {
-    std::fprintf(stderr, "ev3-sim: cannot read the world file %s: %s\n", app.opt.world.c_str(), std::strerror(errno));
-    return 2;
-  }
   World world;
-  if (std::string e = parse_world(text, app.opt.world, world); !e.empty()) {
+  if (std::string e = load_world(app.opt.world, world); !e.empty()) {
     std::fprintf(stderr, "ev3-sim: %s\n", e.c_str());
     return 2;
   }

@@ -48,7 +48,8 @@ std::string sim_usage() {
       "snapshot [FILE], status [FILE], quit. Exit status: 0, 1 on a runtime error (no /dev/fuse,\n"
       "a mount failing), 2 on bad arguments or a bad world file.\n\n"
       "ev3-sim exec (--robot N|NAME | --sysfs-root DIR) -- COMMAND [ARGS]... runs a program written\n"
-      "for a brick with a running ev3-sim's robot tree as /sys/class (ev3-sim exec --help).",
+      "for a brick with a running ev3-sim's robot tree as /sys/class (ev3-sim exec --help).\n"
+      "ev3-sim world FILE checks a world file and prints it as JSON.",
       specs());
 }
 

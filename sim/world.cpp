@@ -2,7 +2,10 @@
 
 #include <cerrno>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
+
+#include <ev3proto/json.hpp>
 
 namespace ev3sim {
 
@@ -266,6 +269,51 @@ std::string parse_world(const std::string& text, const std::string& name, World&
                ": the " + o.what + " leaves the bounds (line " + std::to_string(bounds_line) + ")";
   out = std::move(w);
   return {};
+}
+
+namespace {
+
+// A coordinate as JSON (ten significant digits: far below a millimetre).
+std::string num(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+std::string point(Vec2 p) { return "[" + num(p.x) + ", " + num(p.y) + "]"; }
+
+std::string polygon(const std::vector<Vec2>& poly) {
+  std::string s = "[";
+  for (std::size_t i = 0; i < poly.size(); ++i) s += (i ? ", " : "") + point(poly[i]);
+  return s + "]";
+}
+
+}  // namespace
+
+std::string world_json(const World& w) {
+  std::string s = "{\"name\": " + ev3proto::json_quote(w.name) + ",\n \"bounds\": [" + num(w.x0) + ", " +
+                  num(w.y0) + ", " + num(w.x1) + ", " + num(w.y1) + "],\n \"ground\": {\"colour\": " +
+                  ev3proto::json_quote(colour_name(w.ground)) + ", \"reflect\": " +
+                  std::to_string(w.ground_reflect) + "},\n \"walls\": [";
+  for (std::size_t i = 0; i < w.walls.size(); ++i) {
+    const Segment& g = w.walls[i].seg;
+    s += std::string(i ? ", " : "") + "[" + num(g.a.x) + ", " + num(g.a.y) + ", " + num(g.b.x) + ", " +
+         num(g.b.y) + "]";
+  }
+  s += "],\n \"boxes\": [";
+  for (std::size_t i = 0; i < w.boxes.size(); ++i) s += (i ? ", " : "") + polygon(w.boxes[i].shape);
+  s += "],\n \"patches\": [";
+  for (std::size_t i = 0; i < w.patches.size(); ++i) {
+    const FloorPatch& p = w.patches[i];
+    s += std::string(i ? ",\n  " : "") + "{\"colour\": " + ev3proto::json_quote(colour_name(p.colour)) +
+         ", \"reflect\": " + std::to_string(p.reflect) + ", \"poly\": " + polygon(p.poly) + "}";
+  }
+  s += "],\n \"starts\": [";
+  for (std::size_t i = 0; i < w.starts.size(); ++i) {
+    const StartPose& p = w.starts[i];
+    s += std::string(i ? ", " : "") + "[" + num(p.x) + ", " + num(p.y) + ", " + num(p.heading_deg) + "]";
+  }
+  return s + "]}\n";
 }
 
 }  // namespace ev3sim

@@ -239,7 +239,8 @@ class Demo:
         out = self.dir / "view.out"
         self.view = subprocess.Popen(
             [sys.executable, "-m", "ev3fleet.cli", "serve", "--db", str(self.dir / "mission.db"),
-             "--control", str(self.dir / "master.sock"), "--world", str(WORLD), "--bind", f"127.0.0.1:{port}"],
+             "--control", str(self.dir / "master.sock"), "--world", str(WORLD), "--sim", str(self.bin / "ev3-sim"),
+             "--bind", f"127.0.0.1:{port}"],
             stdin=subprocess.DEVNULL, stdout=open(out, "wb"), stderr=subprocess.STDOUT)
         end = time.monotonic() + 15
         while "the fleet's view at" not in out.read_text(errors="replace"):
@@ -639,7 +640,7 @@ class Demo:
         print(f"\n  logs, NDJSON traces and the last status JSON: {self.dir}/")
         print(f"  the mission record: {self.dir / 'mission.db'}; see it again in the web view with\n"
               f"    .venv/bin/ev3-fleet serve --db {self.dir / 'mission.db'} --control {self.dir / 'master.sock'} "
-              f"--world {WORLD}")
+              f"--world {WORLD} --sim {self.bin / 'ev3-sim'}")
         svg = self.dir / "paths.svg"
         print(f"  the robots' paths (ev3-sim --snapshot): {svg}" if svg.exists() else "  no snapshot (ev3-sim did not stop cleanly)")
         if self.signed:

@@ -3,7 +3,7 @@
     ev3-fleet summary DB
     ev3-fleet export DB --table reports --format csv|parquet [--out FILE]
     ev3-fleet plot DB --robot ID --sensor PORT [--out FILE.png|FILE.svg]
-    ev3-fleet serve --db DB --control PATH [--bind HOST:PORT] [--world FILE] [--token-file FILE]
+    ev3-fleet serve --db DB --control PATH [--bind HOST:PORT] [--world FILE [--sim PATH]] [--token-file FILE]
 """
 
 from __future__ import annotations
@@ -142,7 +142,10 @@ def main(argv: list[str] | None = None) -> int:
     v.add_argument("--db", required=True, type=Path, help="the master's --db record")
     v.add_argument("--control", required=True, help="the master's --control socket")
     v.add_argument("--bind", default="127.0.0.1:8080", help="HOST:PORT to serve on (default 127.0.0.1:8080)")
-    v.add_argument("--world", type=Path, help="an ev3-sim world file drawn under the robots' paths")
+    v.add_argument("--world", type=Path,
+                   help="the world drawn under the robots' paths: an ev3-sim world file, or the JSON "
+                        "`ev3-sim world FILE` prints")
+    v.add_argument("--sim", help="the ev3-sim that reads a --world file (default: ev3-sim on PATH)")
     v.add_argument("--token-file", type=Path,
                    help="the token control actions need (default: none on loopback, a new one elsewhere)")
     a = ap.parse_args(argv)
@@ -150,7 +153,7 @@ def main(argv: list[str] | None = None) -> int:
         from .serve import serve
         from .world import WorldError
         try:
-            return serve(a.db, a.control, a.bind, a.token_file, a.world)
+            return serve(a.db, a.control, a.bind, a.token_file, a.world, a.sim)
         except (ValueError, WorldError) as err:
             print(f"ev3-fleet: {err}", file=sys.stderr)
             return 2

@@ -36,8 +36,8 @@ def map_figure(db, world: World | None):
         for colour, poly in world.patches:
             ax.add_patch(Polygon(poly, closed=True, facecolor=COLOURS.get(colour, "#cccccc"), alpha=0.5,
                                  edgecolor="none"))
-        for x, y, w, h in world.boxes:
-            ax.add_patch(Rectangle((x, y), w, h, facecolor="#777777", edgecolor="#333333"))
+        for box in world.boxes:
+            ax.add_patch(Polygon(box, closed=True, facecolor="#777777", edgecolor="#333333"))
         for xa, ya, xb, yb in world.walls:
             ax.plot([xa, xb], [ya, yb], color="#333333", linewidth=3)
         ax.set_xlim(x0 - 5, x1 + 5)

@@ -359,7 +359,8 @@ def read_token(token_file: Path) -> str:
     return token
 
 
-def serve(db: Path, control_path: str, bind: str, token_file: Path | None, world_file: Path | None) -> int:
+def serve(db: Path, control_path: str, bind: str, token_file: Path | None, world_file: Path | None,
+          sim: str | None = None) -> int:
     host, _, port_text = bind.rpartition(":")
     if not host or not port_text.isdigit() or not 0 < int(port_text) < 65536:
         raise ValueError(f"--bind {bind}: expected HOST:PORT, e.g. 127.0.0.1:8080")
@@ -369,7 +370,7 @@ def serve(db: Path, control_path: str, bind: str, token_file: Path | None, world
     generated = token is None and not is_loopback(host)
     if generated:
         token = secrets.token_urlsafe(24)
-    world = World.read(world_file) if world_file is not None else None
+    world = World.read(world_file, sim) if world_file is not None else None
     hub = Hub(Path(db), control_path, token, world)
     return asyncio.run(_serve(hub, host.strip("[]"), int(port_text), generated))
 

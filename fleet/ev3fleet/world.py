@@ -1,74 +1,63 @@
-"""An ev3-sim world file (docs/devices.md "The world file") read for drawing: its bounds, walls,
-boxes, floor patches and start poses, in centimetres. ev3-sim checks the file; this reader takes
-what it draws and names the line of anything it cannot read."""
+"""An ev3-sim world for drawing: its bounds, walls, boxes, floor patches and start poses, in
+centimetres. ev3-sim is the one reader of the world format (docs/devices.md "World files"):
+`ev3-sim world FILE` checks a file and prints it as JSON, which this module takes, from a file
+holding that JSON or by running ev3-sim on a world file."""
 
 from __future__ import annotations
 
+import json
+import os
+import shutil
+import subprocess
 from dataclasses import dataclass, field
 from pathlib import Path
 
 COLOURS = {"none": "#ffffff", "black": "#222222", "blue": "#3b6fd8", "green": "#3fa34d", "yellow": "#f2d21b",
            "red": "#d83b3b", "white": "#f4f4f4", "brown": "#8b5a2b"}
 
+Point = tuple[float, float]
+
 
 class WorldError(ValueError):
-    """A world file this reader cannot draw (the message names the file and line)."""
+    """A world that cannot be drawn (the message says why: ev3-sim's own error for a bad file)."""
 
 
 @dataclass
 class World:
     bounds: tuple[float, float, float, float] = (0.0, 0.0, 0.0, 0.0)
     walls: list[tuple[float, float, float, float]] = field(default_factory=list)
-    boxes: list[tuple[float, float, float, float]] = field(default_factory=list)
-    patches: list[tuple[str, list[tuple[float, float]]]] = field(default_factory=list)  # colour, polygon
+    boxes: list[list[Point]] = field(default_factory=list)                 # polygons
+    patches: list[tuple[str, list[Point]]] = field(default_factory=list)  # colour, polygon; bottom first
     starts: list[tuple[float, float, float]] = field(default_factory=list)
 
     @staticmethod
-    def read(path: Path) -> "World":
+    def read(path: Path, sim: str | None = None) -> "World":
+        """The world of @path: the JSON `ev3-sim world` prints, or a world file, which the ev3-sim
+        at @sim (default: `ev3-sim` on PATH) reads."""
         try:
             text = Path(path).read_text()
-        except OSError as e:
-            raise WorldError(f"{path}: {e.strerror}") from None
-        w = World()
-        has_bounds = False
-        for n, raw in enumerate(text.splitlines(), 1):
-            words = raw.split("#", 1)[0].split()
-            if not words:
-                continue
-            try:
-                kind, args = words[0], words[1:]
-                if kind == "bounds":
-                    w.bounds = tuple(numbers(args, 4))
-                    has_bounds = True
-                elif kind == "wall":
-                    w.walls.append(tuple(numbers(args, 4)))
-                elif kind == "box":
-                    w.boxes.append(tuple(numbers(args, 4)))
-                elif kind == "start":
-                    w.starts.append(tuple(numbers(args, 3)))
-                elif kind == "floor":
-                    colour, shape, rest = args[0], args[1], args[2:]
-                    if "reflect" in rest:
-                        rest = rest[:rest.index("reflect")]
-                    if shape == "rect":
-                        x, y, wd, ht = numbers(rest, 4)
-                        poly = [(x, y), (x + wd, y), (x + wd, y + ht), (x, y + ht)]
-                    elif shape == "poly" and len(rest) >= 6 and len(rest) % 2 == 0:
-                        v = numbers(rest, len(rest))
-                        poly = list(zip(v[0::2], v[1::2]))
-                    else:
-                        raise ValueError(f"a floor patch is 'rect X Y W H' or 'poly X1 Y1 ...', not '{shape}'")
-                    w.patches.append((colour, poly))
-                elif kind not in ("units", "ground"):
-                    raise ValueError(f"unknown statement '{kind}'")
-            except (ValueError, IndexError) as e:
-                raise WorldError(f"{path} line {n}: {e or 'too few words'}") from None
-        if not has_bounds:
-            raise WorldError(f"{path}: no 'bounds' line")
-        return w
+        except (OSError, UnicodeDecodeError) as e:
+            raise WorldError(f"{path}: {getattr(e, 'strerror', None) or e}") from None
+        if text.lstrip().startswith("{"):
+            return World.from_json(text, str(path))
+        exe = sim or shutil.which("ev3-sim")
+        if exe is None or not os.access(exe, os.X_OK):
+            raise WorldError(f"{path} is a world file: reading it needs ev3-sim ({sim or 'ev3-sim on PATH'} not "
+                             f"found); give --sim PATH, or the JSON `ev3-sim world {path}` prints")
+        r = subprocess.run([exe, "world", str(path)], capture_output=True, text=True, timeout=30)
+        if r.returncode != 0:
+            raise WorldError(r.stderr.strip().removeprefix("ev3-sim: ") or f"ev3-sim world {path}: exit {r.returncode}")
+        return World.from_json(r.stdout, str(path))
 
-
-def numbers(words: list[str], n: int) -> list[float]:
-    if len(words) != n:
-        raise ValueError(f"expected {n} numbers, got {len(words)}")
-    return [float(x) for x in words]
+    @staticmethod
+    def from_json(text: str, origin: str) -> "World":
+        try:
+            d = json.loads(text)
+            return World(bounds=tuple(float(v) for v in d["bounds"]),
+                         walls=[tuple(float(v) for v in w) for w in d["walls"]],
+                         boxes=[[(float(x), float(y)) for x, y in b] for b in d["boxes"]],
+                         patches=[(str(p["colour"]), [(float(x), float(y)) for x, y in p["poly"]])
+                                  for p in d["patches"]],
+                         starts=[tuple(float(v) for v in s) for s in d["starts"]])
+        except (ValueError, KeyError, TypeError) as e:
+            raise WorldError(f"{origin}: not the JSON of `ev3-sim world` ({type(e).__name__}: {e})") from None

@@ -79,4 +79,10 @@ struct World {
 /// the first error ("NAME line L col C: ...").
 std::string parse_world(const std::string& text, const std::string& name, World& out);
 
+/// @p w as JSON, in centimetres and degrees (`ev3-sim world FILE` prints it; the web view draws
+/// it): {"name", "bounds": [x0, y0, x1, y1], "ground": {"colour", "reflect"}, "walls": [[xa, ya, xb,
+/// yb], ...], "boxes": [[[x, y], ...], ...], "patches": [{"colour", "reflect", "poly": [[x, y],
+/// ...]}, ...] (bottom first), "starts": [[x, y, heading], ...]}.
+std::string world_json(const World& w);
+
 }  // namespace ev3sim

@@ -58,6 +58,17 @@ TEST(WorldFile, EveryStatement) {
   w.floor_at({150, 150}, c, reflect);
   EXPECT_EQ(c, Colour::None);
   EXPECT_EQ(reflect, 30);
+
+  // As `ev3-sim world` prints it for the web view: the shapes as ev3-sim holds them.
+  EXPECT_EQ(world_json(w),
+            "{\"name\": \"pen.txt\",\n"
+            " \"bounds\": [0, 0, 300, 200],\n"
+            " \"ground\": {\"colour\": \"none\", \"reflect\": 30},\n"
+            " \"walls\": [[100, 0, 100, 120]],\n"
+            " \"boxes\": [[[200, 80], [230, 80], [230, 100], [200, 100]]],\n"
+            " \"patches\": [{\"colour\": \"red\", \"reflect\": 45, \"poly\": [[260, 0], [300, 0], [300, 200], [260, 200]]},\n"
+            "  {\"colour\": \"blue\", \"reflect\": 12, \"poly\": [[20, 150], [60, 150], [40, 190]]}],\n"
+            " \"starts\": [[30, 30, 90], [30.5, 60, -45]]}\n");
 }
 
 TEST(WorldFile, LaterPatchesLieOnTop) {

@@ -22,6 +22,7 @@ from pathlib import Path
 import pytest
 
 from ev3net import Program, free_ports, read_status, sim_agent, start_custom_all, wait_until
+from ev3sim_proc import ev3_sim_path
 
 REPO = Path(__file__).resolve().parents[3]
 WORLD = "bounds 0 0 400 300\nbox 180 130 40 40\nfloor red rect 150 215 100 50\nstart 60 60 0\n"
@@ -87,7 +88,8 @@ def browser():
 
 def test_the_page_shows_the_fleet_and_pauses_a_robot(mission, programs, tmp_path):
     from selenium.webdriver.common.by import By
-    view, port = serve(tmp_path, programs, mission["db"], mission["sock"], "--world", str(mission["world"]))
+    view, port = serve(tmp_path, programs, mission["db"], mission["sock"], "--world", str(mission["world"]),
+                       "--sim", str(ev3_sim_path()))
     a, b = mission["ids"]
     drv = browser()
     try:
@@ -172,8 +174,15 @@ def test_bad_flags_are_refused_at_start(tmp_path):
     assert r.returncode == 2 and "at least 16 printable ASCII characters" in r.stderr, r.stderr
     r = run("--token-file", str(tmp_path / "none"))
     assert r.returncode == 2 and "No such file" in r.stderr, r.stderr
-    r = run("--world", str(tmp_path / "bad-world.txt"))
-    assert r.returncode == 2 and "line 2: unknown statement 'bxo'" in r.stderr, r.stderr
+    # A world file is read by ev3-sim, whose error names the line; without an ev3-sim to read it,
+    # the view says what it needs.
+    r = run("--world", str(tmp_path / "bad-world.txt"), "--sim", str(ev3_sim_path()))
+    assert r.returncode == 2 and "bad-world.txt line 2" in r.stderr and "bxo" in r.stderr, r.stderr
+    r = run("--world", str(tmp_path / "bad-world.txt"), "--sim", str(tmp_path / "no-sim"))
+    assert r.returncode == 2 and "reading it needs ev3-sim" in r.stderr, r.stderr
+    (tmp_path / "bad.json").write_text('{"bounds": [0, 0]}')
+    r = run("--world", str(tmp_path / "bad.json"))
+    assert r.returncode == 2 and "not the JSON of `ev3-sim world`" in r.stderr, r.stderr
 
 
 @pytest.mark.empty_trace
