@@ -18,14 +18,14 @@ from .record import TABLES, NotARecord, open_record
 
 
 def unplugged(db, rid: int) -> str:
-    """"; unplugged: in4": the ports robot @rid told unplugged (DEVICE_DISCONNECTED) since it last told
-    all its devices back (DEVICE_CONNECTED, docs/protocol.md), or ""."""
+    """"; unplugged: in4": the ports robot @rid told unplugged (DEVICE_DISCONNECTED) and not back since
+    (DEVICE_CONNECTED of that port, docs/protocol.md), or ""."""
     ports: list[str] = []
     for (text,) in db.execute("SELECT text FROM reports WHERE agent = ? AND type = 'EVENT' AND text LIKE 'DEVICE!_%' "
                               "ESCAPE '!' ORDER BY row", (rid,)):
         event, _, port = text.partition(":")
-        if event == "DEVICE_CONNECTED":
-            ports = []
+        if event == "DEVICE_CONNECTED" and port in ports:
+            ports.remove(port)
         elif event == "DEVICE_DISCONNECTED" and port not in ports:
             ports.append(port)
     return f"; unplugged: {', '.join(ports)}" if ports else ""

@@ -93,8 +93,10 @@ class RobotLink {
   explicit RobotLink(std::uint32_t announced) noexcept : announced_(announced) {}
 
   /// Once the agent is synced for the first time: the announced devices the runtime has not got
-  /// are unplugged for the core (spec DeviceUnplugged: EVENT DEVICE_DISCONNECTED to the master).
-  /// exchange() calls it; until then plug and unplug events are not the core's.
+  /// are unplugged for the core (spec DeviceUnplugged: EVENT DEVICE_DISCONNECTED with the first
+  /// one's port), and the master hears each other one's port too (RobotEvent: one more gone while
+  /// another is missing), so that it knows every device missing. exchange() calls it; until then
+  /// plug and unplug events are not the core's.
   template <typename Note>
   void report_missing(NodeT& node, const Runtime& rt, Millis now, Note&& note) {
     if (reported_ || !is_synced(node.agent().state())) return;
@@ -106,6 +108,18 @@ class RobotLink {
     n.bits = missing;
     n.taken = node.device_unplugged(missing, to_string(first_port(rt, missing)), now);
     note(n);
+    const std::uint32_t told = missing & (~missing + 1u);  // the lowest bit: first_port's device
+    for (std::size_t i = 0; i < kRoleCount; ++i) {
+      const std::uint32_t bit = role_bit(static_cast<Role>(i));
+      if ((missing & bit) == 0 || bit == told) continue;
+      LinkNote more;
+      more.kind = LinkNote::Kind::event;
+      more.event.kind = EventKind::DEVICE_DISCONNECTED;
+      more.event.dev = rt.ports().of(static_cast<Role>(i));
+      more.event.bits = bit;
+      more.taken = node.robot_event(RobotEventKind::DEVICE_DISCONNECTED, to_string(more.event.dev), now);
+      note(more);
+    }
   }
 
   /// A node event for the robot: the LED pattern and behaviour controls go to the runtime; other

@@ -90,7 +90,7 @@ TEST(RobotLink, DevicesMissingAtStartAreToldTheMasterOnceSynced) {
   r.exchange(0);
   EXPECT_TRUE(r.notes.empty());  // no master to tell yet
   r.datagram("1:7:1:2:50001", 10);  // MASTER: id 7
-  ASSERT_EQ(r.notes.size(), 1u);
+  ASSERT_EQ(r.notes.size(), 5u) << ::testing::PrintToString(r.notes);  // the first, then each other one
   EXPECT_EQ(r.notes[0], "missing " + std::to_string(robot::kModelADevices) + " taken");
   const auto out = r.sent();
   EXPECT_TRUE(has(out, "ACK"));
@@ -99,7 +99,7 @@ TEST(RobotLink, DevicesMissingAtStartAreToldTheMasterOnceSynced) {
   // Spec: no behaviour while a device is missing (devOk); the NOT names the first one missing.
   r.datagram("1:7:2:7:wait:seconds=1", 20);
   EXPECT_EQ(r.sent(), std::vector<std::string>{
-                          "7->1 NOT #3 2 \"missing device: the robot has no left motor (no behaviour runs until it is back)\""});
+                          "7->1 NOT #7 2 \"missing device: the robot has no left motor (no behaviour runs until it is back)\""});  // #2..#6: the EVENTs
 }
 
 // The runtime's contact watchdog is fed the agent core's last contact with its master on every
@@ -366,7 +366,10 @@ TEST(RobotLink, TheFirstMissingDeviceIsToldWithItsPort) {
   r.rt.device_connected(ev3test::large_motor(robot::Dev::outC), 0);
   r.exchange(0);
   r.datagram("1:7:1:2:50001", 10);  // ultrasonic (bit 4), touch, colour missing: the first is in4
-  EXPECT_TRUE(has(r.sent(), "EVENT #2 DEVICE_DISCONNECTED in4"));
+  const auto out = r.sent();
+  EXPECT_TRUE(has(out, "EVENT #2 DEVICE_DISCONNECTED in4"));  // DeviceUnplugged
+  EXPECT_TRUE(has(out, "EVENT #3 DEVICE_DISCONNECTED in1")) << ::testing::PrintToString(out);  // RobotEvent
+  EXPECT_TRUE(has(out, "EVENT #4 DEVICE_DISCONNECTED in3"));
 }
 
 }  // namespace

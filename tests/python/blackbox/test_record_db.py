@@ -154,11 +154,14 @@ def test_ev3_fleet_answers_questions_of_a_record(start_master, agents, tmp_path)
     a, b = registered(agents, m, 2, devices=("left motor", "colour sensor"))
     for seq in range(1, 21):
         report(a, m, seq, 100 - 3 * seq)
-    event = Message(a.id, 1, a.next_msgid(), T["EVENT"], (b"DEVICE_DISCONNECTED", b"in3"))
-    a.send(Message(a.id, 1, event.msgid, T["REPORT"], (b"21", b"1", encode(event))), m.port, 3)
+    # Two devices gone, one back: the summary names the other one's port.
+    for seq, (name, port) in enumerate([(b"DEVICE_DISCONNECTED", b"in3"), (b"DEVICE_DISCONNECTED", b"outC"),
+                                        (b"DEVICE_CONNECTED", b"in3")], 21):
+        event = Message(a.id, 1, a.next_msgid(), T["EVENT"], (name, port))
+        a.send(Message(a.id, 1, event.msgid, T["REPORT"], (str(seq).encode(), b"1", encode(event))), m.port, 3)
     b.send_master("REPORT_DROPPED", "1", "2")
     report(b, m, 3, 5)
-    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 22
+    wait_until(lambda: len(db_rows(db, "SELECT * FROM reports")) == 24
                and db_rows(db, "SELECT count(*) FROM reports_missing") == [(1,)], 3, "the reports in the record")
 
     def fleet(*args):
@@ -167,21 +170,21 @@ def test_ev3_fleet_answers_questions_of_a_record(start_master, agents, tmp_path)
     r = fleet("summary", str(db))
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
-    assert lines[0].startswith("2 robots, 22 reports")
+    assert lines[0].startswith("2 robots, 24 reports")
     row_a = next(x for x in lines[2:] if x.split()[0] == str(a.id))
     row_b = next(x for x in lines[2:] if x.split()[0] == str(b.id))
-    assert " 21  1-21 " in row_a and " 1  3-3 " in row_b and "2 dropped" in row_b
-    assert f"robot {a.id} devices: left motor, colour sensor; unplugged: in3" in lines
+    assert " 23  1-23 " in row_a and " 1  3-3 " in row_b and "2 dropped" in row_b
+    assert f"robot {a.id} devices: left motor, colour sensor; unplugged: outC" in lines
     assert f"robot {b.id} devices: none" in lines
     r = fleet("export", str(db), "--table", "reports", "--format", "csv", "--out", "r.csv")
     assert r.returncode == 0, r.stderr
     rows = (tmp_path / "r.csv").read_text().splitlines()
-    assert rows[0] == "row,t_ms,agent,seq,type,text" and len(rows) == 23
+    assert rows[0] == "row,t_ms,agent,seq,type,text" and len(rows) == 25
     r = fleet("export", str(db), "--table", "reports", "--format", "parquet")
     assert r.returncode == 0, r.stderr
     import pyarrow.parquet as pq
     t = pq.read_table(tmp_path / "reports.parquet")
-    assert t.num_rows == 22 and sorted(t.column("seq").to_pylist()) == sorted([*range(1, 22), 3])
+    assert t.num_rows == 24 and sorted(t.column("seq").to_pylist()) == sorted([*range(1, 24), 3])
     for out in ("a.png", "a.svg"):
         r = fleet("plot", str(db), "--robot", str(a.id), "--sensor", "in4", "--out", out)
         assert r.returncode == 0, r.stderr
