@@ -874,17 +874,13 @@ class Runtime {
   }
 
   /// Odometry from this tick's wheel positions; while the robot works (an action or a behaviour
-  /// runs, not paused), its pose every pose_ms when it moved, and once more pose_ms after the last
-  /// report of the work that ended (or paused): where the wheels came to rest.
+  /// runs, not paused), its pose every pose_ms when it moved.
   void dead_reckon(Millis now) noexcept {
     if (!body_.left_pos.valid || !body_.right_pos.valid) return;  // a wheel missing or not read yet
     odometry_.update(body_.left_pos.position, body_.right_pos.position,
                      mm_per_count(cfg_.geo, body_.left.info().count_per_rot),
                      mm_per_count(cfg_.geo, body_.right.info().count_per_rot), cfg_.geo);
-    const bool working = (runner_.active() || behaviour_) && !runner_.paused();
-    if (working) pose_tail_ = true;
-    if (cfg_.pose_ms == 0 || now < next_pose_ || !pose_tail_) return;
-    if (!working) pose_tail_ = false;  // the report at rest: the last until it works again
+    if (cfg_.pose_ms == 0 || now < next_pose_ || !(runner_.active() || behaviour_) || runner_.paused()) return;
     next_pose_ = now + cfg_.pose_ms;
     if (!odometry_.report_due()) return;
     const Pose& p = odometry_.pose();
@@ -952,7 +948,6 @@ class Runtime {
   bool behaviour_ = false;         ///< the automaton drives the runner (a behaviour was started)
   Odometry odometry_;              ///< the pose from the wheels' positions
   Millis next_pose_ = 0;           ///< the next pose report is due then
-  bool pose_tail_ = false;         ///< worked since the last pose report: one more is due at rest
   bool armed_ = false;             ///< the contact watchdog is armed (contact() was called)
   bool held_ = false;              ///< the watchdog holds the wheels
   std::uint32_t holds_ = 0;        ///< times it did

@@ -485,11 +485,9 @@ TEST(Odometry, TheRuntimeReportsItsPoseWhileItWorksAndMoves) {
   EXPECT_EQ(got[0].pos, 360 + 8);
   rt.control(ev3proto::ControlKind::pause, "drive", args, 1, 2700);
   step = 0;
-  pos += 100;  // moved while paused: reported once, a second after the last report, then no more
+  pos += 100;  // moved while paused: not reported until it works again
   run(2700, 4700);
-  ASSERT_EQ(got.size(), 4u) << "one report at rest, then nothing while paused";
-  EXPECT_EQ(got[3].pos, pos);
-  EXPECT_EQ(got[3].rep.values[0].raw, along(pos));
+  EXPECT_EQ(got.size(), 3u) << "nothing while paused";
   const std::int32_t before = pos;
   rt.device_disconnected(Dev::outC, 4701);  // unplugged and back: its count starts from 0 again
   rt.device_connected(ev3test::large_motor(Dev::outC), 4702);
@@ -497,10 +495,10 @@ TEST(Odometry, TheRuntimeReportsItsPoseWhileItWorksAndMoves) {
   rt.control(ev3proto::ControlKind::resume, "drive", args, 1, 4703);
   step = 8;
   run(4703, 5800);
-  ASSERT_GE(got.size(), 5u);
+  ASSERT_GE(got.size(), 4u);
   // The first read after the plug is the new base: the step the wheels made up to it is not counted.
-  EXPECT_EQ(got[4].rep.values[0].raw, along(got[4].pos - 8)) << "the replugged wheel's new zero is not a move";
-  EXPECT_EQ(got[4].rep.values[2].raw, 450);
+  EXPECT_EQ(got[3].rep.values[0].raw, along(got[3].pos - 8)) << "the replugged wheel's new zero is not a move";
+  EXPECT_EQ(got[3].rep.values[2].raw, 450);
 }
 
 TEST(RobotGarbage, PositionsAtTheEndsOfTheRangeAreFarApart) {
