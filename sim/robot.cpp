@@ -290,8 +290,8 @@ void Robot::set_led_trigger(int i, const std::string& trigger) {
               l.trigger_since = now_;
               return WriteResult{};
             });
+        tree_.give_to_ev3dev_group(tree_.resolve(dir + "/" + which));  // the new file only: chmods stay
       }
-      tree_.give_to_ev3dev_group(tree_.resolve(dir));
     }
   } else if (was_timer) {
     for (const char* which : {"delay_on", "delay_off"})

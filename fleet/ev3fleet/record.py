@@ -30,5 +30,7 @@ def open_record(path: str | Path) -> sqlite3.Connection:
         raise NotARecord(f"{p} is not an ev3-master record (application_id {app}, not {APPLICATION_ID})")
     if version != SCHEMA:
         db.close()
-        raise NotARecord(f"{p} has schema {version}; this ev3-fleet reads schema {SCHEMA}")
+        hint = " (an ev3-master of this version migrates it: run it once with --db on the file)" \
+            if version < SCHEMA else ""
+        raise NotARecord(f"{p} has schema {version}; this ev3-fleet reads schema {SCHEMA}{hint}")
     return db

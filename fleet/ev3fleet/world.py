@@ -41,23 +41,38 @@ class World:
         if text.lstrip().startswith("{"):
             return World.from_json(text, str(path))
         exe = sim or shutil.which("ev3-sim")
-        if exe is None or not os.access(exe, os.X_OK):
-            raise WorldError(f"{path} is a world file: reading it needs ev3-sim ({sim or 'ev3-sim on PATH'} not "
-                             f"found); give --sim PATH, or the JSON `ev3-sim world {path}` prints")
-        r = subprocess.run([exe, "world", str(path)], capture_output=True, text=True, timeout=30)
+        if exe is None or not os.path.isfile(exe) or not os.access(exe, os.X_OK):
+            why = f"{sim} is not an executable file" if sim else "no ev3-sim on PATH"
+            raise WorldError(f"{path} is a world file: reading it needs ev3-sim ({why}); give --sim PATH, or the "
+                             f"JSON `ev3-sim world {path}` prints")
+        try:
+            r = subprocess.run([exe, "world", str(path)], capture_output=True, text=True, timeout=30)
+        except (OSError, subprocess.TimeoutExpired) as e:
+            raise WorldError(f"{exe} world {path}: {getattr(e, 'strerror', None) or e}") from None
         if r.returncode != 0:
             raise WorldError(r.stderr.strip().removeprefix("ev3-sim: ") or f"ev3-sim world {path}: exit {r.returncode}")
         return World.from_json(r.stdout, str(path))
 
     @staticmethod
     def from_json(text: str, origin: str) -> "World":
+        def numbers(values, n: int) -> tuple:
+            out = tuple(float(v) for v in values)
+            if len(out) != n:
+                raise ValueError(f"{len(out)} numbers where {n} belong")
+            return out
+
+        def polygon(points) -> list[Point]:
+            out = [numbers(p, 2) for p in points]
+            if len(out) < 3:
+                raise ValueError(f"a polygon of {len(out)} points")
+            return out
+
         try:
             d = json.loads(text)
-            return World(bounds=tuple(float(v) for v in d["bounds"]),
-                         walls=[tuple(float(v) for v in w) for w in d["walls"]],
-                         boxes=[[(float(x), float(y)) for x, y in b] for b in d["boxes"]],
-                         patches=[(str(p["colour"]), [(float(x), float(y)) for x, y in p["poly"]])
-                                  for p in d["patches"]],
-                         starts=[tuple(float(v) for v in s) for s in d["starts"]])
+            return World(bounds=numbers(d["bounds"], 4),
+                         walls=[numbers(w, 4) for w in d["walls"]],
+                         boxes=[polygon(b) for b in d["boxes"]],
+                         patches=[(str(p["colour"]), polygon(p["poly"])) for p in d["patches"]],
+                         starts=[numbers(s, 3) for s in d["starts"]])
         except (ValueError, KeyError, TypeError) as e:
             raise WorldError(f"{origin}: not the JSON of `ev3-sim world` ({type(e).__name__}: {e})") from None

@@ -87,9 +87,9 @@ class Tree {
   void remove(Ino ino);
   /// Bumped by every change of structure (for caches).
   std::uint64_t version() const { return version_; }
-  /// ev3dev's udev rules on a class device: every attribute file under the directory @p dir
-  /// goes to group ev3dev with the owner's permission bits copied to the group's (0644 -> 0664,
-  /// 0200 -> 0220, 0444 -> 0444). Directories and symlinks stay as they are.
+  /// ev3dev's udev rules on a class device: every attribute file under the directory @p dir (or
+  /// the file @p dir itself) goes to group ev3dev with the owner's permission bits copied to the
+  /// group's (0644 -> 0664, 0200 -> 0220, 0444 -> 0444). Directories and symlinks stay as they are.
   void give_to_ev3dev_group(Ino dir);
 
   /// sysfs_notify: the attribute changed in a way pollers wait for (POLLPRI, POLLERR). Counts
