@@ -253,7 +253,7 @@ def test_poll_on_state_signals_every_change_at_once(sim_factory):
         assert events and events[0][1] & select.POLLPRI and events[0][1] & select.POLLERR
         assert os.pread(fd, 4096, 0) == b"\n"
         print(f"POLLPRI on state: woke {t_wake * 1000:.1f} ms after a 1000 ms run-timed command")
-        assert 0.99 <= t_wake <= 1.8, t_wake
+        assert 0.9 <= t_wake <= 1.8, t_wake
     finally:
         os.close(fd)
 
