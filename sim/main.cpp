@@ -18,6 +18,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
@@ -335,9 +336,7 @@ void wake_pollers(App& app) {
     if (changed.empty() || m.polled.empty()) continue;
     for (auto it = m.polled.begin(); it != m.polled.end();) {
       FileHandle* h = *it;
-      bool hit = false;
-      for (Ino c : changed) hit = hit || c == h->ino;
-      if (!hit) {
+      if (std::find(changed.begin(), changed.end(), h->ino) == changed.end()) {
         ++it;
         continue;
       }

@@ -216,7 +216,8 @@ void Robot::add_lego_ports() {
       const std::string d = plugged(port);
       if (d.empty()) return text(input ? "no-sensor\n" : "no-motor\n");
       if (!input) return text("tacho-motor\n");
-      return text(d == "lego-ev3-touch" ? "ev3-analog\n" : "ev3-uart\n");  // the touch sensor is analog
+      const SensorDef* s = sensor_def(d);  // the touch sensor is EV3/Analog, the others EV3/UART
+      return text(s != nullptr && s->kind == SensorKind::Touch ? "ev3-analog\n" : "ev3-uart\n");
     }, nullptr);
     tree_.give_to_ev3dev_group(tree_.resolve(dir));
   }

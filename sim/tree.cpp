@@ -1,5 +1,6 @@
 #include "ev3sim/tree.hpp"
 
+#include <algorithm>
 #include <cerrno>
 
 namespace ev3sim {
@@ -154,9 +155,7 @@ void Tree::notify(Ino ino) {
   if (it == nodes_.end() || !it->second.alive) return;
   Node& n = it->second;
   // Queued once until taken: a node already counted since the last take is in the queue.
-  bool queued = false;
-  for (Ino q : notified_) queued = queued || q == ino;
-  if (!queued) notified_.push_back(ino);
+  if (std::find(notified_.begin(), notified_.end(), ino) == notified_.end()) notified_.push_back(ino);
   ++n.event;
 }
 

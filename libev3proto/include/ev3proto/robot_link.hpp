@@ -103,22 +103,25 @@ class RobotLink {
     reported_ = true;
     const std::uint32_t missing = announced_ & ~rt.plugged();
     if (missing == 0) return;
-    LinkNote n;
-    n.kind = LinkNote::Kind::missing;
-    n.bits = missing;
-    n.taken = node.device_unplugged(missing, to_string(first_port(rt, missing)), now);
-    note(n);
-    const std::uint32_t told = missing & (~missing + 1u);  // the lowest bit: first_port's device
+    bool first = true;
     for (std::size_t i = 0; i < kRoleCount; ++i) {
       const std::uint32_t bit = role_bit(static_cast<Role>(i));
-      if ((missing & bit) == 0 || bit == told) continue;
-      LinkNote more;
-      more.kind = LinkNote::Kind::event;
-      more.event.kind = EventKind::DEVICE_DISCONNECTED;
-      more.event.dev = rt.ports().of(static_cast<Role>(i));
-      more.event.bits = bit;
-      more.taken = node.robot_event(RobotEventKind::DEVICE_DISCONNECTED, to_string(more.event.dev), now);
-      note(more);
+      if ((missing & bit) == 0) continue;
+      const Dev port = rt.ports().of(static_cast<Role>(i));
+      LinkNote n;
+      if (first) {  // DeviceUnplugged for all of them, told with this one's port
+        n.kind = LinkNote::Kind::missing;
+        n.bits = missing;
+        n.taken = node.device_unplugged(missing, to_string(port), now);
+        first = false;
+      } else {
+        n.kind = LinkNote::Kind::event;
+        n.event.kind = EventKind::DEVICE_DISCONNECTED;
+        n.event.dev = port;
+        n.event.bits = bit;
+        n.taken = node.robot_event(RobotEventKind::DEVICE_DISCONNECTED, to_string(port), now);
+      }
+      note(n);
     }
   }
 
@@ -256,13 +259,6 @@ class RobotLink {
     };
     drain(rt, node, now, counting);
     return any;
-  }
-
-  /// The port of the lowest of @p bits (a model role's device bit) in the runtime's port map.
-  static Dev first_port(const Runtime& rt, std::uint32_t bits) noexcept {
-    for (std::size_t i = 0; i < kRoleCount; ++i)
-      if ((bits & role_bit(static_cast<Role>(i))) != 0) return rt.ports().of(static_cast<Role>(i));
-    return Dev::outA;  // not reached: report_missing() passes a model device's bits
   }
 
   std::uint32_t announced_;
