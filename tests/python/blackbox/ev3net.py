@@ -240,6 +240,10 @@ class FakeAgent(Node):
         self.msgid += 1
         return self.msgid
 
+    def command_types(self) -> list[int]:
+        """The types of the commands received, one per msgid (copies counted once), in order."""
+        return list({x.msgid: x.type for x in self.commands}.values())
+
     def send_master(self, type_name: str, *params: str, sender: int | None = None, copies: int = 3) -> int:
         mid = self.next_msgid()
         self.send(Message(self.id if sender is None else sender, 1 if type_name not in ("AGENT", "PANIC") else 0,

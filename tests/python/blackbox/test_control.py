@@ -87,7 +87,7 @@ def test_the_control_socket_drives_a_fleet(start_master, agents):
                              {"agent": max(a.id, b.id), "answer": "acked"}]}
     assert c.ask("start all").startswith("ok: all START: ")
     # each command once per msgid (a copy may leave before the robot's ACK reaches the master)
-    assert list({x.msgid: x.type for x in b.commands}.values())[:2] == [T["BEHAVIOUR"], T["START"]]
+    assert b.command_types()[:2] == [T["BEHAVIOUR"], T["START"]]
     text = c.ask("list")
     assert "\n" not in text and str(a.id) in text and "drops:" in text
     assert "(control socket)" in m.stdout()  # the operator sees what the socket did

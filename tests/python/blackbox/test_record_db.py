@@ -50,7 +50,7 @@ def test_the_record_holds_robots_states_commands_and_each_report_once(start_mast
     # The robot pings ACTIVE, not WORKING, so the core sends BEHAVIOUR and START again itself
     # (reconcile): only the operator's two are rows, each with the answer to it.
     # (each command once: a copy the master resent before the agent's ACK reached it has its msgid)
-    wait_until(lambda: list({x.msgid: x.type for x in a.commands}.values())[:2] == [T["BEHAVIOUR"], T["START"]], 3,
+    wait_until(lambda: a.command_types()[:2] == [T["BEHAVIOUR"], T["START"]], 3,
                "BEHAVIOUR and START")
     wait_until(lambda: len([x for x in a.commands if x.type == T["START"]]) >= 3, 3, "reconcile's own STARTs")
     for seq in (1, 2, 3):

@@ -21,6 +21,7 @@
 /// Every action fails when a reading it needs has been missing or garbage for stale_ms.
 #pragma once
 
+#include <algorithm>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -552,15 +553,14 @@ class ActionRunner {
 
   /// Counts for @p mm of travel of wheel @p w (its own count_per_rot).
   static std::int32_t counts_for_mm(double mm, const Body& b, const Tacho& m) noexcept {
-    const double per_rot = kPi * b.geo.wheel_diameter_mm;
-    return static_cast<std::int32_t>(std::lround(mm * m.info().count_per_rot / per_rot));
+    return static_cast<std::int32_t>(std::lround(mm / mm_per_count(b.geo, m.info().count_per_rot)));
   }
   static double mm_for_counts(std::int64_t counts, const Body& b, const Tacho& m) noexcept {
-    return static_cast<double>(counts) * kPi * b.geo.wheel_diameter_mm / m.info().count_per_rot;
+    return static_cast<double>(counts) * mm_per_count(b.geo, m.info().count_per_rot);
   }
   /// @p v held within std::int32_t (a target beyond a motor's position range is at its end).
   static constexpr std::int32_t clamp32(std::int64_t v) noexcept {
-    return v < INT32_MIN ? INT32_MIN : v > INT32_MAX ? INT32_MAX : static_cast<std::int32_t>(v);
+    return static_cast<std::int32_t>(std::clamp<std::int64_t>(v, INT32_MIN, INT32_MAX));
   }
 
   Outcome start_move(Ctx& c) noexcept {
